@@ -1,0 +1,219 @@
+"""Closed-form limits of the lens-on-pillars contact (SI units throughout).
+
+Every formula cites its source; PHYSICS.md lists the paper's typos these corrections fix.
+``gamma`` always means a compliance (1 - nu^2) / E in 1/Pa.
+
+References
+----------
+.. [J] K. L. Johnson, *Contact Mechanics*, Cambridge University Press, 1985.
+.. [P] R. Ledesma-Alonso et al., "Stress concentration in periodically rough hertzian
+   contact: Hertz to soft-flat-punch transition" (the seed paper).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import brentq
+
+from ._scene import PHI_CLOSE_PACKING, Scene, SceneError
+
+
+# --- Hertz ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Hertz:
+    """Sphere of radius R on a half-space, indentation zeta ([J] sec. 4.2; [P] eq. S0Hertz).
+
+    Attributes: ``contact_radius`` a = sqrt(R zeta) (m), ``centre_pressure``
+    sigma_0H = 2 sqrt(zeta / R) / (pi gamma) (Pa), ``force`` F = (2 pi / 3) R zeta sigma_0H (N).
+    """
+
+    radius: float
+    indentation: float
+    compliance: float
+
+    @property
+    def contact_radius(self) -> float:
+        return math.sqrt(self.radius * self.indentation)
+
+    @property
+    def centre_pressure(self) -> float:
+        return 2.0 * math.sqrt(self.indentation / self.radius) / (math.pi * self.compliance)
+
+    @property
+    def force(self) -> float:
+        return 2.0 * math.pi / 3.0 * self.radius * self.indentation * self.centre_pressure
+
+    @property
+    def contact_area(self) -> float:
+        return math.pi * self.radius * self.indentation
+
+    def pressure(self, r):
+        """sigma(r) = sigma_0H sqrt(1 - r^2 / a^2), zero outside (Pa)."""
+        s = 1.0 - (np.asarray(r, dtype=float) / self.contact_radius) ** 2
+        return self.centre_pressure * np.sqrt(np.clip(s, 0.0, None))
+
+    @staticmethod
+    def indentation_for_force(force: float, radius: float, compliance: float) -> float:
+        """Inverse of ``force``: zeta = (3 F gamma / (4 sqrt R))^(2/3)."""
+        return (3.0 * force * compliance / (4.0 * math.sqrt(radius))) ** (2.0 / 3.0)
+
+
+def hertz(scene: Scene) -> Hertz:
+    return Hertz(scene.lens.radius_m, scene.indentation_m, scene.half_space_compliance)
+
+
+# --- flat punches ----------------------------------------------------------------------
+@dataclass(frozen=True)
+class FlatPunch:
+    """Flat punch of diameter d pressed by ``indentation`` into half-spaces of total compliance
+    ``compliance`` ([J] eq. 3.35-3.36; [P] eqs. SFSFP, S0SFPInf, S0SFP).
+
+    With ``compliance`` = gamma_l (+ gamma_s) this is the rigid punch; with the effective
+    gamma* of :func:`spring_model` it is the paper's soft-flat-punch model.
+    """
+
+    diameter: float
+    indentation: float
+    compliance: float
+
+    @property
+    def centre_pressure(self) -> float:
+        """sigma_0S = 2 zeta / (pi d gamma) (Pa)."""
+        return 2.0 * self.indentation / (math.pi * self.diameter * self.compliance)
+
+    @property
+    def force(self) -> float:
+        """F = pi d^2 sigma_0S / 2 = d zeta / gamma (N)."""
+        return math.pi * self.diameter**2 * self.centre_pressure / 2.0
+
+    def pressure(self, r):
+        """sigma(r) = sigma_0S [1 - (2r/d)^2]^(-1/2) for r < d/2, zero outside (Pa)."""
+        r = np.asarray(r, dtype=float)
+        s = 1.0 - (2.0 * r / self.diameter) ** 2
+        out = np.zeros_like(s)
+        inside = s > 0
+        out[inside] = self.centre_pressure / np.sqrt(s[inside])
+        return out
+
+
+def _single_pillar(scene: Scene):
+    if scene.pillars is None:
+        raise SceneError("this limit needs a scene with pillars (the scene is flat)")
+    return scene.pillars
+
+
+def rigid_punch(scene: Scene) -> FlatPunch:
+    """Rigid pillar on a rigid substrate pressed into the lens (compliance gamma_l)."""
+    p = _single_pillar(scene)
+    gamma = scene.lens.material.compliance
+    if gamma == 0.0:
+        raise SceneError("rigid punch limit needs an elastic lens (lens.rigid is true)")
+    return FlatPunch(p.diameter_m, scene.indentation_m, gamma)
+
+
+def effective_compliance(scene: Scene) -> float:
+    """gamma* = gamma_l + gamma_s + 4 h / (pi d E_p) (1/Pa): half-spaces and the Hooke pillar
+    in series ([P] eq. for gamma*, with nu_f read as nu_l)."""
+    p = _single_pillar(scene)
+    spring = 0.0 if p.material.rigid else 4.0 * p.height_m / (math.pi * p.diameter_m * p.material.E_Pa)
+    return scene.half_space_compliance + spring
+
+
+def spring_model(scene: Scene) -> FlatPunch:
+    """The paper's soft-flat-punch model: one Hooke pillar between two half-spaces."""
+    p = _single_pillar(scene)
+    return FlatPunch(p.diameter_m, scene.indentation_m, effective_compliance(scene))
+
+
+# --- thresholds ------------------------------------------------------------------------
+def stiffness_number(scene: Scene) -> float:
+    """Pi = pi + 4 h / (d (gamma_l + gamma_s) E_p) = pi gamma* / (gamma_l + gamma_s)."""
+    return math.pi * effective_compliance(scene) / scene.half_space_compliance
+
+
+def second_pillar_radius(scene: Scene) -> float:
+    """r_S, the outer root of eq. rSzeta of [P]:
+    R - sqrt(R^2 - r^2) + [(2 / Pi) arcsin(d / (2 r)) - 1] zeta = 0  (m).
+
+    The centre punch lifts the half-space surfaces by (2/pi) w_0 arcsin(d / 2r) outside it
+    ([J] eq. 3.37).  For Pi close to pi a spurious root sits just above d/2; the physical
+    threshold is the outer root, found by scanning inwards from where the gap is positive.
+    A pitch is never below d, so the scan stops at r = d; when the gap stays open down to d
+    no lattice brings a second pillar into contact and r_S = d (Phi_S = close packing).
+    """
+    p = _single_pillar(scene)
+    R, d, zeta = scene.lens.radius_m, p.diameter_m, scene.indentation_m
+    big_pi = stiffness_number(scene)
+
+    def gap(r):
+        return R - math.sqrt(R * R - r * r) + (2.0 / big_pi * math.asin(d / (2.0 * r)) - 1.0) * zeta
+
+    lo = d  # a lattice pitch is never below the diameter
+    hi = min(0.999 * R, max(2.0 * math.sqrt(2.0 * R * zeta), 2.0 * d))
+    if gap(hi) <= 0:
+        raise SceneError("second_pillar_radius: no root below 0.999 R (indentation too large)")
+    radii = np.geomspace(lo, hi, 4000)[::-1]
+    values = np.array([gap(r) for r in radii])
+    neg = np.nonzero(values <= 0)[0]
+    if len(neg) == 0:
+        return lo  # the gap stays open down to r = d: no pitch brings a second pillar in
+    k = neg[0]
+    return brentq(gap, radii[k], radii[k - 1], xtol=1e-15 * R, rtol=1e-14)
+
+
+def phi_from_pitch(diameter: float, pitch: float) -> float:
+    """Phi = pi / (2 sqrt 3) (d / e)^2 ([P] eq. Frac)."""
+    return PHI_CLOSE_PACKING * (diameter / pitch) ** 2
+
+
+def single_pillar_threshold(scene: Scene) -> float:
+    """Phi_S = pi / (2 sqrt 3) (d / r_S)^2 ([P] eq. PhiSrS): below it one pillar touches."""
+    return phi_from_pitch(_single_pillar(scene).diameter_m, second_pillar_radius(scene))
+
+
+def single_pillar_threshold_large_indentation(scene: Scene) -> float:
+    """Large-zeta limit Phi_S ~ pi d^2 / (4 sqrt 3 R zeta), valid for
+    zeta >> (d / Pi)^2 / (2 R) (the paper's stated criterion is dimensionally wrong)."""
+    d = _single_pillar(scene).diameter_m
+    return math.pi * d**2 / (4.0 * math.sqrt(3.0) * scene.lens.radius_m * scene.indentation_m)
+
+
+def threshold_indentation(scene: Scene) -> float:
+    """zeta_T = [gamma* / (gamma_l + gamma_s)]^2 d^2 / R (m): where Hertz and single-pillar
+    centre stresses match ([P], Discussion)."""
+    d = _single_pillar(scene).diameter_m
+    ratio = effective_compliance(scene) / scene.half_space_compliance
+    return ratio**2 * d**2 / scene.lens.radius_m
+
+
+def pillars_in_apparent_contact(contact_radius: float, pitch: float) -> float:
+    """Q ~ (2 pi / sqrt 3) (a / e)^2 ([P] eq. Count)."""
+    return 2.0 * math.pi / math.sqrt(3.0) * (contact_radius / pitch) ** 2
+
+
+# --- master curves (empirical fits of [P]) -----------------------------------------------
+def reduced_centre_pressure(reduced_fraction):
+    """sigma_0* = (1 + Phi*)^-3 ([P] eq. MasterSig0Phi)."""
+    return (1.0 + np.asarray(reduced_fraction, dtype=float)) ** -3
+
+
+def reduced_area(surface_fraction):
+    """A* = Phi^0.7 ([P] eq. MasterAPhi)."""
+    return np.asarray(surface_fraction, dtype=float) ** 0.7
+
+
+def master_centre_pressure(phi, phi_s, phi_h, sigma_0h, sigma_0s):
+    """sigma_0(Phi) from the master curve with Phi* = (Phi - Phi_S) / Phi_H (Pa); Phi < Phi_S
+    gives the single-pillar value."""
+    star = np.maximum((np.asarray(phi, dtype=float) - phi_s) / phi_h, 0.0)
+    return sigma_0h + (sigma_0s - sigma_0h) * reduced_centre_pressure(star)
+
+
+def master_contact_area(phi, radius, indentation, diameter):
+    """A(Phi) = A_S + (A_H - A_S) Phi^0.7 with A_H = pi R zeta, A_S = pi d^2 / 4 (m^2)."""
+    a_h = math.pi * radius * indentation
+    a_s = math.pi * diameter**2 / 4.0
+    return a_s + (a_h - a_s) * reduced_area(phi)

@@ -1,0 +1,1 @@
+"""What users run: the CLI, comparisons, convergence studies, reports."""

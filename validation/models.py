@@ -1,0 +1,31 @@
+"""Registry of the models a command can run, by the name given to ``--model``.
+
+Each entry maps a model name to ``(module, function, options)``: ``function(scene, **options)``
+returns a :class:`scenes.ContactResult`; ``options`` names the CLI options (attributes of the
+parsed arguments) the model accepts.  Modules are imported on first use, so a command that
+runs only the BEM never imports scikit-fem or gmsh.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+from scenes import ContactResult, Scene
+
+MODELS: dict[str, tuple[str, str, tuple[str, ...]]] = {
+    "bem": ("bem_solver", "solve_dense", ("elements_per_diameter", "contact", "cells")),
+}
+
+
+def model_names() -> list[str]:
+    return sorted(MODELS)
+
+
+def run_model(name: str, scene: Scene, **options) -> ContactResult:
+    """Run model ``name`` on ``scene``; options that are None are left to the model's default."""
+    if name not in MODELS:
+        raise ValueError(f"--model {name!r}: unknown; available: {', '.join(model_names())}")
+    module, function, accepted = MODELS[name]
+    solver = getattr(importlib.import_module(module), function)
+    kwargs = {k: v for k, v in options.items() if k in accepted and v is not None}
+    return solver(scene, **kwargs)
