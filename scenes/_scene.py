@@ -174,6 +174,18 @@ class Scene:
             return 0.0
         return 4.0 * p.height_m / (math.pi * p.diameter_m**2 * p.material.E_Pa)
 
+    @classmethod
+    def from_dict(cls, data: dict) -> "Scene":
+        """Inverse of :meth:`to_dict` (the SI dictionary stored in every result)."""
+        def mat(t):
+            return Material(math.inf if t.get("rigid") else t["E_Pa"], t["nu"])
+
+        p = data.get("pillars")
+        pillars = None if not p else Pillars(p["diameter_m"], p["height_m"], p["pitch_m"], mat(p))
+        return cls(lens=Lens(data["lens"]["radius_m"], mat(data["lens"])),
+                   substrate=mat(data["substrate"]), indentation_m=data["load"]["indentation_m"],
+                   pillars=pillars, name=data.get("name", "custom"))
+
     def replace(self, **changes) -> "Scene":
         return dataclasses.replace(self, **changes)
 

@@ -34,7 +34,8 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     scene = load_scene(args.scene, args.overrides)
-    options = {k: v for k, v in vars(args).items() if k not in ("func", "command")}
+    options = {k: v for k, v in vars(args).items()
+               if k not in ("func", "command", "scene", "overrides", "model", "json", "out")}
     result = run_model(args.model, scene, **options)
     if args.out is not None:
         from .report import write_solve_report

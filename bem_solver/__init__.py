@@ -1,0 +1,28 @@
+"""Half-space (boundary-element) models of the lens-on-pillars contact.
+
+Units: SI (m, Pa, N).  ``solve_dense`` is the paper's superposition method with an exact
+complementarity solver; see :mod:`bem_solver._dense`.
+"""
+
+from ._cells import cell_pattern, disk_rectangle_area
+from ._dense import lens_gap, solve_dense
+from ._discretise import discretise, overlap_radius
+from ._lcp import NoConvergenceError, solve_lcp
+from ._love import love_rectangle, love_square
+from ._operator import expansion, full_operator, reduced_operator
+
+__all__ = [
+    "NoConvergenceError",
+    "cell_pattern",
+    "discretise",
+    "disk_rectangle_area",
+    "expansion",
+    "full_operator",
+    "lens_gap",
+    "love_rectangle",
+    "love_square",
+    "overlap_radius",
+    "reduced_operator",
+    "solve_dense",
+    "solve_lcp",
+]
