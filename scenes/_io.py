@@ -6,7 +6,7 @@ dimensionless)::
     name = "my-scene"                    # optional
     [lens]       radius_mm, E_Pa, nu      (or rigid = true instead of E_Pa)
     [pillars]    diameter_um, height_um, surface_fraction | pitch_um, E_Pa, nu (or rigid)
-    [substrate]  E_Pa, nu (or rigid)      (defaults to the pillars' material)
+    [substrate]  E_Pa, nu (or rigid)      (defaults to the pillars' material; nu defaults to theirs)
     [load]       indentation_um
 
 A file without a ``[pillars]`` table is a flat substrate (the Hertz problem).
@@ -74,7 +74,11 @@ def apply_overrides(data: dict, overrides: list[str] | tuple[str, ...]) -> dict:
         lhs, rhs = (s.strip() for s in item.split("=", 1))
         parts = lhs.split(".")
         if len(parts) == 1 and parts[0] in _KEYS and rhs.lower() == "none":
-            data.pop(parts[0], None)
+            removed = data.pop(parts[0], None)
+            if parts[0] == "pillars" and removed and "substrate" not in data:
+                # The substrate was implied by the pillars' material: keep it.
+                data["substrate"] = {k: v for k, v in removed.items()
+                                     if k in _KEYS["substrate"]}
             continue
         if len(parts) != 2 or parts[0] not in _KEYS:
             raise SceneError(
@@ -84,8 +88,9 @@ def apply_overrides(data: dict, overrides: list[str] | tuple[str, ...]) -> dict:
             raise SceneError(
                 f"--set {item!r}: unknown key {table}.{key}; allowed: {sorted(_KEYS[table])}")
         section = data.setdefault(table, {})
-        section[key] = _parse_value(rhs, lhs)
-        section.pop(_EXCLUSIVE.get(key, ""), None)
+        section[key] = value = _parse_value(rhs, lhs)
+        if not (key == "rigid" and value is False):
+            section.pop(_EXCLUSIVE.get(key, ""), None)
     return data
 
 
@@ -111,7 +116,7 @@ def _material(table: dict, owner: str) -> Material:
         return Material(math.inf, table["nu"])
     if "E_Pa" not in table:
         raise SceneError(f"{owner}.E_Pa is missing (> 0, or rigid = true)")
-    return Material(table["E_Pa"], table["nu"])
+    return Material(_number(table, owner, "E_Pa", 1.0), table["nu"])
 
 
 def _number(table: dict, owner: str, key: str, scale: float) -> float:
@@ -131,7 +136,7 @@ def scene_from_dict(data: dict) -> Scene:
     """Build a validated :class:`Scene` from a table in file units."""
     unknown = set(data) - set(_KEYS) - _TOP
     if unknown:
-        raise SceneError(f"unknown table(s) {sorted(unknown)}; allowed: {sorted(_KEYS | _TOP)}")
+        raise SceneError(f"unknown table(s) {sorted(unknown)}; allowed: {sorted(set(_KEYS) | _TOP)}")
     for table, keys in _KEYS.items():
         if table in data:
             if not isinstance(data[table], dict):
@@ -164,7 +169,10 @@ def scene_from_dict(data: dict) -> Scene:
         pillars = Pillars(d, h, e, _material(p, "pillars"))
 
     if "substrate" in data:
-        substrate = _material(data["substrate"], "substrate")
+        table = dict(data["substrate"])
+        if "nu" not in table and "pillars" in data and "nu" in data["pillars"]:
+            table["nu"] = data["pillars"]["nu"]  # same material family as the pillars
+        substrate = _material(table, "substrate")
     elif pillars is not None:
         substrate = pillars.material
     else:
