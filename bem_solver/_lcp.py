@@ -41,19 +41,20 @@ SINGLE_THREAD_BELOW = 3000
 
 
 def solve_lcp(M: np.ndarray, c: np.ndarray, groups: np.ndarray | None = None,
-              max_iterations: int = 100) -> LCPSolution:
+              initial: np.ndarray | None = None, max_iterations: int = 100) -> LCPSolution:
     """See :func:`_solve_lcp`; runs with one BLAS thread on small systems."""
     if len(c) < SINGLE_THREAD_BELOW:
         with threadpool_limits(limits=1, user_api="blas"):
-            return _solve_lcp(M, c, groups, max_iterations)
-    return _solve_lcp(M, c, groups, max_iterations)
+            return _solve_lcp(M, c, groups, initial, max_iterations)
+    return _solve_lcp(M, c, groups, initial, max_iterations)
 
 
 def _solve_lcp(M: np.ndarray, c: np.ndarray, groups: np.ndarray | None = None,
-               max_iterations: int = 100) -> LCPSolution:
+               initial: np.ndarray | None = None, max_iterations: int = 100) -> LCPSolution:
     """Primal-dual active set on the diagonally scaled problem, NNLS if it cycles.
 
-    The active set starts at {c > 0} (where the undeformed bodies overlap); each step solves
+    The active set starts at ``initial`` (a guess; default {c > 0}, where the undeformed bodies
+    overlap); each step solves
     the equality system on the active set and moves to {q - y > 0}.  It stops when the set
     repeats: then q > 0 on the set and y >= 0 off it hold exactly.  ``groups`` labels the
     unknowns of one pillar: large systems are solved by conjugate gradients preconditioned
@@ -66,7 +67,7 @@ def _solve_lcp(M: np.ndarray, c: np.ndarray, groups: np.ndarray | None = None,
     s = 1.0 / np.sqrt(np.diag(M))
     Ms = M * s[:, None] * s[None, :]
     cs = c * s
-    active = cs > 0
+    active = cs > 0 if initial is None else (np.asarray(initial, bool) & (cs > 0))
     seen = set()
     q = np.zeros(n)
     for it in range(1, max_iterations + 1):
