@@ -26,6 +26,9 @@ def add_parser(sub) -> None:
     p.add_argument("--contact", choices=("exact", "paper"), default=None,
                    help="BEM contact solver: exact complementarity (default) or the paper's "
                         "contact-radius search")
+    p.add_argument("--mesh-size", type=float, default=None, metavar="S",
+                   help="fem-axisym: dimensionless mesh refinement factor, 0.5 halves every "
+                        "element size; default 1.0")
     p.add_argument("--json", action="store_true", help="print exactly one JSON document")
     p.add_argument("--out", type=Path, default=None,
                    help="folder for result.json, element CSV and pressure-map PNG")
