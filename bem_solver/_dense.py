@@ -158,6 +158,24 @@ def _outside_violations(scene, disc, q, P, cells, radius, r_max):
     return float(np.hypot(ox[bad], oy[bad]).max()) if bad.any() else None
 
 
+def _smooth_edge_radius(r, pressure, touching, b):
+    """Contact radius of a smooth (flat-scene) contact: where p^2, linear in r^2 near a
+    square-root edge, extrapolates to zero, fitted over the elements in contact within three
+    cells of the outermost one.  The staircase of cells alone is off by up to half a cell and
+    jumps with refinement."""
+    if not touching.any():
+        return 0.0
+    r_out = r[touching].max()
+    band = touching & (r >= r_out - 3.0 * b)
+    if band.sum() >= 3:
+        beta, alpha = np.polyfit(r[band] ** 2, pressure[band] ** 2, 1)
+        if beta < 0 and alpha > 0:
+            a = math.sqrt(-alpha / beta)
+            if r_out - b <= a <= r_out + b:
+                return a
+    return float(r_out + b / 2.0)
+
+
 def _result(scene, disc: Discretisation, sol: LCPSolution, P, cells, contact, rounds, extra,
             wall) -> ContactResult:
     q, w = sol.q, disc.rep_weight  # q: force on each element of an orbit (N)
@@ -171,9 +189,16 @@ def _result(scene, disc: Discretisation, sol: LCPSolution, P, cells, contact, ro
     centre_idx = np.argmin(np.where(disc.rep_centre, r, np.inf))
     centre_pressure = float(pressure[centre_idx])
 
-    reach = r + disc.rep_side / 2.0
-    contact_radius = float(reach[touching].max()) if touching.any() else 0.0
-    area = float((w * disc.rep_area)[touching].sum())
+    if scene.pillars is None:
+        contact_radius = _smooth_edge_radius(r, pressure, touching, disc.cell_side)
+        area = math.pi * contact_radius**2
+    else:
+        # Outermost point of a loaded element, no further than its pillar's rim.
+        centre = disc.pillar_xy[disc.img_pillar[disc.rep_start[:-1]]]
+        rim = np.hypot(centre[:, 0], centre[:, 1]) + scene.pillars.diameter_m / 2.0
+        reach = np.minimum(r + disc.rep_side / 2.0, rim)
+        contact_radius = float(reach[touching].max()) if touching.any() else 0.0
+        area = float((w * disc.rep_area)[touching].sum())
 
     pillar_forces = []
     if scene.pillars is not None:

@@ -13,7 +13,8 @@ import sys
 
 from scenes import SceneError, preset_names
 
-COMMANDS = ("validation.cmd_solve",)
+COMMANDS = ("validation.cmd_solve", "validation.cmd_compare", "validation.cmd_converge",
+            "validation.cmd_gecit")
 
 
 class UserError(Exception):

@@ -1,0 +1,319 @@
+"""``pillar-xval compare``: BEM (Hooke pillar) against FEM (elastic pillar) on one scene, with
+the FEM's numerical uncertainty beside every difference.
+
+The FEM runs on three refinements (mesh_size 2, 1, 0.5 by default, see ``FEM_COARSEST``);
+its uncertainty on each quantity is the GCI band U = GCI_fine |f1| (Roache, Fs = 1.25), or,
+for a sequence without an observed order, the spread of the levels (marked).  The BEM is
+refined too (11, 23, 47 elements per diameter by default) and its band is added in
+quadrature.  A difference between the finest BEM and FEM values larger than the combined band
+is marked: it is a model difference, not noise of the discretisations.
+
+Outputs: report.json, summary.md, profiles.png and profiles.csv, the finest FEM VTU and a
+pyvista render of its stress field revolved about the axis.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+
+from scenes import Scene, analytic, load_scene, write_atomic
+
+from .cmd_converge import QUANTITIES, converge_study, ladder_for, run_cached
+from .verification import study
+
+FEM, BEM = "fem-axisym", "bem"
+# Display units: (scale factor from SI, unit label).
+DISPLAY = {"F_T": (1e6, "uN"), "sigma0": (1e-3, "kPa"), "a": (1e6, "um"), "A": (1e12, "um^2"),
+           "profile": (1e-3, "kPa")}
+# Profile sample points r / r_ref; the edge (r_ref) is singular for a stiff pillar, so the
+# comparison stops short of it (STYLE: compare pressure away from singular edges).
+PROFILE_POINTS = (0.25, 0.5, 0.75, 0.9)
+# FEM levels 2, 1, 0.5 by default: measured on single-pillar (hertz), mesh_size 2 / 1 / 0.5 /
+# 0.25 took 0.5 / 1.1 / 8-20 / 290 s (0.6 / 6 / 122 s for 0.5 / 0.25), while F_T moved by
+# 1e-4 relative from 1 to 0.5: the 0.25 level would cost minutes for a band already < 0.1 %.
+FEM_COARSEST = 2.0
+
+
+def add_parser(sub) -> None:
+    """Register ``compare`` on the CLI's subparsers."""
+    from .cli import add_scene_arguments
+
+    p = sub.add_parser("compare", help="BEM (Hooke pillar) against FEM (elastic pillar) with "
+                                       "the FEM's GCI uncertainty")
+    add_scene_arguments(p)
+    p.add_argument("--out", type=Path, default=None,
+                   help="report folder (default out/compare/<scene>)")
+    p.add_argument("--fem-levels", type=int, default=3, metavar="N",
+                   help="FEM refinements for the GCI (default 3)")
+    p.add_argument("--fem-coarsest", type=float, default=FEM_COARSEST, metavar="MESH_SIZE",
+                   help=f"FEM mesh_size of the coarsest level, halved per level (default "
+                        f"{FEM_COARSEST:g})")
+    p.add_argument("--bem-levels", type=int, default=3, metavar="N",
+                   help="BEM refinements (default 3, for its own GCI; 1: no BEM uncertainty)")
+    p.add_argument("--elements-per-diameter", type=int, default=None, metavar="P",
+                   help="BEM elements per diameter on its coarsest level (default 11)")
+    p.add_argument("--no-render", action="store_true", help="skip the pyvista render")
+    p.add_argument("--fresh", action="store_true", help="recompute cached cases")
+    p.set_defaults(func=run)
+
+
+def _profile_at(profile: dict, r_ref: float) -> list[float | None]:
+    r = np.asarray(profile.get("r_m", []), dtype=float)
+    p = np.asarray(profile.get("pressure_Pa", []), dtype=float)
+    if r.size < 2:
+        return [None] * len(PROFILE_POINTS)
+    order = np.argsort(r)
+    r, p = r[order], p[order]
+    out = []
+    for x in PROFILE_POINTS:
+        rx = x * r_ref
+        out.append(float(np.interp(rx, r, p)) if r[0] <= rx <= r[-1] else None)
+    return out
+
+
+def reference_radius(scene: Scene) -> tuple[float, str]:
+    """Radius (m) the profile is normalised by: d/2 on a pillar, the Hertz a on a flat."""
+    if scene.is_flat:
+        return analytic.hertz(scene).contact_radius, "a_Hertz"
+    return scene.pillars.diameter_m / 2.0, "d/2"
+
+
+def closed_form(scene: Scene) -> tuple[str, dict]:
+    """Hertz values on a flat scene; the spring model (one Hooke pillar) otherwise."""
+    r_ref, _ = reference_radius(scene)
+    r = np.array(PROFILE_POINTS) * r_ref
+    if scene.is_flat:
+        h = analytic.hertz(scene)
+        name, out = "Hertz", {"F_T": h.force, "sigma0": h.centre_pressure,
+                              "a": h.contact_radius, "A": h.contact_area}
+        profile = h.pressure(r)
+    else:
+        s = analytic.spring_model(scene)
+        d = scene.pillars.diameter_m
+        name, out = "spring model", {"F_T": s.force, "sigma0": s.centre_pressure, "a": d / 2.0,
+                                     "A": math.pi * d * d / 4.0}
+        profile = s.pressure(r)
+    out.update({f"sigma(r={x:g})": float(v) for x, v in zip(PROFILE_POINTS, profile)})
+    return name, out
+
+
+def _band(st: dict | None) -> tuple[float | None, bool]:
+    """(uncertainty in SI, whether it is a true GCI) from a verification study dict."""
+    if st is None:
+        return None, False
+    g = st["gci"]
+    if g["status"] == "ok":
+        return g["uncertainty"], True
+    return g["fallback_uncertainty"], False
+
+
+def compare_rows(bem: dict, fem: dict, bem_studies: dict | None, fem_studies: dict,
+                 reference: dict) -> list[dict]:
+    """One row per quantity: values, difference, uncertainty bands and the verdict."""
+    rows = []
+    for key in [q[0] for q in QUANTITIES] + [f"sigma(r={x:g})" for x in PROFILE_POINTS]:
+        fb, ff = bem.get(key), fem.get(key)
+        st_f = fem_studies.get(key)
+        u_f, gci_f = _band(st_f)
+        st_b = bem_studies.get(key) if bem_studies else None
+        u_b, gci_b = _band(st_b)
+        row = {"quantity": key, "bem": fb, "fem": ff, "closed_form": reference.get(key),
+               "fem_richardson": None if st_f is None else st_f["gci"]["f_exact"],
+               "fem_order": None if st_f is None else st_f["gci"]["order"],
+               "fem_status": None if st_f is None else st_f["gci"]["status"],
+               "bem_richardson": None if st_b is None else st_b["gci"]["f_exact"],
+               "bem_status": None if st_b is None else st_b["gci"]["status"],
+               "u_fem": u_f, "u_fem_is_gci": gci_f, "u_bem": u_b, "u_bem_is_gci": gci_b,
+               "difference": None, "relative_difference": None, "uncertainty": None,
+               "exceeds": None}
+        if fb is not None and ff is not None:
+            diff = fb - ff
+            u = math.hypot(u_f or 0.0, u_b or 0.0) if u_f is not None else None
+            row.update(difference=diff, uncertainty=u,
+                       relative_difference=diff / ff if ff else None,
+                       exceeds=None if u is None else bool(abs(diff) > u))
+        rows.append(row)
+    return rows
+
+
+def _values(result, r_ref: float) -> dict:
+    vals = {key: float(getattr(result, attr)) for key, attr, _, _ in QUANTITIES}
+    for x, v in zip(PROFILE_POINTS, _profile_at(result.pillar_top_profile, r_ref)):
+        vals[f"sigma(r={x:g})"] = v
+    return vals
+
+
+def _profile_studies(data: dict, r_ref: float) -> dict:
+    h = [lv["h"] for lv in data["levels"]]
+    samples = [_profile_at(res.pillar_top_profile, r_ref) for res in data["results"]]
+    out = {}
+    for i, x in enumerate(PROFILE_POINTS):
+        f = [s[i] for s in samples]
+        if all(v is not None for v in f) and len(f) >= 2:
+            out[f"sigma(r={x:g})"] = study(h, f)
+    return out
+
+
+def table_text(rows: list[dict], ref_name: str, r_label: str) -> str:
+    """Fixed-width table of the comparison (display units); bands marked * are not a GCI."""
+    head = (f"{'quantity':<18} {'BEM':>10} {'+-U_BEM':>9} {'FEM':>10} {'+-U_FEM':>9} "
+            f"{'FEM Richardson':>14} {'BEM-FEM':>10} {'rel':>8} {'exceeds U':>9} {ref_name:>12}")
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        key = r["quantity"]
+        scale, unit = DISPLAY.get(key, DISPLAY["profile"])
+        if key.startswith("sigma(r="):
+            name = f"p({key[8:-1]} {'a_H' if r_label != 'd/2' else 'd/2'}) [{unit}]"
+        else:
+            name = f"{key} [{unit}]"
+
+        def fmt(v, w=10, f=".5g"):
+            return f"{'-':>{w}}" if v is None else f"{v * scale:>{w}{f}}"
+
+        def band(u, is_gci):
+            return f"{'-':>9}" if u is None else f"{fmt(u, 8, '.2g')}{' ' if is_gci else '*'}"
+
+        diff = r["difference"]
+        if diff is not None and abs(diff) <= 1e-12 * max(abs(r["bem"]), abs(r["fem"])):
+            diff = 0.0  # round-off
+        rel = "-" if r["relative_difference"] is None else f"{100 * r['relative_difference']:+.2f}%"
+        verdict = "-" if r["exceeds"] is None else ("YES" if r["exceeds"] else "no")
+        lines.append(f"{name:<18} {fmt(r['bem'])} {band(r['u_bem'], r['u_bem_is_gci'])} "
+                     f"{fmt(r['fem'])} {band(r['u_fem'], r['u_fem_is_gci'])} "
+                     f"{fmt(r['fem_richardson'], 14)} {fmt(diff)} {rel:>8} {verdict:>9} "
+                     f"{fmt(r['closed_form'], 12)}")
+    lines.append("U: GCI band GCI_fine |f| of each model's three levels (Fs = 1.25); * = no "
+                 "observed order (oscillating or round-off), band = spread of the levels (x3 "
+                 "when oscillating). 'exceeds U': |BEM - FEM| > sqrt(U_BEM^2 + U_FEM^2).")
+    return "\n".join(lines)
+
+
+def _profile_curves(scene: Scene, bem_res, fem_data: dict, r_ref: float) -> list[dict]:
+    option = ladder_for(BEM).option
+    disc = f"{option}={bem_res.discretisation.get(option, '?')}"
+    curves = [{"label": f"BEM (Hooke pillar), {disc}", "style": "o-",
+               **bem_res.pillar_top_profile}]
+    for lv, res in zip(fem_data["levels"], fem_data["results"]):
+        finest = lv is fem_data["levels"][-1]
+        curves.append({"label": f"FEM mesh_size={lv['value']:g}" + (" (finest)" if finest else ""),
+                       "style": "-" if finest else ":", **res.pillar_top_profile})
+    r = np.linspace(0.0, 0.999 * r_ref, 400)
+    if scene.is_flat:
+        curves.append({"label": "Hertz", "style": "k--", "r_m": r,
+                       "pressure_Pa": analytic.hertz(scene).pressure(r)})
+    else:
+        curves.append({"label": "rigid punch", "style": "k--", "r_m": r,
+                       "pressure_Pa": analytic.rigid_punch(scene).pressure(r)})
+        curves.append({"label": "spring model (Hooke)", "style": "k-.", "r_m": r,
+                       "pressure_Pa": analytic.spring_model(scene).pressure(r)})
+    return curves
+
+
+def summary_markdown(scene: Scene, rows: list[dict], ref_name: str, r_label: str,
+                     meta: dict) -> str:
+    """summary.md: what ran, the table, and which differences exceed the uncertainty."""
+    lines = [f"# BEM (Hooke pillar) vs FEM (elastic pillar): {scene.name}", "",
+             f"- FEM: {meta['fem_levels']} levels of mesh_size "
+             f"{', '.join(f'{v:g}' for v in meta['fem_sizes'])}; finest VTU: "
+             f"`{meta['vtu'] or 'not written'}`",
+             f"- BEM: {meta['bem_levels']} level(s), finest: "
+             + ", ".join(f"{k}={v}" for k, v in meta["bem_discretisation"].items())
+             + ("" if meta["bem_levels"] > 1 else " (one level: its own error is not estimated)"),
+             f"- closed form: {ref_name}; profile radii are r / ({r_label})",
+             f"- render: {meta['render']}", f"- wall time: {meta['wall_time_s']:.1f} s", "",
+             "```", table_text(rows, ref_name, r_label), "```", ""]
+    odd = [r for r in rows if r["fem_status"] not in (None, "ok")]
+    if odd:
+        lines.append("FEM sequences without an observed order: "
+                     + "; ".join(f"{r['quantity']}: {r['fem_status']}" for r in odd))
+    real = [r["quantity"] for r in rows if r["exceeds"]]
+    lines.append("Differences larger than the numerical uncertainty (model differences): "
+                 + (", ".join(real) if real else "none"))
+    return "\n".join(lines) + "\n"
+
+
+def profiles_csv(bem_res, fem_res) -> str:
+    """The pillar-top profiles of the finest BEM and FEM runs: model, r_m, pressure_Pa."""
+    lines = ["model,r_m,pressure_Pa"]
+    for label, res in (("bem", bem_res), ("fem-axisym", fem_res)):
+        prof = res.pillar_top_profile
+        lines += [f"{label},{r!r},{p!r}" for r, p in zip(prof["r_m"], prof["pressure_Pa"])]
+    return "\n".join(lines) + "\n"
+
+
+def run(args) -> int:
+    """``pillar-xval compare``: run both models, write the report folder, print the table; exit 1
+    if a run did not converge."""
+    t0 = time.perf_counter()
+    scene = load_scene(args.scene, args.overrides)
+    out = args.out or Path("out") / "compare" / scene.name
+    cache = out / "cases"
+    r_ref, r_label = reference_radius(scene)
+    fem_data = converge_study(FEM, scene, args.fem_levels, cache, coarsest=args.fem_coarsest,
+                              fresh=args.fresh, tag="compare fem", vtu_finest=True)
+    fem_res = fem_data["results"][-1]
+    fem_studies = dict(fem_data["studies"]) | _profile_studies(fem_data, r_ref)
+    if args.bem_levels >= 2:
+        bem_data = converge_study(BEM, scene, args.bem_levels, cache, fresh=args.fresh,
+                                  coarsest=args.elements_per_diameter, tag="compare bem")
+        bem_res = bem_data["results"][-1]
+        bem_studies = dict(bem_data["studies"]) | _profile_studies(bem_data, r_ref)
+    else:
+        bem_opts = ladder_for(BEM).options(0, args.elements_per_diameter)
+        bem_res, _ = run_cached(BEM, scene, bem_opts, cache, fresh=args.fresh, tag="compare bem")
+        bem_data, bem_studies = None, None
+    ref_name, reference = closed_form(scene)
+    rows = compare_rows(_values(bem_res, r_ref), _values(fem_res, r_ref), bem_studies,
+                        fem_studies, reference)
+
+    vtu = fem_data["levels"][-1]["vtu"]
+    if vtu:
+        sidecar = Path(vtu).with_suffix(".json")  # the model's parameters for the VTU
+        vtu = str(shutil.copyfile(vtu, out / "fem_finest.vtu"))
+        if sidecar.exists():
+            shutil.copyfile(sidecar, out / "fem_finest.json")
+    if args.no_render:
+        render = "skipped (--no-render)"
+    elif not vtu:
+        render = "not possible: the FEM model wrote no VTU"
+    else:
+        from .plots_xval import render_stress
+
+        (out / "fem_stress_3d.png").unlink(missing_ok=True)  # never report a stale picture
+        ok, msg = render_stress(Path(vtu), out / "fem_stress_3d.png", roi_m=2.5 * r_ref)
+        render = msg if ok else f"not rendered on this machine: {msg}"
+    from .plots_xval import plot_profiles
+
+    plot_profiles(_profile_curves(scene, bem_res, fem_data, r_ref), r_ref, out / "profiles.png",
+                  f"pressure across the {'contact' if scene.is_flat else 'pillar top'}: "
+                  f"{scene.name}", r_label)
+    meta = {"fem_levels": args.fem_levels, "bem_levels": args.bem_levels,
+            "fem_sizes": [lv["value"] for lv in fem_data["levels"]],
+            "bem_discretisation": bem_res.discretisation, "vtu": vtu, "render": render,
+            "wall_time_s": time.perf_counter() - t0}
+    converged = fem_res.converged and bem_res.converged and fem_data["all_converged"]
+    report = {"scene": scene.to_dict(), "closed_form": {"name": ref_name, **reference},
+              "profile_radius_m": r_ref, "profile_points": list(PROFILE_POINTS), "rows": rows,
+              "fem": {k: v for k, v in fem_data.items() if k != "results"},
+              "fem_profile_studies": {k: v for k, v in fem_studies.items()
+                                      if k.startswith("sigma(")},
+              "bem": None if bem_data is None
+              else {k: v for k, v in bem_data.items() if k != "results"},
+              "bem_finest": bem_res.to_dict(), "fem_finest": fem_res.to_dict(),
+              "converged": bool(converged), **meta}
+    write_atomic(out / "report.json", json.dumps(report, indent=2, allow_nan=False, default=str))
+    write_atomic(out / "summary.md", summary_markdown(scene, rows, ref_name, r_label, meta))
+    write_atomic(out / "profiles.csv", profiles_csv(bem_res, fem_res))
+    print(f"BEM (Hooke pillar) vs FEM (elastic pillar) on {scene.name}")
+    print(table_text(rows, ref_name, r_label))
+    print(f"render: {render}")
+    print(f"report: {out}/ (report.json, summary.md, profiles.png, profiles.csv"
+          + (", fem_finest.vtu" if vtu else "")
+          + (", fem_stress_3d.png" if (out / "fem_stress_3d.png").exists() else "") + ")")
+    return 0 if converged else 1
