@@ -4,8 +4,9 @@ flat substrate (Hertz), with frictionless unilateral contact, displacement-contr
 Model.  The lens is a block of side L with a flat bottom at z = 0; its spherical shape is
 the initial gap g(r) = R - sqrt(R^2 - r^2) between the lens bottom and the pillar top (or
 the substrate) at the same r.  The lens top moves down by zeta, the substrate bottom is
-fixed (rollers on both far faces, free sides).  Contact is node-to-node on the P2 points of
-the contact line, which are identical on both bodies.  Rigid bodies (E = inf) are not meshed:
+fixed (rollers on both far faces, free sides).  The contact line has identical P2 points on
+both bodies; the contact pressure is a P1 (mortar) field on its vertices (:mod:`._contact`:
+node-to-node contact on P2 points made the pressure alternate and left the axis unloaded).  Rigid bodies (E = inf) are not meshed:
 a rigid lens is a moving rigid surface, a rigid pillar on an elastic substrate is one rigid
 translation bonded to it, a rigid substrate clamps the pillar base.
 
