@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: demo test test-slow bench-bem clean
+.PHONY: demo study-gecit test test-slow bench-bem bench-fft clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -13,9 +13,18 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e '.[dev]' --config-settings editable_mode=compat
 	touch $(STAMP)
 
+# The main job: BEM (Hooke pillar) against FEM (elastic pillar) on the single-pillar and Hertz
+# scenes, then the paper's Fig. 3 scenes with the BEM.
 demo: $(STAMP)
+	$(VENV)/bin/pillar-xval compare --scene single-pillar --out $(OUT)/compare-single-pillar
+	$(VENV)/bin/pillar-xval compare --scene hertz --out $(OUT)/compare-hertz
 	$(VENV)/bin/pillar-xval solve --scene paper-fig3-sparse --out $(OUT)/fig3-sparse
 	$(VENV)/bin/pillar-xval solve --scene paper-fig3-dense --out $(OUT)/fig3-dense
+
+# The Gecit-like study: Hooke-spring BEM against the elastic-pillar FEM over E_p/E_l and h/d
+# (a few minutes; resumes after an interruption).
+study-gecit: $(STAMP)
+	$(VENV)/bin/pillar-xval gecit --out $(OUT)/gecit
 
 test: $(STAMP)
 	$(PY) -m pytest -q
@@ -25,6 +34,12 @@ test-slow: $(STAMP)
 
 bench-bem: $(STAMP)
 	$(PY) -m validation.bench_bem --out $(OUT)/bench-bem
+	$(MAKE) bench-fft
+
+# FFT BEM: cells vs time vs memory, and ContactMechanics side by side (optional extra).
+bench-fft: $(STAMP)
+	$(PY) -m pip install --quiet -e '.[bench]' || echo "bench-fft: ContactMechanics not installed; the comparison will be skipped"
+	$(PY) -m validation.bench_fft --out $(OUT)/bench-fft
 
 clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache
