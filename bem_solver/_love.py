@@ -67,25 +67,32 @@ def love_square(x, y, side):
 
 
 def unit_force_influence(px, py, cx, cy, angle, side):
-    """D / side^2 at points (px, py) from squares centred at (cx, cy), rotated by ``angle``
-    (rad), of side ``side`` (m): the influence per unit force (1/m).  Points broadcast against
-    squares.  The far form 1/r + s^2 / (24 r^3) is isotropic, so only the few near entries pay
-    for the rotation and the exact formula."""
+    """D / side^2 at points (px, py) (column vectors, shape (n, 1)) from squares centred at
+    (cx, cy), rotated by ``angle`` (rad), of side ``side`` (m) (row vectors, shape (1, m)):
+    the influence per unit force (1/m), shape (n, m).  The far form 1/r + s^2 / (24 r^3) is
+    isotropic, so only the few near entries pay for the rotation and the exact formula."""
+    px, py = np.atleast_2d(px), np.atleast_2d(py)
+    cx, cy = np.atleast_2d(cx), np.atleast_2d(cy)
+    angle, side = np.atleast_2d(angle), np.atleast_2d(side)
     dx = px - cx
     dy = py - cy
-    dx, dy, angle, side = np.broadcast_arrays(dx, dy, angle, side)
-    r2 = dx * dx + dy * dy
+    r2 = dx * dx
+    r2 += dy * dy
     s2 = side * side
     with np.errstate(divide="ignore", invalid="ignore"):
         inv = 1.0 / np.sqrt(r2)
-        out = inv * (1.0 + (s2 / 24.0) * (inv * inv))
-    near = np.nonzero(r2 <= FAR_FIELD_RATIO**2 * s2)
-    if near[0].size:
-        a = angle[near]
+        out = inv * inv
+        out *= s2 / 24.0
+        out += 1.0
+        out *= inv
+    rows, cols = np.nonzero(r2 <= FAR_FIELD_RATIO**2 * s2)
+    if rows.size:
+        shape = np.broadcast_shapes(angle.shape, side.shape, dx.shape)
+        a = np.broadcast_to(angle, shape)[rows, cols]
+        h = 0.5 * np.broadcast_to(side, shape)[rows, cols]
         c, s = np.cos(a), np.sin(a)
-        x, y = dx[near], dy[near]
-        h = 0.5 * side[near]
-        out[near] = love_rectangle(x * c + y * s, -x * s + y * c, h, h) / s2[near]
+        x, y = dx[rows, cols], dy[rows, cols]
+        out[rows, cols] = love_rectangle(x * c + y * s, -x * s + y * c, h, h) / (4.0 * h * h)
     return out
 
 
