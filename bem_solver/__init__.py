@@ -1,12 +1,15 @@
 """Half-space (boundary-element) models of the lens-on-pillars contact.
 
 Units: SI (m, Pa, N).  ``solve_dense`` is the paper's superposition method with an exact
-complementarity solver; see :mod:`bem_solver._dense`.
+complementarity solver (:mod:`bem_solver._dense`); ``solve_fft`` the matrix-free model on a
+regular grid with FFT-applied kernel and constrained conjugate gradients
+(:mod:`bem_solver._fft`).
 """
 
 from ._cells import cell_pattern, disk_rectangle_area
 from ._dense import lens_gap, solve_dense
 from ._discretise import discretise, overlap_radius
+from ._fft import solve_fft
 from ._lcp import NoConvergenceError, solve_lcp
 from ._love import love_rectangle, love_square
 from ._operator import expansion, full_operator, reduced_operator
@@ -24,5 +27,6 @@ __all__ = [
     "overlap_radius",
     "reduced_operator",
     "solve_dense",
+    "solve_fft",
     "solve_lcp",
 ]

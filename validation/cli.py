@@ -14,7 +14,7 @@ import sys
 from scenes import SceneError, preset_names
 
 COMMANDS = ("validation.cmd_solve", "validation.cmd_compare", "validation.cmd_converge",
-            "validation.cmd_gecit")
+            "validation.cmd_gecit", "validation.cmd_tradeoff")
 
 
 class UserError(Exception):

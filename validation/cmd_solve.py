@@ -26,6 +26,9 @@ def add_parser(sub) -> None:
     p.add_argument("--contact", choices=("exact", "paper"), default=None,
                    help="BEM contact solver: exact complementarity (default) or the paper's "
                         "contact-radius search")
+    p.add_argument("--cells-per-diameter", type=int, default=None, metavar="N",
+                   help="bem-fft: square cells across a pillar diameter (flat scenes: across the "
+                        "Hertz contact diameter 2 sqrt(R zeta)); default 32")
     p.add_argument("--mesh-size", type=float, default=None, metavar="S",
                    help="fem-axisym: dimensionless mesh refinement factor, 0.5 halves every "
                         "element size; default 1.0")

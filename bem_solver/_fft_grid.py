@@ -1,0 +1,287 @@
+"""Regular cell grid of the matrix-free BEM: candidate cells, covered fractions, gap.
+
+The grid is made of square cells of side ``L``, axis-aligned, with the origin (centre of the
+centre pillar, or of the Hertz contact) at the centre of a cell, so the centre pressure is a
+cell value at every resolution.  Only *candidate* cells are unknowns: cells that overlap a
+pillar top and whose centre lies where the undeformed gap ``g(r) = R - sqrt(R^2 - r^2)`` does
+not exceed the indentation zeta.  Outside that disk no contact is possible: the half-space
+kernel and the Hooke term are positive, so u >= 0 and gap = g + u - zeta > 0.
+
+A pillar-top cell carries its covered fraction phi (exact area of the square-disk
+intersection over L^2): the cell's force is q L^2 where q = phi p is the pressure smeared over
+the whole cell, so the discrete pillar tops have exactly the area pi d^2 / 4 and a grid
+convergence study is not spoiled by the staircase area error of whole cells.  Partly covered
+cells are collocated at the centroid of their covered part (closed-form first moments).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from scenes import Scene, SceneError
+from scenes.lattice import pillars_within
+
+# Cells covered by less than this fraction of their area are dropped and their area is given
+# to the other edge cells of the pillar.  Such slivers, with an equivalent-square
+# self-compliance ~ 1/sqrt(phi) up to 3e4 times a full cell's, made the constrained CG creep
+# (441 instead of 174 iterations at N = 58 on paper-fig3-dense, rigid pillars) while moving
+# F_T by 1.5e-7 relative.
+MIN_COVERED_FRACTION = 1e-3
+# Flat (Hertz) scenes: candidate disk radius in units of the Hertz radius sqrt(R zeta) (plus
+# two cells).  The contact radius of the discrete problem is a + O(L); the solver checks that
+# no contact reaches this artificial edge.
+FLAT_CANDIDATE_RATIO = 1.25
+# Largest padded FFT grid (points) accepted: 2 * 4096^2 doubles is ~1 GB of work arrays.
+MAX_FFT_POINTS = 4096 * 4096
+
+
+def _segment_integral(y, a, b, rad):
+    """Integral over x in [a, b] (already clipped to [-rad, rad]) of clip(y, -s(x), s(x)),
+    s(x) = sqrt(rad^2 - x^2); arrays broadcast."""
+    def prim(x):  # antiderivative of s(x)
+        xc = np.clip(x / rad, -1.0, 1.0)
+        return 0.5 * rad * rad * (xc * np.sqrt(1.0 - xc * xc) + np.arcsin(xc))
+
+    w = np.sqrt(np.clip(rad * rad - y * y, 0.0, None))
+    a_in = np.clip(a, -w, w)
+    b_in = np.clip(b, -w, w)
+    # Where |x| <= w the chord covers y itself; elsewhere the clip is +-s(x).
+    inner = y * (b_in - a_in)
+    outer = np.sign(y) * ((prim(b) - prim(a)) - (prim(b_in) - prim(a_in)))
+    return inner + outer
+
+
+def disk_rectangle_area(x0, x1, y0, y1, rad):
+    """Exact area of the disk of radius ``rad`` centred at the origin intersected with the
+    rectangles [x0, x1] x [y0, y1] (same unit as the inputs, squared); arrays broadcast.
+
+    Area = integral over x of [clip(y1, -s, s) - clip(y0, -s, s)], s = sqrt(rad^2 - x^2),
+    integrated in closed form.
+    """
+    a = np.clip(x0, -rad, rad)
+    b = np.clip(x1, -rad, rad)
+    area = _segment_integral(np.asarray(y1, float), a, b, rad) \
+        - _segment_integral(np.asarray(y0, float), a, b, rad)
+    return np.clip(area, 0.0, None)
+
+
+def _segment_moment(y, a, b, rad):
+    """Integral over x in [a, b] (clipped to [-rad, rad]) of x clip(y, -s(x), s(x))."""
+    def prim(x):  # antiderivative of x s(x)
+        return -np.clip(rad * rad - x * x, 0.0, None) ** 1.5 / 3.0
+
+    w = np.sqrt(np.clip(rad * rad - y * y, 0.0, None))
+    a_in = np.clip(a, -w, w)
+    b_in = np.clip(b, -w, w)
+    inner = 0.5 * y * (b_in * b_in - a_in * a_in)
+    outer = np.sign(y) * ((prim(b) - prim(a)) - (prim(b_in) - prim(a_in)))
+    return inner + outer
+
+
+def disk_rectangle_centroid(x0, x1, y0, y1, rad):
+    """Centroid (x, y) of the disk of radius ``rad`` (centred at 0) cut by the rectangles
+    [x0, x1] x [y0, y1]; first moments integrated in closed form like
+    :func:`disk_rectangle_area`.  Arrays broadcast; the area must be > 0."""
+    area = disk_rectangle_area(x0, x1, y0, y1, rad)
+    a, b = np.clip(x0, -rad, rad), np.clip(x1, -rad, rad)
+    c, d = np.clip(y0, -rad, rad), np.clip(y1, -rad, rad)
+    mx = _segment_moment(np.asarray(y1, float), a, b, rad) \
+        - _segment_moment(np.asarray(y0, float), a, b, rad)
+    my = _segment_moment(np.asarray(x1, float), c, d, rad) \
+        - _segment_moment(np.asarray(x0, float), c, d, rad)
+    return mx / area, my / area
+
+
+@dataclass
+class CellGrid:
+    """Candidate cells of one scene on a regular grid.
+
+    Attributes
+    ----------
+    cell_size : float
+        Side L of a cell (m).
+    shape : tuple of int
+        (ny, nx) of the bounding grid; both odd, the origin at the centre of cell
+        (ny // 2, nx // 2).
+    flat_index : ndarray of int
+        Row-major index in the (ny, nx) grid of each candidate cell.
+    x, y : ndarray
+        Cell centres (m).
+    covered : ndarray
+        Covered fraction phi of each cell, in (0, 1].
+    gap0 : ndarray
+        Undeformed gap g(r) minus zeta at the collocation point (m); negative where the lens
+        would interpenetrate a rigid top.
+    colloc_x, colloc_y : ndarray
+        Collocation points (m): the cell centre, or for a partly covered cell the centroid of
+        its covered part, where its force also acts (as an equivalent square of area
+        phi L^2; see :func:`bem_solver._fft_operator.near_field_correction`).
+    pillar : ndarray of int
+        Index (into ``pillar_nm``) of the pillar each cell belongs to; 0 for flat scenes.
+    pillar_nm, pillar_xy : ndarray
+        Lattice indices (n, m) and centres (m) of the candidate pillars (flat: one row (0, 0)).
+    centre_cell : int
+        Index of the candidate cell that holds the origin.
+    """
+
+    cell_size: float
+    shape: tuple
+    flat_index: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    covered: np.ndarray
+    gap0: np.ndarray
+    pillar: np.ndarray
+    pillar_nm: np.ndarray
+    pillar_xy: np.ndarray
+    centre_cell: int
+    candidate_radius: float
+    flat: bool
+    colloc_x: np.ndarray = None
+    colloc_y: np.ndarray = None
+
+    def __post_init__(self):
+        if self.colloc_x is None:
+            self.colloc_x, self.colloc_y = self.x, self.y
+
+    @property
+    def n_cells(self) -> int:
+        return int(self.flat_index.size)
+
+
+def undeformed_gap(r, radius):
+    """g(r) = R - sqrt(R^2 - r^2) (m), written to avoid cancellation for r << R."""
+    r2 = np.asarray(r, dtype=float) ** 2
+    return r2 / (radius + np.sqrt(radius * radius - r2))
+
+
+def cell_size(scene: Scene, cells_per_diameter: int) -> float:
+    """L = d / N for pillars; L = 2 sqrt(R zeta) / N (Hertz contact diameter) for a flat
+    scene (m)."""
+    if int(cells_per_diameter) != cells_per_diameter or cells_per_diameter < 2:
+        raise ValueError(f"cells_per_diameter = {cells_per_diameter!r}: must be an integer >= 2")
+    if scene.pillars is None:
+        return 2.0 * math.sqrt(scene.lens.radius_m * scene.indentation_m) / cells_per_diameter
+    return scene.pillars.diameter_m / cells_per_diameter
+
+
+def build_grid(scene: Scene, cells_per_diameter: int) -> CellGrid:
+    """Candidate cells of ``scene`` with ``cells_per_diameter`` cells across a pillar (or
+    across the Hertz contact diameter for a flat scene)."""
+    R, zeta = scene.lens.radius_m, scene.indentation_m
+    L = cell_size(scene, cells_per_diameter)
+    # Radius where the undeformed gap equals zeta: r^2 = 2 R zeta - zeta^2.
+    r_geo = math.sqrt(2.0 * R * zeta - zeta * zeta)
+    flat = scene.pillars is None
+    # Flat scenes: a margin of two cells beyond 1.25 a keeps coarse grids clear of the edge.
+    r_cand = min(r_geo, FLAT_CANDIDATE_RATIO * math.sqrt(R * zeta) + 2.0 * L) if flat else r_geo
+    half = int(math.ceil(r_cand / L)) + 1
+    n_side = 2 * half + 1
+    if n_side**2 > 4 * MAX_FFT_POINTS:
+        raise SceneError(
+            f"cells_per_diameter = {cells_per_diameter}: the candidate disk would span "
+            f"{n_side} x {n_side} cells; choose fewer cells per diameter")
+    ax = (np.arange(n_side) - half) * L
+    gx, gy = np.meshgrid(ax, ax)  # row index = y, column index = x
+    gx, gy = gx.ravel(), gy.ravel()
+    rr = np.hypot(gx, gy)
+    if flat:
+        keep = np.nonzero(rr <= r_cand)[0]
+        covered = np.ones(keep.size)
+        pillar = np.zeros(keep.size, dtype=int)
+        pillar_nm = np.zeros((1, 2), dtype=int)
+        pillar_xy = np.zeros((1, 2))
+    else:
+        keep, covered, pillar, pillar_nm, pillar_xy = _pillar_cells(
+            scene, gx, gy, rr, L, r_cand)
+    colloc_x, colloc_y = gx[keep], gy[keep]
+    if not flat:
+        colloc_x, colloc_y = _centroids(colloc_x, colloc_y, covered, pillar, pillar_xy, L,
+                                        0.5 * scene.pillars.diameter_m)
+    keep, shape = _crop(keep, n_side)  # (box index, x / L, y / L)
+    if (2 * shape[0]) * (2 * shape[1]) > MAX_FFT_POINTS:
+        raise SceneError(
+            f"cells_per_diameter = {cells_per_diameter}: the grid would need {shape[0]} x "
+            f"{shape[1]} cells (padded FFT {4 * shape[0] * shape[1]} points > "
+            f"{MAX_FFT_POINTS}); choose fewer cells per diameter")
+    keep, x, y = keep[0], keep[1] * L, keep[2] * L
+    gap0 = undeformed_gap(np.hypot(colloc_x, colloc_y), R) - zeta
+    centre = np.nonzero((np.abs(x) < 0.5 * L) & (np.abs(y) < 0.5 * L))[0]
+    if centre.size != 1:
+        raise RuntimeError("grid construction lost the centre cell")  # a bug, not user input
+    return CellGrid(L, shape, keep, x, y, covered, gap0, pillar, pillar_nm, pillar_xy,
+                    int(centre[0]), r_cand, flat, colloc_x, colloc_y)
+
+
+def _centroids(x, y, covered, pillar, pillar_xy, L, rad):
+    """Collocation points: centroids of the covered parts of partly covered cells (m)."""
+    x, y = x.copy(), y.copy()
+    part = np.nonzero(covered < 1.0 - 1e-12)[0]
+    px, py = pillar_xy[pillar[part], 0], pillar_xy[pillar[part], 1]
+    cx, cy = x[part] - px, y[part] - py
+    mx, my = disk_rectangle_centroid(cx - 0.5 * L, cx + 0.5 * L, cy - 0.5 * L, cy + 0.5 * L,
+                                     rad)
+    x[part], y[part] = mx + px, my + py
+    return x, y
+
+
+def _crop(keep, n_side):
+    """Re-index the kept cells of the (n_side, n_side) grid into their bounding box:
+    (flat index in the box, x, y) and the box shape (ny, nx)."""
+    iy, ix = np.divmod(keep, n_side)
+    half = n_side // 2
+    y0, x0 = iy.min(), ix.min()
+    shape = (int(iy.max() - y0 + 1), int(ix.max() - x0 + 1))
+    return ((iy - y0) * shape[1] + (ix - x0), (ix - half).astype(float),
+            (iy - half).astype(float)), shape
+
+
+def _pillar_cells(scene, gx, gy, rr, L, r_cand):
+    """Cells on pillar tops within the candidate disk: indices into the grid, covered
+    fractions, owning pillar, and the pillar table."""
+    p = scene.pillars
+    rad = 0.5 * p.diameter_m
+    table = pillars_within(r_cand + rad, p.pitch_m)
+    n_grid = gx.size
+    best_frac = np.zeros(n_grid)
+    total_frac = np.zeros(n_grid)
+    owner = np.full(n_grid, -1, dtype=int)
+    side = int(math.isqrt(n_grid))
+    half = side // 2
+    m = int(math.ceil(rad / L)) + 1
+    for k, (_, _, px, py) in enumerate(table):
+        # Cells of the small window around this pillar only.
+        ix0 = int(round(px / L)) + half
+        iy0 = int(round(py / L)) + half
+        ix = np.arange(max(ix0 - m, 0), min(ix0 + m + 1, side))
+        iy = np.arange(max(iy0 - m, 0), min(iy0 + m + 1, side))
+        idx = (iy[:, None] * side + ix[None, :]).ravel()
+        cx, cy = gx[idx] - px, gy[idx] - py
+        frac = disk_rectangle_area(cx - 0.5 * L, cx + 0.5 * L, cy - 0.5 * L, cy + 0.5 * L,
+                                   rad) / (L * L)
+        total_frac[idx] += frac
+        better = frac > best_frac[idx]
+        owner[idx[better]] = k
+        best_frac[idx[better]] = frac[better]
+    # Near close packing a cell may overlap two tops: it goes to the larger share and carries
+    # the sum of both (the Hooke term then acts on one pillar only, an O(L^2) effect).
+    in_disk = np.nonzero((total_frac > 0.0) & (rr <= r_cand))[0]
+    keep = in_disk[total_frac[in_disk] > MIN_COVERED_FRACTION]
+    covered = np.minimum(total_frac[keep], 1.0)
+    # The dropped slivers' area goes to the other partly covered cells of the same pillar, so
+    # every top keeps its exact area.
+    n_table = len(table)
+    lost = np.bincount(owner[in_disk], weights=np.minimum(total_frac[in_disk], 1.0),
+                       minlength=n_table) - np.bincount(owner[keep], weights=covered,
+                                                        minlength=n_table)
+    partial = covered < 1.0
+    share = np.bincount(owner[keep][partial], weights=covered[partial], minlength=n_table)
+    scale = 1.0 + np.divide(lost, share, out=np.zeros(n_table), where=share > 0)
+    covered[partial] = np.minimum(covered[partial] * scale[owner[keep][partial]], 1.0)
+    used, pillar = np.unique(owner[keep], return_inverse=True)
+    nm = table[used, :2].astype(int)
+    xy = table[used, 2:4].astype(float)
+    return keep, covered, pillar, nm, xy

@@ -1,0 +1,324 @@
+"""The FFT boundary-element model: geometry, operator, limits, solver and agreement with the
+dense model.  Slow studies (observed orders of both BEMs, stability extremes) are marked slow.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+from scenes import Lens, Material, Pillars, Scene, SceneError, analytic, load_scene
+
+from bem_solver._fft import NoConvergenceWarning, solve_fft
+from bem_solver._fft_grid import build_grid, disk_rectangle_area, disk_rectangle_centroid
+from bem_solver._fft_operator import CompliancePlan, near_field_correction
+from bem_solver._love import love_square
+
+# Tolerances, named by where the error comes from.
+# Round-off of an FFT convolution against the direct sum: ~1e-16 times log(n) times the
+# dynamic range of the kernel; 1e-12 leaves three orders of margin.
+RTOL_ROUNDOFF = 1e-12
+# The solver stops at a gap residual of tol * zeta = 1e-8 zeta; forces then carry relative
+# errors of the same order times the conditioning of the contact problem (~1e2 here).
+RTOL_SOLVER = 1e-6
+# Midpoint sampling of an area on 2000^2 points: relative error ~ perimeter / (n area) < 1e-5.
+RTOL_SAMPLING = 2e-5
+# Hertz at 32 cells across the contact diameter: measured F error 1e-4, sigma_0 3e-4
+# (first-order contact edge, second-order interior); bound at 5x.
+RTOL_HERTZ_FORCE = 5e-4
+RTOL_HERTZ_CENTRE = 1.5e-3
+# Flat punch at 32 cells per diameter: measured -0.22 % with the equivalent-square edge cells
+# (first-order convergence, constant ~0.07 / N); bound at 3x.
+RTOL_PUNCH_N32 = 7e-3
+
+RIGID = ["pillars.rigid=true", "substrate.rigid=true", "substrate.nu=0.5"]
+
+
+def punch_force(scene: Scene, compliance: float) -> float:
+    """Flat punch force with the lens curvature seen by the punch face: by the reciprocal
+    theorem the face profile g(r) = r^2 / 2R reduces the indentation by its average weighted
+    by the flat-punch pressure (a^2 - r^2)^-1/2, i.e. by a^2 / (3 R) (a = d/2).  At R = 2 mm,
+    d = 4 um this is 0.22 % of zeta = 0.3 um: larger than the solver's finest-grid error."""
+    a = scene.pillars.diameter_m / 2.0
+    zeta_eff = scene.indentation_m - a * a / (3.0 * scene.lens.radius_m)
+    return scene.pillars.diameter_m * zeta_eff / compliance
+
+
+# --- geometry ----------------------------------------------------------------------------
+@pytest.mark.parametrize("rect", [(0.8, 1.1, 0.2, 0.5), (-1.05, -0.7, -0.4, 0.1),
+                                  (0.5, 0.9, 0.5, 0.9), (-0.3, 0.2, -1.1, -0.8)])
+def test_disk_rectangle_area_and_centroid_against_sampling(rect):
+    x0, x1, y0, y1 = rect
+    g = (np.arange(2000) + 0.5) / 2000
+    X, Y = np.meshgrid(x0 + (x1 - x0) * g, y0 + (y1 - y0) * g)
+    inside = X**2 + Y**2 <= 1.0
+    area = disk_rectangle_area(x0, x1, y0, y1, 1.0)
+    assert area == pytest.approx(inside.mean() * (x1 - x0) * (y1 - y0), rel=RTOL_SAMPLING)
+    cx, cy = disk_rectangle_centroid(x0, x1, y0, y1, 1.0)
+    assert cx == pytest.approx(X[inside].mean(), abs=RTOL_SAMPLING)
+    assert cy == pytest.approx(Y[inside].mean(), abs=RTOL_SAMPLING)
+
+
+def test_disk_rectangle_area_exact_cases():
+    assert disk_rectangle_area(-2, 2, -2, 2, 1.0) == pytest.approx(math.pi, rel=1e-15)
+    assert disk_rectangle_area(0, 2, -2, 2, 1.0) == pytest.approx(math.pi / 2, rel=1e-15)
+    assert disk_rectangle_area(0, 2, 0, 2, 1.0) == pytest.approx(math.pi / 4, rel=1e-15)
+    assert disk_rectangle_area(-0.1, 0.1, -0.1, 0.1, 1.0) == pytest.approx(0.04, rel=1e-14)
+    assert disk_rectangle_area(1.0, 2.0, 1.0, 2.0, 1.0) == 0.0
+
+
+@pytest.mark.parametrize("n", [7, 8, 13])
+def test_pillar_tops_have_their_true_area(n):
+    scene = load_scene("paper-fig3-sparse")
+    grid = build_grid(scene, n)
+    d = scene.pillars.diameter_m
+    area = np.bincount(grid.pillar, weights=grid.covered) * grid.cell_size**2
+    # Pillars cut by the candidate disk keep fewer cells; the centre one is whole.
+    centre = grid.pillar[grid.centre_cell]
+    assert area[centre] == pytest.approx(math.pi * d * d / 4, rel=1e-12)
+    assert np.all(area <= math.pi * d * d / 4 * (1 + 1e-12))
+
+
+# --- operator ----------------------------------------------------------------------------
+def _small_plan(scene_name, overrides, n):
+    scene = load_scene(scene_name, overrides)
+    grid = build_grid(scene, n)
+    spring = 0.0 if grid.flat else scene.pillar_spring_compliance
+    corr = near_field_correction(grid, scene.half_space_compliance)
+    plan = CompliancePlan(grid.shape, grid.flat_index, grid.cell_size,
+                          scene.half_space_compliance, pillar=grid.pillar,
+                          spring_compliance=spring, correction=corr)
+    return scene, grid, plan
+
+
+@pytest.mark.parametrize("case", [("hertz", [], 9), ("single-pillar", [], 8),
+                                  ("paper-fig3-dense", ["load.indentation_um=0.02"], 6)])
+def test_fft_convolution_equals_direct_sum(case):
+    scene, grid, plan = _small_plan(*case)
+    rng = np.random.default_rng(42)
+    q = rng.random(grid.n_cells)
+    # Direct sum with Love's coefficients, independent of the kernel layout and the FFT.
+    direct = scene.half_space_compliance / math.pi * love_square(
+        grid.x[:, None] - grid.x[None, :], grid.y[:, None] - grid.y[None, :],
+        grid.cell_size) @ q
+    fft = plan.half_space(q)
+    assert np.max(np.abs(fft - direct)) <= RTOL_ROUNDOFF * np.max(np.abs(direct))
+    full = plan.dense_matrix(grid.x, grid.y) @ q
+    assert np.max(np.abs(plan(q) - full)) <= RTOL_ROUNDOFF * np.max(np.abs(full))
+
+
+def test_operator_symmetric_positive_definite():
+    _, grid, plan = _small_plan("single-pillar", [], 8)
+    mat = plan.dense_matrix(grid.x, grid.y)
+    assert np.max(np.abs(mat - mat.T)) <= RTOL_ROUNDOFF * np.max(np.abs(mat))
+    assert np.linalg.eigvalsh(mat).min() > 0
+    rng = np.random.default_rng(7)
+    q1, q2 = rng.random(grid.n_cells), rng.random(grid.n_cells)
+    assert np.dot(q1, plan(q2)) == pytest.approx(np.dot(q2, plan(q1)), rel=RTOL_ROUNDOFF)
+
+
+# --- analytic limits ----------------------------------------------------------------------
+def test_hertz_limit():
+    scene = load_scene("hertz")
+    res = solve_fft(scene, 32)
+    h = analytic.hertz(scene)
+    assert res.converged
+    assert res.total_force_N == pytest.approx(h.force, rel=RTOL_HERTZ_FORCE)
+    assert res.centre_pressure_Pa == pytest.approx(h.centre_pressure, rel=RTOL_HERTZ_CENTRE)
+    L = res.discretisation["cell_size_m"]
+    # The discrete contact edge is resolved to one cell; the area to its perimeter strip.
+    assert abs(res.contact_radius_m - h.contact_radius) <= L
+    assert abs(res.real_contact_area_m2 - h.contact_area) <= 2 * math.pi * h.contact_radius * L
+    assert res.pillars_in_contact == 0 and res.pillar_forces == []
+
+
+def test_rigid_punch_limit_converges_first_order():
+    scene = load_scene("single-pillar", RIGID)
+    exact = punch_force(scene, scene.lens.material.compliance)
+    errors = [solve_fft(scene, n).total_force_N / exact - 1.0 for n in (8, 16, 32)]
+    assert abs(errors[-1]) < RTOL_PUNCH_N32
+    # First order: the error halves per doubling (observed ratios 2.1 and 1.6).
+    order = math.log(abs(errors[0] / errors[2])) / math.log(4.0)
+    assert 0.8 < order < 1.6
+    # Without the lens curvature the classical formula F = d zeta / gamma_l is 0.22 % above.
+    classical = analytic.rigid_punch(scene).force
+    assert exact / classical == pytest.approx(1 - 0.0022, abs=2e-4)
+
+
+@pytest.mark.parametrize("ratio", [1e-3, 1e-1, 1.0, 1e2, 1e4])
+def test_spring_model_limit(ratio):
+    """One Hooke pillar between two half-spaces: F = d zeta_eff / gamma* (spring model); the
+    discretisation error only affects the half-space part of gamma*, so it shrinks as the
+    pillar softens (E_l / E_p grows)."""
+    scene = load_scene("single-pillar", [f"pillars.E_Pa={1.6e6 * ratio}"])
+    res = solve_fft(scene, 24)
+    gamma_star = analytic.effective_compliance(scene)
+    exact = punch_force(scene, gamma_star)
+    share = scene.half_space_compliance / gamma_star  # weight of the half-space part
+    assert res.total_force_N == pytest.approx(exact, rel=RTOL_PUNCH_N32 * share + RTOL_SOLVER)
+
+
+# --- solver ----------------------------------------------------------------------------
+def test_force_balance_and_schema():
+    scene = load_scene("paper-fig3-sparse")
+    res = solve_fft(scene, 12)
+    f = res.fields
+    assert res.model == "bem-fft" and res.converged
+    assert np.sum(f["cell_force_N"]) == pytest.approx(res.total_force_N, rel=1e-13)
+    assert sum(p.force_N for p in res.pillar_forces) == pytest.approx(res.total_force_N,
+                                                                      rel=1e-13)
+    assert res.pillars_in_contact == len(res.pillar_forces) == 7
+    assert res.real_contact_area_m2 <= 7 * math.pi * 4e-6**2 / 4 * (1 + 1e-12)
+    assert res.pillar_top_profile["r_m"][0] == 0.0
+    assert res.pillar_top_profile["pressure_Pa"][0] == res.centre_pressure_Pa
+    d = res.diagnostics
+    assert d["final_error"] <= d["tolerance"] == 1e-8
+    assert d["max_interpenetration_m"] <= 1e-8 * scene.indentation_m
+    res.to_json()  # finite, serialisable
+
+
+def test_residual_history_falls():
+    res = solve_fft(load_scene("paper-fig3-sparse"), 16, warm_start=False)
+    hist = np.array(res.diagnostics["residual_history"])
+    assert hist[-1] <= 1e-8 < hist[0]
+    # Constrained CG: at least a decade every 10 iterations on average on this problem.
+    assert len(hist) - 1 <= 10 * math.log10(hist[0] / hist[-1])
+
+
+def test_warm_start_changes_nothing_but_work():
+    scene = load_scene("paper-fig3-sparse")
+    cold = solve_fft(scene, 16, warm_start=False)
+    warm = solve_fft(scene, 16, warm_start=True)
+    assert warm.total_force_N == pytest.approx(cold.total_force_N, rel=RTOL_SOLVER)
+    assert warm.centre_pressure_Pa == pytest.approx(cold.centre_pressure_Pa, rel=RTOL_SOLVER)
+
+
+def test_unit_rescaling_invariance():
+    """Lengths x lam and moduli x mu: forces scale lam^2 mu, pressures mu, lengths lam."""
+    base = load_scene("paper-fig3-sparse")
+    lam, mu = 1e3, 1e-4
+
+    def mat(m):
+        return Material(m.E_Pa * mu, m.nu)
+
+    p = base.pillars
+    scaled = Scene(Lens(base.lens.radius_m * lam, mat(base.lens.material)),
+                   mat(base.substrate), base.indentation_m * lam,
+                   Pillars(p.diameter_m * lam, p.height_m * lam, p.pitch_m * lam,
+                           mat(p.material)))
+    a, b = solve_fft(base, 10), solve_fft(scaled, 10)
+    assert b.total_force_N == pytest.approx(a.total_force_N * lam**2 * mu, rel=RTOL_SOLVER)
+    assert b.centre_pressure_Pa == pytest.approx(a.centre_pressure_Pa * mu, rel=RTOL_SOLVER)
+    assert b.contact_radius_m == pytest.approx(a.contact_radius_m * lam, rel=1e-12)
+    assert b.real_contact_area_m2 == pytest.approx(a.real_contact_area_m2 * lam**2, rel=1e-12)
+
+
+def test_non_convergence_is_reported():
+    with pytest.warns(NoConvergenceWarning):
+        res = solve_fft(load_scene("paper-fig3-sparse"), 12, max_iterations=2,
+                        warm_start=False)
+    assert not res.converged
+    assert "no convergence" in res.diagnostics["message"]
+
+
+def test_refuses_bad_resolution():
+    scene = load_scene("single-pillar")
+    with pytest.raises(ValueError):
+        solve_fft(scene, 1)
+    with pytest.raises(SceneError, match="cells_per_diameter"):
+        solve_fft(load_scene("paper-fig3-dense"), 2000)
+
+
+@pytest.mark.parametrize("overrides", [
+    ["pillars.E_Pa=160"],                                   # E_p / E_l = 1e-4
+    ["pillars.E_Pa=1.6e15"],                                # E_p / E_l = 1e9
+    ["pillars.rigid=true"],
+    ["pillars.surface_fraction=2e-3", "load.indentation_um=1.8"],
+    ["pillars.surface_fraction=0.9", "load.indentation_um=0.005", "pillars.E_Pa=160"],
+])
+def test_converges_at_extremes_fast(overrides):
+    res = solve_fft(load_scene("paper-fig3-sparse", overrides), 8)
+    assert res.converged and res.total_force_N > 0
+
+
+# --- agreement with the dense model ------------------------------------------------------
+dense = pytest.importorskip("bem_solver").__dict__.get("solve_dense")
+needs_dense = pytest.mark.skipif(dense is None, reason="bem_solver.solve_dense not available")
+
+# At matching resolution (P = 11) the two models differ only in the placement of cells on
+# pillars other than the centre one (the dense model centres a pattern on every pillar, the
+# FFT grid is global) and in the far-field of partly covered cells; both are first-order
+# effects.  The single rigid punch, the worst case, has errors of 2.2 % (dense) and 1.6 % (FFT)
+# in F_T at P = 11 against the continuum: bound the difference by their sum.
+RTOL_AGREE_FORCE = 0.02
+RTOL_AGREE_CENTRE = 0.04   # sigma_0 converges more slowly next to an edge singularity
+RTOL_AGREE_AREA = 0.02     # both carry exact covered areas; differences are contact edges
+
+
+@needs_dense
+@pytest.mark.parametrize("name", ["single-pillar", "paper-fig3-sparse", "paper-fig3-dense"])
+def test_dense_and_fft_agree_at_matching_resolution(name):
+    scene = load_scene(name)
+    a, b = dense(scene, 11), solve_fft(scene, 11)
+    assert b.total_force_N == pytest.approx(a.total_force_N, rel=RTOL_AGREE_FORCE)
+    assert b.centre_pressure_Pa == pytest.approx(a.centre_pressure_Pa, rel=RTOL_AGREE_CENTRE)
+    assert b.real_contact_area_m2 == pytest.approx(a.real_contact_area_m2,
+                                                   rel=RTOL_AGREE_AREA)
+    assert b.pillars_in_contact == a.pillars_in_contact
+    # One element side: both report the outermost element reach.
+    assert abs(b.contact_radius_m - a.contact_radius_m) <= scene.pillars.diameter_m / 11
+
+
+@needs_dense
+@pytest.mark.parametrize("n", [9, 11])
+def test_dense_and_fft_identical_on_flat_scene(n):
+    """Odd N on a flat scene: both models use the same cells, kernel and gap."""
+    scene = load_scene("hertz")
+    a, b = dense(scene, n), solve_fft(scene, n)
+    assert b.total_force_N == pytest.approx(a.total_force_N, rel=RTOL_SOLVER)
+    assert b.centre_pressure_Pa == pytest.approx(a.centre_pressure_Pa, rel=RTOL_SOLVER)
+    # Contact radius and area come from a fit to the pressures: solver tolerance too.
+    assert b.contact_radius_m == pytest.approx(a.contact_radius_m, rel=RTOL_SOLVER)
+    assert b.real_contact_area_m2 == pytest.approx(a.real_contact_area_m2, rel=RTOL_SOLVER)
+
+
+# --- slow studies -----------------------------------------------------------------------
+@pytest.mark.slow
+@needs_dense
+@pytest.mark.parametrize("name", ["single-pillar", "paper-fig3-sparse"])
+def test_both_bems_converge_to_the_same_continuum_answer(name):
+    """Observed orders (three finest levels, ratio 2) and Richardson limits of F_T and
+    sigma_0 for both models; the limits agree within the sum of their GCI bands."""
+    from validation.verification import gci_three
+
+    scene = load_scene(name)
+    fft = [solve_fft(scene, n) for n in (64, 32, 16)]
+    dns = [dense(scene, n) for n in (32, 16, 8)]
+    for field in ("total_force_N", "centre_pressure_Pa"):
+        g_fft = gci_three([1 / 64, 1 / 32, 1 / 16], [getattr(r, field) for r in fft])
+        g_dns = gci_three([1 / 32, 1 / 16, 1 / 8], [getattr(r, field) for r in dns])
+        for g in (g_fft, g_dns):
+            assert g.status == "ok", (field, g.note)
+            # First-order edges; sigma_0 away from the edges converges up to second order.
+            assert 0.8 < g.order < 2.3, (field, g.order)
+        band = g_fft.uncertainty + g_dns.uncertainty
+        assert abs(g_fft.f_exact - g_dns.f_exact) <= band, field
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("phi", [2e-3, 0.3, 0.9])
+@pytest.mark.parametrize("zeta_um", [0.005, 1.8])
+@pytest.mark.parametrize("ratio", [1e-4, 1.0, 1e9, math.inf])
+def test_converges_over_the_extremes(phi, zeta_um, ratio):
+    """E_p / E_l from 1e-4 to 1e9 and rigid, Phi from 2e-3 to 0.9, zeta up to 0.9 h."""
+    young = "pillars.rigid=true" if math.isinf(ratio) else f"pillars.E_Pa={1.6e6 * ratio}"
+    scene = load_scene("paper-fig3-dense", [f"pillars.surface_fraction={phi}",
+                                            f"load.indentation_um={zeta_um}", young])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", NoConvergenceWarning)
+        res = solve_fft(scene, 12)
+    assert res.converged and res.total_force_N > 0
+    assert res.diagnostics["max_interpenetration_m"] <= 1e-8 * scene.indentation_m

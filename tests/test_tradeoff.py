@@ -1,0 +1,106 @@
+"""``pillar-xval tradeoff``: ladders, Richardson references, outputs."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import pytest
+
+from scenes import load_scene
+from validation.cmd_tradeoff import LADDERS, Ladder, reference_values, tradeoff, write_outputs
+
+
+def _rows(model, levels, values):
+    return [{"model": model, "level": n, "h": 1.0 / n, "converged": True,
+             "F_T": f, "sigma0": f, "a": f, "A": f} for n, f in zip(levels, values)]
+
+
+def test_reference_is_richardson_of_the_tightest_model():
+    # f = 1 + h (first order) for one model, f = 1 + 0.1 h^2 for the other: both extrapolate
+    # to 1; the second has the smaller band and is chosen.
+    rows = _rows("coarse", (4, 8, 16), [1 + 1 / n for n in (4, 8, 16)])
+    rows += _rows("fine", (4, 8, 16), [1 + 0.1 / n**2 for n in (4, 8, 16)])
+    ref = reference_values(rows)["F_T"]
+    assert ref["status"] == "richardson" and ref["model"] == "fine"
+    assert ref["value"] == pytest.approx(1.0, rel=1e-12)
+    assert ref["order"] == pytest.approx(2.0, rel=1e-9)
+
+
+def test_models_of_other_physics_get_their_own_reference():
+    from validation.cmd_tradeoff import physics_group
+
+    pillars, flat = load_scene("single-pillar"), load_scene("hertz")
+    assert physics_group("bem", pillars) == physics_group("bem-fft", pillars)
+    assert physics_group("fem-axisym", pillars) != physics_group("bem", pillars)
+    assert physics_group("fem-axisym", flat) == physics_group("bem", flat)
+
+
+def test_reference_falls_back_to_the_finest_solution():
+    rows = _rows("m", (4, 8), [1.5, 1.25])
+    ref = reference_values(rows)["F_T"]
+    assert ref["value"] == 1.25 and ref["order"] is None
+
+
+def test_every_registered_ladder_names_a_model():
+    from validation.models import MODELS
+
+    for name, ladder in LADDERS.items():
+        assert name in MODELS
+        sizes = [ladder.size(level) for level in ladder.levels]
+        assert sizes == sorted(sizes, reverse=True)  # coarse to fine
+        assert ladder.option in MODELS[name][2]
+
+
+def test_tradeoff_writes_csv_json_png(tmp_path):
+    scene = load_scene("single-pillar")
+    ladders = {"bem-fft": Ladder("cells_per_diameter", (8, 16, 32))}
+    doc = tradeoff(scene, ["bem-fft"], repeats=2, ladders=ladders)
+    assert [r["level"] for r in doc["rows"]] == [8, 16, 32]
+    assert doc["references"]["hooke-pillar"]["F_T"]["status"] == "richardson"
+    for row in doc["rows"]:
+        assert row["wall_time_s"] > 0 and row["peak_memory_MB"] > 0 and row["converged"]
+    errors = [r["err_F_T"] for r in doc["rows"]]
+    assert errors == sorted(errors, reverse=True)  # refinement buys accuracy
+    write_outputs(doc, tmp_path)
+    with open(tmp_path / "tradeoff.csv") as fh:
+        table = list(csv.DictReader(fh))
+    assert len(table) == 3 and float(table[-1]["err_F_T"]) == pytest.approx(errors[-1])
+    assert json.loads((tmp_path / "tradeoff.json").read_text())["scene"]["name"] == \
+        "single-pillar"
+    assert (tmp_path / "tradeoff.png").stat().st_size > 1000
+
+
+def test_cli_tradeoff(tmp_path, capsys):
+    from validation.cli import main
+
+    code = main(["tradeoff", "--scene", "single-pillar", "--models", "bem-fft",
+                 "--repeats", "1", "--out", str(tmp_path)])
+    assert code == 0
+    out = capsys.readouterr()
+    assert "bem-fft" in out.out and "references (hooke-pillar):" in out.out
+    assert "tradeoff: bem-fft" in out.err  # progress lines on stderr
+    assert (tmp_path / "tradeoff.csv").exists()
+
+
+def test_cli_tradeoff_rejects_unknown_model(tmp_path):
+    from validation.cli import main
+
+    assert main(["tradeoff", "--scene", "single-pillar", "--models", "nope",
+                 "--out", str(tmp_path)]) == 2
+
+
+def refusing_model(scene, **kwargs):
+    raise ValueError("this model needs a flat scene")
+
+
+def test_a_model_that_refuses_the_scene_is_skipped(monkeypatch):
+    import validation.models as models
+
+    monkeypatch.setitem(models.MODELS, "refuser", (__name__, "refusing_model", ("n",)))
+    ladders = {"refuser": Ladder("n", (1, 2)),
+               "bem-fft": Ladder("cells_per_diameter", (8, 12, 16))}
+    doc = tradeoff(load_scene("single-pillar"), ["refuser", "bem-fft"], repeats=1,
+                   ladders=ladders)
+    assert "refused" in doc["skipped"]["refuser"]
+    assert {r["model"] for r in doc["rows"]} == {"bem-fft"}
