@@ -25,6 +25,20 @@ def _pyplot():
     return plt
 
 
+def _save(fig, path) -> Path:
+    """Lay out, write atomically (a rename: an interrupted run never leaves half a PNG), close."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp.png")
+    fig.savefig(tmp, dpi=120)
+    plt.close(fig)
+    tmp.replace(path)
+    return path
+
+
 def plot_convergence(data: dict, path: Path) -> Path:
     """Relative error against the relative cell size h, log-log, one line per quantity.
 
@@ -64,12 +78,7 @@ def plot_convergence(data: dict, path: Path) -> Path:
     ax.set_title(f"{data['model']} on {data['scene'].get('name', '?')}")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def plot_profiles(curves: list[dict], radius_m: float, path: Path, title: str,
@@ -100,12 +109,7 @@ def plot_profiles(curves: list[dict], radius_m: float, path: Path, title: str,
     ax.set_title(title)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8, loc="upper left")
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def plot_gecit(rows: list[dict], path: Path) -> Path:
@@ -141,12 +145,7 @@ def plot_gecit(rows: list[dict], path: Path) -> Path:
         if ax.get_legend_handles_labels()[0]:
             ax.legend(fontsize=8)
     fig.suptitle("Hooke-spring BEM against the elastic-pillar FEM (single pillar)")
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def plot_gecit_profiles(profiles: list[dict], path: Path) -> Path:
@@ -173,12 +172,7 @@ def plot_gecit_profiles(profiles: list[dict], path: Path) -> Path:
     if axes[0, 0].get_legend_handles_labels()[0]:
         axes[0, 0].legend(fontsize=7, loc="upper left")
     fig.suptitle("Pressure across the pillar top, elastic pillar (FEM)")
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 # --- pyvista render ----------------------------------------------------------------------

@@ -188,7 +188,7 @@ def gci_three(h, f, fs: float = FS_THREE_GRIDS) -> GCIResult:
 
 
 def _fill_estimates(out: GCIResult, p: float, fs: float) -> None:
-    h, f = out.h, out.f
+    f = out.f
     r21 = out.ratios[0]
     f1, f2 = f[0], f[1]
     rp21 = r21**p
