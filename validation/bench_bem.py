@@ -79,7 +79,7 @@ def run(out: Path, repeats: int = 3, quick: bool = False) -> dict:
     log = lambda msg: print(msg, file=sys.stderr, flush=True)  # noqa: E731
     rows = []
     dense = load_scene("paper-fig3-dense")
-    for P in ([5, 11] if quick else [5, 7, 11, 15, 21, 31]):
+    for P in ([5, 11] if quick else [5, 7, 11, 15, 21]):
         rows.append(bench_case("vs P: fig3-dense", dense, P, repeats, log))
     cases = [(0.03, 0.3), (0.1, 0.3), (0.3, 0.3), (0.82, 0.3), (0.82, 0.5)]
     for phi, zeta in (cases[:2] if quick else cases):
