@@ -34,7 +34,8 @@ def add_parser(sub) -> None:
                         "element size; default 1.0")
     p.add_argument("--json", action="store_true", help="print exactly one JSON document")
     p.add_argument("--out", type=Path, default=None,
-                   help="folder for result.json, element CSV and pressure-map PNG")
+                   help="folder for result.json, element and pillar CSVs, pressure.png "
+                        "(and fields.vtu for the FEM)")
     p.set_defaults(func=run)
 
 
@@ -42,6 +43,8 @@ def run(args) -> int:
     scene = load_scene(args.scene, args.overrides)
     options = {k: v for k, v in vars(args).items()
                if k not in ("func", "command", "scene", "overrides", "model", "json", "out")}
+    if args.out is not None:
+        options["vtu_path"] = args.out / "fields.vtu"  # models with volume fields write them
     result = run_model(args.model, scene, **options)
     if args.out is not None:
         from .report import write_solve_report

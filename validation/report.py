@@ -80,6 +80,12 @@ def pressure_figure(result: ContactResult) -> bytes:
         r = np.hypot(x, y)
         ax_prof.plot(r * um, p * kpa, ".", ms=3, color="0.3", label=f"{result.model} elements")
 
+    prof = result.pillar_top_profile
+    if prof.get("r_m") and "x_m" not in f:  # models without an element map: their profile
+        ax_prof.plot(np.asarray(prof["r_m"]) * um, np.asarray(prof["pressure_Pa"]) * kpa,
+                     "-", color="0.3", label=f"{result.model} profile")
+        ax_map.text(0.5, 0.5, "no element map for this model", ha="center",
+                    transform=ax_map.transAxes)
     hz = analytic.hertz(scene)
     r_line = np.linspace(0, max(hz.contact_radius, result.contact_radius_m) * 1.05, 400)
     ax_prof.plot(r_line * um, hz.pressure(r_line) * kpa, "b-", label="Hertz")
