@@ -6,7 +6,8 @@ regular grid with FFT-applied kernel and constrained conjugate gradients
 (:mod:`bem_solver._fft`).
 """
 
-from ._cells import cell_pattern, disk_rectangle_area
+from ._cells import cell_pattern
+from ._disk import disk_rectangle_area, disk_rectangle_centroid
 from ._dense import lens_gap, solve_dense
 from ._discretise import discretise, overlap_radius
 from ._fft import solve_fft
@@ -19,6 +20,7 @@ __all__ = [
     "cell_pattern",
     "discretise",
     "disk_rectangle_area",
+    "disk_rectangle_centroid",
     "expansion",
     "full_operator",
     "lens_gap",

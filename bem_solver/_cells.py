@@ -12,11 +12,12 @@ Two variants:
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
+
+from ._disk import disk_rectangle_area, disk_rectangle_centroid
 
 VARIANTS = ("centre", "covered")
 
@@ -39,48 +40,6 @@ class CellPattern:
                 "area": self.area * d * d}
 
 
-def _segment_integral(x0, x1, rho):
-    """Integral of sqrt(rho^2 - x^2) dx from x0 to x1 (|x| <= rho)."""
-    def prim(x):
-        x = min(max(x, -rho), rho)
-        return 0.5 * (x * math.sqrt(max(rho * rho - x * x, 0.0)) + rho * rho * math.asin(x / rho))
-    return prim(x1) - prim(x0)
-
-
-def disk_rectangle_area(x0, x1, y0, y1, rho=0.5):
-    """Exact area of [x0, x1] x [y0, y1] inside the disk of radius ``rho`` centred at 0.
-
-    Integrates L(x) = [min(y1, s) - max(y0, -s)]^+ with s = sqrt(rho^2 - x^2) piecewise: the
-    breakpoints are where s crosses |y0| or |y1|, and on each piece every term is a constant
-    or +-s, integrated in closed form.
-    """
-    lo, hi = max(x0, -rho), min(x1, rho)
-    if hi <= lo:
-        return 0.0
-    cuts = {lo, hi}
-    if lo < 0.0 < hi:  # s is tangent to y = +-rho at x = 0: keep that point off piece interiors
-        cuts.add(0.0)
-    for yy in (y0, y1):
-        if abs(yy) < rho:
-            xc = math.sqrt(rho * rho - yy * yy)
-            cuts.update(c for c in (-xc, xc) if lo < c < hi)
-    cuts = sorted(cuts)
-    area = 0.0
-    for a, b in zip(cuts[:-1], cuts[1:]):
-        xm = 0.5 * (a + b)
-        s = math.sqrt(rho * rho - xm * xm)
-        top_is_s = s < y1
-        bottom_is_s = -s > y0
-        if (y1 if not top_is_s else s) <= (y0 if not bottom_is_s else -s):
-            continue
-        seg = _segment_integral(a, b, rho)
-        width = b - a
-        top = seg if top_is_s else y1 * width
-        bottom = -seg if bottom_is_s else y0 * width
-        area += top - bottom
-    return area
-
-
 @lru_cache(maxsize=64)
 def cell_pattern(per_diameter: int, variant: str = "covered") -> CellPattern:
     """Cells of a unit-diameter disk with ``per_diameter`` cells across it."""
@@ -99,27 +58,11 @@ def cell_pattern(per_diameter: int, variant: str = "covered") -> CellPattern:
         side = np.full(gx.shape, b)
         return CellPattern(gx, gy, side, side**2, gx, gy, b)
 
-    areas, cxs, cys, gxs, gys = [], [], [], [], []
-    sub = (np.arange(64) + 0.5) / 64.0 - 0.5  # sub-samples for the centroid only
-    for x, y in zip(gx, gy):
-        area = disk_rectangle_area(x - b / 2, x + b / 2, y - b / 2, y + b / 2)
-        if area <= 1e-12 * b * b:
-            continue
-        if area >= b * b * (1.0 - 1e-14):
-            cx, cy, area = x, y, b * b
-        else:
-            sx, sy = np.meshgrid(x + b * sub, y + b * sub, indexing="ij")
-            inside = sx**2 + sy**2 <= 0.25
-            if inside.any():
-                cx, cy = float(sx[inside].mean()), float(sy[inside].mean())
-            else:  # a sliver thinner than the sub-sampling: its point nearest the centre
-                cx = min(max(0.0, x - b / 2), x + b / 2)
-                cy = min(max(0.0, y - b / 2), y + b / 2)
-        areas.append(area)
-        cxs.append(cx)
-        cys.append(cy)
-        gxs.append(x)
-        gys.append(y)
-    area = np.array(areas)
-    return CellPattern(np.array(cxs), np.array(cys), np.sqrt(area), area,
-                       np.array(gxs), np.array(gys), b)
+    area = disk_rectangle_area(gx - b / 2, gx + b / 2, gy - b / 2, gy + b / 2, 0.5)
+    keep = area > 1e-12 * b * b
+    gx, gy, area = gx[keep], gy[keep], area[keep]
+    full = area >= b * b * (1.0 - 1e-14)
+    cx, cy = disk_rectangle_centroid(gx - b / 2, gx + b / 2, gy - b / 2, gy + b / 2, 0.5)
+    # Whole cells: exactly their centre and area (no rounding from the closed forms).
+    cx, cy, area = np.where(full, gx, cx), np.where(full, gy, cy), np.where(full, b * b, area)
+    return CellPattern(cx, cy, np.sqrt(area), area, gx, gy, b)

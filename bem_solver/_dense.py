@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from scenes import ContactResult, PillarForce, Scene
+from scenes import ContactResult, PillarForce, Scene, analytic
 
 from ._cells import VARIANTS
 from ._discretise import Discretisation, discretise, overlap_radius
@@ -24,10 +24,8 @@ RTOL_COMPLEMENTARITY = 1e-8
 
 
 def lens_gap(scene: Scene, x, y):
-    """Gap before loading between the lens and the pillar-top plane, R - sqrt(R^2 - r^2) (m)."""
-    R = scene.lens.radius_m
-    r2 = np.asarray(x) ** 2 + np.asarray(y) ** 2
-    return R - np.sqrt(R * R - r2)
+    """Gap before loading between the lens and the pillar-top plane at (x, y) (m)."""
+    return analytic.lens_gap(scene.lens.radius_m, np.hypot(x, y))
 
 
 def _check_options(per_diameter, cells, contact):

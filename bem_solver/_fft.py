@@ -165,9 +165,9 @@ def _plain_grid(grid: CellGrid, scene: Scene) -> CellGrid:
     """The same cells collocated at their centres (no edge correction)."""
     from dataclasses import replace
 
-    from ._fft_grid import undeformed_gap
+    from scenes.analytic import lens_gap
 
-    gap0 = undeformed_gap(np.hypot(grid.x, grid.y), scene.lens.radius_m) - scene.indentation_m
+    gap0 = lens_gap(scene.lens.radius_m, np.hypot(grid.x, grid.y)) - scene.indentation_m
     return replace(grid, colloc_x=grid.x, colloc_y=grid.y, gap0=gap0)
 
 

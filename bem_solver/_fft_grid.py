@@ -22,7 +22,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from scenes import Scene, SceneError
+from scenes.analytic import lens_gap
 from scenes.lattice import pillars_within
+
+from ._disk import disk_rectangle_area, disk_rectangle_centroid
 
 # Cells covered by less than this fraction of their area are dropped and their area is given
 # to the other edge cells of the pillar.  Such slivers, with an equivalent-square
@@ -36,63 +39,6 @@ MIN_COVERED_FRACTION = 1e-3
 FLAT_CANDIDATE_RATIO = 1.25
 # Largest padded FFT grid (points) accepted: 2 * 4096^2 doubles is ~1 GB of work arrays.
 MAX_FFT_POINTS = 4096 * 4096
-
-
-def _segment_integral(y, a, b, rad):
-    """Integral over x in [a, b] (already clipped to [-rad, rad]) of clip(y, -s(x), s(x)),
-    s(x) = sqrt(rad^2 - x^2); arrays broadcast."""
-    def prim(x):  # antiderivative of s(x)
-        xc = np.clip(x / rad, -1.0, 1.0)
-        return 0.5 * rad * rad * (xc * np.sqrt(1.0 - xc * xc) + np.arcsin(xc))
-
-    w = np.sqrt(np.clip(rad * rad - y * y, 0.0, None))
-    a_in = np.clip(a, -w, w)
-    b_in = np.clip(b, -w, w)
-    # Where |x| <= w the chord covers y itself; elsewhere the clip is +-s(x).
-    inner = y * (b_in - a_in)
-    outer = np.sign(y) * ((prim(b) - prim(a)) - (prim(b_in) - prim(a_in)))
-    return inner + outer
-
-
-def disk_rectangle_area(x0, x1, y0, y1, rad):
-    """Exact area of the disk of radius ``rad`` centred at the origin intersected with the
-    rectangles [x0, x1] x [y0, y1] (same unit as the inputs, squared); arrays broadcast.
-
-    Area = integral over x of [clip(y1, -s, s) - clip(y0, -s, s)], s = sqrt(rad^2 - x^2),
-    integrated in closed form.
-    """
-    a = np.clip(x0, -rad, rad)
-    b = np.clip(x1, -rad, rad)
-    area = _segment_integral(np.asarray(y1, float), a, b, rad) \
-        - _segment_integral(np.asarray(y0, float), a, b, rad)
-    return np.clip(area, 0.0, None)
-
-
-def _segment_moment(y, a, b, rad):
-    """Integral over x in [a, b] (clipped to [-rad, rad]) of x clip(y, -s(x), s(x))."""
-    def prim(x):  # antiderivative of x s(x)
-        return -np.clip(rad * rad - x * x, 0.0, None) ** 1.5 / 3.0
-
-    w = np.sqrt(np.clip(rad * rad - y * y, 0.0, None))
-    a_in = np.clip(a, -w, w)
-    b_in = np.clip(b, -w, w)
-    inner = 0.5 * y * (b_in * b_in - a_in * a_in)
-    outer = np.sign(y) * ((prim(b) - prim(a)) - (prim(b_in) - prim(a_in)))
-    return inner + outer
-
-
-def disk_rectangle_centroid(x0, x1, y0, y1, rad):
-    """Centroid (x, y) of the disk of radius ``rad`` (centred at 0) cut by the rectangles
-    [x0, x1] x [y0, y1]; first moments integrated in closed form like
-    :func:`disk_rectangle_area`.  Arrays broadcast; the area must be > 0."""
-    area = disk_rectangle_area(x0, x1, y0, y1, rad)
-    a, b = np.clip(x0, -rad, rad), np.clip(x1, -rad, rad)
-    c, d = np.clip(y0, -rad, rad), np.clip(y1, -rad, rad)
-    mx = _segment_moment(np.asarray(y1, float), a, b, rad) \
-        - _segment_moment(np.asarray(y0, float), a, b, rad)
-    my = _segment_moment(np.asarray(x1, float), c, d, rad) \
-        - _segment_moment(np.asarray(x0, float), c, d, rad)
-    return mx / area, my / area
 
 
 @dataclass
@@ -152,12 +98,6 @@ class CellGrid:
         return int(self.flat_index.size)
 
 
-def undeformed_gap(r, radius):
-    """g(r) = R - sqrt(R^2 - r^2) (m), written to avoid cancellation for r << R."""
-    r2 = np.asarray(r, dtype=float) ** 2
-    return r2 / (radius + np.sqrt(radius * radius - r2))
-
-
 def cell_size(scene: Scene, cells_per_diameter: int) -> float:
     """L = d / N for pillars; L = 2 sqrt(R zeta) / N (Hertz contact diameter) for a flat
     scene (m)."""
@@ -208,7 +148,7 @@ def build_grid(scene: Scene, cells_per_diameter: int) -> CellGrid:
             f"{shape[1]} cells (padded FFT {4 * shape[0] * shape[1]} points > "
             f"{MAX_FFT_POINTS}); choose fewer cells per diameter")
     keep, x, y = keep[0], keep[1] * L, keep[2] * L
-    gap0 = undeformed_gap(np.hypot(colloc_x, colloc_y), R) - zeta
+    gap0 = lens_gap(R, np.hypot(colloc_x, colloc_y)) - zeta
     centre = np.nonzero((np.abs(x) < 0.5 * L) & (np.abs(y) < 0.5 * L))[0]
     if centre.size != 1:
         raise RuntimeError("grid construction lost the centre cell")  # a bug, not user input

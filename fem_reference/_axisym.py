@@ -110,10 +110,10 @@ def solve_axisymmetric(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None,
     asymmetry = float(np.max(np.abs(C - C.T)) / np.max(np.abs(C)))
     clock["compliance"] = time.perf_counter()
 
-    # Gap and indentation in units of ell; R - sqrt(R^2 - r^2) written without cancellation.
+    # Gap and indentation in units of ell.
     R, zeta = scene.lens.radius_m, scene.indentation_m
     r_m = system.contact_r * ell
-    gap = r_m**2 / (R + np.sqrt(R * R - r_m**2)) / ell
+    gap = analytic.lens_gap(R, r_m) / ell
     weight = D.sum(axis=0)  # integral of psi_j r dr: turns weighted gaps into mean gaps
     lam, w_weighted, rounds = solve_lcp(C, D.T @ (gap - zeta / ell))
     f = D @ lam

@@ -21,6 +21,15 @@ from scipy.optimize import brentq
 from ._scene import PHI_CLOSE_PACKING, Scene, SceneError
 
 
+# --- geometry --------------------------------------------------------------------------
+def lens_gap(radius: float, r):
+    """Gap before loading between a sphere of ``radius`` touching at r = 0 and the plane,
+    R - sqrt(R^2 - r^2) (m), written r^2 / (R + sqrt(R^2 - r^2)) to avoid cancellation
+    for r << R; arrays allowed."""
+    r2 = np.asarray(r, dtype=float) ** 2
+    return r2 / (radius + np.sqrt(radius * radius - r2))
+
+
 # --- Hertz ---------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Hertz:
@@ -149,7 +158,7 @@ def second_pillar_radius(scene: Scene) -> float:
     big_pi = stiffness_number(scene)
 
     def gap(r):
-        return R - math.sqrt(R * R - r * r) + (2.0 / big_pi * math.asin(d / (2.0 * r)) - 1.0) * zeta
+        return float(lens_gap(R, r)) + (2.0 / big_pi * math.asin(d / (2.0 * r)) - 1.0) * zeta
 
     lo = d  # a lattice pitch is never below the diameter
     hi = min(0.999 * R, max(2.0 * math.sqrt(2.0 * R * zeta), 2.0 * d))

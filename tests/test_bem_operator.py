@@ -45,7 +45,7 @@ def test_cell_areas():
     n = 4000
     xs = 0.3 + 0.3 * (np.arange(n) + 0.5) / n
     inner = np.clip(np.sqrt(np.clip(0.25 - xs**2, 0, None)), 0.2, 0.4) - 0.2
-    assert disk_rectangle_area(0.3, 0.6, 0.2, 0.4) == pytest.approx(inner.mean() * 0.3, rel=1e-6)
+    assert disk_rectangle_area(0.3, 0.6, 0.2, 0.4, 0.5) == pytest.approx(inner.mean() * 0.3, rel=1e-6)
 
 
 @pytest.fixture(scope="module")

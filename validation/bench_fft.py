@@ -64,7 +64,8 @@ def _contactmechanics(scene_name, overrides, n, tol):
 
     from scenes import load_scene
 
-    from bem_solver._fft_grid import build_grid, undeformed_gap
+    from bem_solver._fft_grid import build_grid
+    from scenes.analytic import lens_gap
 
     scene = load_scene(scene_name, list(overrides))
     grid = build_grid(scene, n)  # the same cells; setup time excluded for both codes' grids
@@ -74,7 +75,7 @@ def _contactmechanics(scene_name, overrides, n, tol):
     heights = np.zeros(ny * nx)
     outside = np.ones(ny * nx, dtype=bool)
     # Rigid lens surface -g(r) at the cell centres (the collocation points of both codes here).
-    heights[grid.flat_index] = -undeformed_gap(np.hypot(grid.x, grid.y), scene.lens.radius_m)
+    heights[grid.flat_index] = -lens_gap(scene.lens.radius_m, np.hypot(grid.x, grid.y))
     outside[grid.flat_index] = False
     masked = np.ma.masked_array(heights.reshape(ny, nx), mask=outside.reshape(ny, nx))
     start = time.perf_counter()
