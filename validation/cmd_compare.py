@@ -218,7 +218,7 @@ def _profile_curves(scene: Scene, bem_res, fem_data: dict, r_ref: float) -> list
 def summary_markdown(scene: Scene, rows: list[dict], ref_name: str, r_label: str,
                      meta: dict) -> str:
     """summary.md: what ran, the table, and which differences exceed the uncertainty."""
-    lines = [f"# BEM (Hooke pillar) vs FEM (elastic pillar): {scene.name}", "",
+    lines = [f"# {_title(scene)}", "",
              f"- FEM: {meta['fem_levels']} levels of mesh_size "
              f"{', '.join(f'{v:g}' for v in meta['fem_sizes'])}; finest VTU: "
              f"`{meta['vtu'] or 'not written'}`",
@@ -310,10 +310,16 @@ def run(args) -> int:
     write_atomic(out / "report.json", json.dumps(report, indent=2, allow_nan=False, default=str))
     write_atomic(out / "summary.md", summary_markdown(scene, rows, ref_name, r_label, meta))
     write_atomic(out / "profiles.csv", profiles_csv(bem_res, fem_res))
-    print(f"BEM (Hooke pillar) vs FEM (elastic pillar) on {scene.name}")
+    print(_title(scene))
     print(table_text(rows, ref_name, r_label))
     print(f"render: {render}")
     print(f"report: {out}/ (report.json, summary.md, profiles.png, profiles.csv"
           + (", fem_finest.vtu" if vtu else "")
           + (", fem_stress_3d.png" if (out / "fem_stress_3d.png").exists() else "") + ")")
     return 0 if converged else 1
+
+
+def _title(scene) -> str:
+    if scene.is_flat:
+        return f"BEM vs FEM on {scene.name} (flat substrate: both solve the Hertz problem)"
+    return f"BEM (Hooke pillar) vs FEM (elastic pillar) on {scene.name}"
