@@ -16,7 +16,7 @@ from scenes import ContactResult, PillarForce, Scene, analytic
 
 from ._cells import VARIANTS
 from ._discretise import Discretisation, discretise, overlap_radius
-from ._lcp import LCPSolution, NoConvergenceError, check_solution, solve_lcp
+from ._lcp import LCPSolution, NoConvergenceError, check_solution, solve_lcp, summarise
 from ._operator import reduced_operator
 
 MAX_UNKNOWNS = 12_000  # dense reduced operator: 1.2 GB at this size
@@ -68,6 +68,12 @@ def solve_dense(scene: Scene, elements_per_diameter: int = 11, cells: str = "cov
     if contact == "paper":
         radius = r_max  # the search starts from the overlap radius
 
+    # Collocation points out to the overlap radius, built once for the outside check.
+    reach = None
+    if contact == "exact" and radius < r_max:
+        outer = discretise(scene, P, cells, r_max)
+        reach = (outer.rep_x, outer.rep_y)
+
     rounds = 0
     while True:
         rounds += 1
@@ -87,7 +93,7 @@ def solve_dense(scene: Scene, elements_per_diameter: int = 11, cells: str = "cov
         else:
             sol, extra = _paper_search(scene, disc, M, rhs)
         violated = (None if contact == "paper" else
-                    _outside_violations(scene, disc, sol.q, P, cells, radius, r_max))
+                    _outside_violations(scene, disc, sol.q, reach, radius, r_max))
         if violated is None:
             break
         radius = min(r_max, violated + (scene.pillars.diameter_m if scene.pillars else
@@ -113,32 +119,29 @@ def _paper_search(scene, disc, M, rhs):
             stopped = True
             break
         a = a_next * (1.0 - 1e-12)  # elements at the tensile radius leave the contact
-    y = M @ q - rhs
-    scale = max(np.max(np.abs(rhs)), 1e-300)
-    sol = LCPSolution(q, y, it, "paper-radius-search",
-                      float(np.max(np.abs(q * y)) / (max(np.abs(q).max(), 1e-300) * scale)),
-                      float(min(0.0, y.min()) / scale))
+    sol = summarise(M, rhs, q, it, "paper-radius-search")
+    y = sol.gap
     extra = {"search_radius_m": float(a), "search_stopped": stopped,
              "min_pressure_Pa": float(min(0.0, (q / disc.rep_area).min())),
              "max_interpenetration_m": float(max(0.0, -(y / disc.rep_weight).min()))}
     return sol, extra
 
 
-def _outside_violations(scene, disc, q, P, cells, radius, r_max):
+def _outside_violations(scene, disc, q, reach, radius, r_max):
     """Largest radius beyond the candidate region where contact cannot be ruled out, or None.
 
+    ``reach`` holds the representative collocation points out to the overlap radius.
     Displacements are bounded below by (gamma/pi) F / (|x - x_F| + rho) for a force F spread
-    within rho of x_F (and the Hooke shortening of a loaded pillar); where the lens gap plus
-    this bound stays positive, no contact is possible.
+    within rho of x_F (the Hooke shortening, also >= 0, is left out of the bound); where the
+    lens gap plus this bound stays positive, no contact is possible.
     """
-    if radius >= r_max * (1.0 - 1e-12):
+    if reach is None or radius >= r_max * (1.0 - 1e-12):
         return None
-    outside = discretise(scene, P, cells, r_max)
-    r_out = np.hypot(outside.rep_x, outside.rep_y)
-    sel = r_out > radius
+    rx, ry = reach
+    sel = np.hypot(rx, ry) > radius
     if not sel.any():
         return None
-    ox, oy = outside.rep_x[sel], outside.rep_y[sel]
+    ox, oy = rx[sel], ry[sel]
     scale = scene.half_space_compliance / math.pi
     force_img = q[disc.img_rep]
     if scene.pillars is None:

@@ -143,7 +143,7 @@ def _assemble(reps, orbits, b, candidate_radius, pitch) -> Discretisation:
         use[g[first], j] = True
     weight = use.sum(axis=0)
     start = np.concatenate([[0], np.cumsum(weight)])
-    g_idx, j_idx = np.nonzero(use.T)[1], np.nonzero(use.T)[0]  # images grouped by rep
+    j_idx, g_idx = np.nonzero(use.T)  # images grouped by rep, then by group element
     img = np.column_stack([ix[g_idx, j_idx], iy[g_idx, j_idx], img_ang[g_idx, j_idx],
                            side[j_idx], area[j_idx], j_idx])
 

@@ -79,7 +79,7 @@ def _solve_lcp(M: np.ndarray, c: np.ndarray, groups: np.ndarray | None = None,
         y = Ms @ q - cs
         new = q - y > 0
         if np.array_equal(new, active):
-            return _finish(M, c, q * s, it, "active-set")
+            return summarise(M, c, q * s, it, "active-set")
         key = new.tobytes()
         if key in seen:
             break
@@ -89,7 +89,7 @@ def _solve_lcp(M: np.ndarray, c: np.ndarray, groups: np.ndarray | None = None,
     # 1/2 q^T M q - c^T q = 1/2 |L^T q - L^-1 c|^2 + const.
     L = np.linalg.cholesky(Ms)
     qs, _ = nnls(L.T, solve_triangular(L, cs, lower=True), maxiter=50 * n)
-    return _finish(M, c, qs * s, it, "nnls")
+    return summarise(M, c, qs * s, it, "nnls")
 
 
 # Above this size the active-set systems are solved by conjugate gradients warm-started from
@@ -111,10 +111,12 @@ def _spd_solve(A, b, x0, groups=None):
         else:
             blocks.append((idx, cho_factor(A[np.ix_(idx, idx)])))
 
+    diag = np.diag(A)
+
     def precondition(r):
         z = np.empty_like(r)
         for idx, factor in blocks:
-            z[idx] = r[idx] / np.diag(A)[idx] if factor is None else cho_solve(factor, r[idx])
+            z[idx] = r[idx] / diag[idx] if factor is None else cho_solve(factor, r[idx])
         return z
 
     x = x0.copy()
@@ -136,7 +138,9 @@ def _spd_solve(A, b, x0, groups=None):
     raise NoConvergenceError(f"conjugate gradients did not reach {CG_RTOL:g} in {10 * len(b)} steps")
 
 
-def _finish(M, c, q, iterations, method) -> LCPSolution:
+def summarise(M, c, q, iterations, method) -> LCPSolution:
+    """Gap, complementarity and worst gap of forces ``q`` (also for solutions made
+    elsewhere, such as the paper's radius search)."""
     y = M @ q - c
     scale_c = max(np.max(np.abs(c)), 1e-300)
     scale_q = max(np.max(np.abs(q)), 1e-300)

@@ -94,13 +94,3 @@ def unit_force_influence(px, py, cx, cy, angle, side):
         x, y = dx[rows, cols], dy[rows, cols]
         out[rows, cols] = love_rectangle(x * c + y * s, -x * s + y * c, h, h) / (4.0 * h * h)
     return out
-
-
-def square_influence(px, py, cx, cy, angle, side):
-    """D at points (px, py) from squares centred at (cx, cy), rotated by ``angle`` (rad) and of
-    side ``side`` (m).  Points broadcast against squares (e.g. px[:, None] vs cx[None, :])."""
-    dx = px - cx
-    dy = py - cy
-    c, s = np.cos(angle), np.sin(angle)
-    # Coordinates of the point in the square's own frame.
-    return love_square(dx * c + dy * s, -dx * s + dy * c, side)

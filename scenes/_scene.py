@@ -70,8 +70,8 @@ class Material:
 
 @dataclass(frozen=True)
 class Lens:
-    """Spherical lens of radius ``radius_m``; modelled as a half-space with a parabolic-free
-    spherical gap R - sqrt(R^2 - r^2)."""
+    """Spherical lens of radius ``radius_m`` (m), modelled as a half-space whose surface starts
+    at the gap R - sqrt(R^2 - r^2) from the pillar tops."""
 
     radius_m: float
     material: Material
