@@ -39,6 +39,7 @@ import numpy as np
 
 from scenes import ContactResult, PillarForce, Scene
 
+from ._dense import _smooth_edge_radius
 from ._fft_grid import CellGrid, build_grid
 from ._fft_operator import CompliancePlan, near_field_correction
 from ._pk import constrained_cg, diagonal_preconditioner
@@ -113,8 +114,8 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     plan = CompliancePlan(grid.shape, grid.flat_index, L, scene.half_space_compliance,
                           pillar=grid.pillar, spring_compliance=spring, workers=workers,
                           correction=correction)
-    precondition = diagonal_preconditioner(plan.diagonal, plan.spring if plan.has_spring
-                                           else 0.0, grid.pillar, plan.n_pillars)
+    precondition = diagonal_preconditioner(plan.diagonal, plan.spring, grid.pillar,
+                                           plan.n_pillars)
     zeta = scene.indentation_m
     b = grid.gap0
     coarse = cells_per_diameter // 2
@@ -220,9 +221,6 @@ def _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, mess
     cell_force = q * L2
     total = float(cell_force.sum())
     pillar_force = np.bincount(grid.pillar, weights=cell_force, minlength=len(grid.pillar_nm))
-    # Outermost point of contact: collocation radius plus half the side of the (equivalent)
-    # loaded square, as in the dense model, capped at the far edge of the pillar top.
-    far = np.hypot(grid.colloc_x, grid.colloc_y) + 0.5 * np.sqrt(grid.covered) * L
     if grid.flat:
         # Same definition as the dense model: where p^2 (linear in r^2 at a square-root edge)
         # extrapolates to zero; area pi a^2.
@@ -232,6 +230,9 @@ def _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, mess
                                              pressure[quadrant], contact[quadrant], L)
         area = math.pi * contact_radius**2
     else:
+        # Outermost point of contact: collocation radius plus half the side of the
+        # (equivalent) loaded square, as in the dense model, capped at the pillar's rim.
+        far = np.hypot(grid.colloc_x, grid.colloc_y) + 0.5 * np.sqrt(grid.covered) * L
         rho = np.hypot(grid.pillar_xy[:, 0], grid.pillar_xy[:, 1])
         far = np.minimum(far, rho[grid.pillar] + 0.5 * scene.pillars.diameter_m)
         contact_radius = float(far[contact].max()) if contact.any() else 0.0
@@ -288,24 +289,6 @@ def _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, mess
         pillars_in_contact=len(forces), pillar_forces=forces,
         converged=bool(converged), iterations=int(outcome.iterations), wall_time_s=wall,
         pillar_top_profile=profile, diagnostics=diagnostics, fields=fields)
-
-
-def _smooth_edge_radius(r, pressure, contact, L) -> float:
-    """Contact radius of a smooth (flat-scene) contact (m): a least-squares line of p^2
-    against r^2 over the contact cells within three cells of the outermost one, extrapolated
-    to p = 0 (a Hertzian edge has p^2 linear in r^2).  Falls back to the outermost cell
-    centre plus half a cell when the fit is not a closing edge within one cell."""
-    if not contact.any():
-        return 0.0
-    r_out = float(r[contact].max())
-    band = contact & (r >= r_out - 3.0 * L)
-    if band.sum() >= 3:
-        slope, intercept = np.polyfit(r[band] ** 2, pressure[band] ** 2, 1)
-        if slope < 0 < intercept:
-            a = math.sqrt(-intercept / slope)
-            if r_out - L <= a <= r_out + L:
-                return a
-    return r_out + 0.5 * L
 
 
 def _centre_profile(scene, grid, pressure) -> dict:

@@ -85,8 +85,7 @@ def near_field_correction(grid, compliance: float, width: int = NEAR_FIELD_CELLS
     a_ij = k * love_square(cx[i] - cx[j], cy[i] - cy[j], side[j]) / phi[j]
     a_ji = k * love_square(cx[j] - cx[i], cy[j] - cy[i], side[i]) / phi[i]
     # Grid coefficients of the pairs: a (width + 1)^2 table of integer offsets.
-    table = k * love_square(np.arange(width + 1)[None, :] * L,
-                            np.arange(width + 1)[:, None] * L, L)
+    table = kernel_block((width + 1, width + 1), L, compliance)
     iy_i, ix_i = np.divmod(grid.flat_index[i], nx)
     iy_j, ix_j = np.divmod(grid.flat_index[j], nx)
     grid_ij = table[np.abs(iy_i - iy_j), np.abs(ix_i - ix_j)]

@@ -11,7 +11,7 @@ current contact set {q > 0}; a cell that interpenetrates outside it re-enters wi
 steepest-descent step (Polonsky and Keer 1999, steps 4-8; the load-controlled mean-gap shift
 of their step 3 is dropped because the indentation is given).  Unlike their method the
 conjugacy is kept across re-entries and restarted only when the projected direction stops
-descending (see ``KEEP_CONJUGACY``).
+descending (measured below, at the restart test).
 
 The conjugate directions may be preconditioned by an operator ``precondition(r, active)``
 that is SPD on the contact set: :func:`diagonal_preconditioner` scales by the diagonal (which
@@ -43,12 +43,6 @@ import numpy as np
 # The gap is recomputed from q (one more operator application) after this many iterations
 # with an unchanged contact set, so the recursively updated gap cannot drift.
 REFRESH_EVERY = 50
-# Polonsky and Keer restart the conjugacy whenever a cell re-enters the contact.  On lattices
-# of pillars, cells at the partial contacts of the outermost pillars re-enter again and again
-# and the restarted iteration creeps (272 iterations, 120 restarts at N = 58 on
-# paper-fig3-dense with rigid pillars).  Keeping the conjugate direction, projected on the new
-# contact set, and restarting only when it is no longer a descent direction took 156.
-KEEP_CONJUGACY = True
 
 
 @dataclass
@@ -167,7 +161,13 @@ def constrained_cg(apply, b, q0, scale, tol=1e-8, max_iterations=10000, precondi
             idx = np.flatnonzero(outside)
             step = gap[idx] if inverse_diagonal is None else gap[idx] * inverse_diagonal[idx]
             q_new[idx] -= tau * step
-        conj = not any_overlap or KEEP_CONJUGACY
+        # Polonsky and Keer restart the conjugacy whenever a cell re-enters the contact.  On
+        # lattices of pillars, cells at the partial contacts of the outermost pillars re-enter
+        # again and again and the restarted iteration creeps (272 iterations, 120 restarts at
+        # N = 58 on paper-fig3-dense with rigid pillars).  Keeping the conjugate direction,
+        # projected on the new contact set, and restarting only when it is no longer a descent
+        # direction took 156.
+        conj = True
         restarts += any_overlap
         since_refresh += 1
         if any_clipped or any_overlap or since_refresh >= REFRESH_EVERY:

@@ -58,28 +58,19 @@ def cell_stresses(system, u: np.ndarray, pressure: dict, E_ref: float) -> dict:
 def write_vtu(path, mesh, displacement_m: np.ndarray, cells: dict, metadata: dict) -> None:
     """Write the VTU file atomically; ``metadata`` (scene, discretisation) goes in as JSON
     field data so that the file carries the parameters that produced it."""
-    import os
-    import tempfile
     from pathlib import Path
 
     import meshio
 
+    from scenes import atomic_path, write_atomic
+
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     pts = np.vstack([mesh.points, np.zeros(mesh.points.shape[1])]).T
     disp = np.vstack([displacement_m, np.zeros(displacement_m.shape[1])]).T
     out = meshio.Mesh(pts, [("triangle", mesh.triangles.T)],
                       point_data={"displacement_m": disp},
                       cell_data={k: [np.asarray(v, dtype=float)] for k, v in cells.items()})
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".vtu")
-    os.close(fd)
-    try:
+    with atomic_path(path, ".vtu") as tmp:
         out.write(tmp)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
     # meshio's VTU writer has no field data: the parameters go to a sidecar JSON.
-    from scenes import write_atomic
-
     write_atomic(path.with_suffix(".json"), json.dumps(metadata, indent=2, allow_nan=False))

@@ -45,9 +45,9 @@ class PressureSpace:
 class AxisymmetricSystem:
     """Assembled, constrained and factorised system of the elastic bodies.
 
-    ``K`` is the full saddle-point matrix (u then each body's p~), ``T`` maps reduced to
-    full unknowns (full = T @ reduced), ``G`` maps reduced unknowns to the gap change at the
-    contact points (n_contact x n_reduced).
+    ``K`` is the saddle-point matrix on the reduced unknowns, T^T K_full T (u then each
+    body's p~), ``T`` maps reduced to full unknowns (full = T @ reduced), ``G`` maps reduced
+    unknowns to the gap change at the contact points (n_contact x n_reduced).
     """
 
     mesh: object
@@ -67,9 +67,8 @@ class AxisymmetricSystem:
     def factorise(self) -> None:
         # Symmetric diagonal scaling: stiff and soft bodies (E ratio up to 1e9) and pressure
         # unknowns all get unit diagonal magnitude, which keeps SuperLU's pivots sane.
-        Kr = (self.T.T @ self.K @ self.T).tocsc()
         S = sp.diags(self.scale)
-        self._Ks = (S @ Kr @ S).tocsc()
+        self._Ks = (S @ self.K @ S).tocsc()
         self.lu = splu(self._Ks, permc_spec="COLAMD", diag_pivot_thresh=0.1)
 
     def solve(self, rhs: np.ndarray) -> tuple[np.ndarray, float]:
@@ -215,7 +214,8 @@ def assemble(mesh, materials: dict, *, rigid_pillar_on_substrate: bool,
                       shape=(n_c, T.shape[1]))
 
     # --- scaling: 1/sqrt|diag| for displacements and w, 1/sqrt(diag C) for pressures -----
-    Kr_diag = np.abs((T.T @ K @ T).diagonal())
+    Kr = (T.T @ K @ T).tocsc()  # reduced once: for the scaling here and the factorisation
+    Kr_diag = np.abs(Kr.diagonal())
     scale = np.zeros(T.shape[1])
     is_u = np.ones(T.shape[1], dtype=bool)
     for ps in pressures:
@@ -224,4 +224,4 @@ def assemble(mesh, materials: dict, *, rigid_pillar_on_substrate: bool,
         scale[red[red >= 0]] = 1.0 / np.sqrt(M_diag[red >= 0])
         is_u[red[red >= 0]] = False
     scale[is_u] = 1.0 / np.sqrt(Kr_diag[is_u])
-    return AxisymmetricSystem(mesh, ub, pressures, K, T, G.tocsr(), r_points, scale)
+    return AxisymmetricSystem(mesh, ub, pressures, Kr, T, G.tocsr(), r_points, scale)

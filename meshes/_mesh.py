@@ -167,10 +167,12 @@ class AxisymmetricMesh:
         """Write the mesh with meshio (format from the suffix: .msh, .vtu, .xdmf, ...)."""
         from pathlib import Path
 
+        from scenes import atomic_path
+
         path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
         mesh = self.to_meshio()
-        if path.suffix == ".msh":
-            mesh.write(path, file_format="gmsh22", binary=False)
-        else:
-            mesh.write(path)
+        with atomic_path(path, path.suffix) as tmp:
+            if path.suffix == ".msh":
+                mesh.write(tmp, file_format="gmsh22", binary=False)
+            else:
+                mesh.write(tmp)

@@ -13,7 +13,8 @@ import pytest
 from scenes import Lens, Material, Pillars, Scene, SceneError, analytic, load_scene
 
 from bem_solver._fft import NoConvergenceWarning, solve_fft
-from bem_solver._fft_grid import build_grid, disk_rectangle_area, disk_rectangle_centroid
+from bem_solver._disk import disk_rectangle_area, disk_rectangle_centroid
+from bem_solver._fft_grid import build_grid
 from bem_solver._fft_operator import CompliancePlan, near_field_correction
 from bem_solver._love import love_square
 
@@ -245,8 +246,7 @@ def test_converges_at_extremes_fast(overrides):
 
 
 # --- agreement with the dense model ------------------------------------------------------
-dense = pytest.importorskip("bem_solver").__dict__.get("solve_dense")
-needs_dense = pytest.mark.skipif(dense is None, reason="bem_solver.solve_dense not available")
+from bem_solver import solve_dense as dense  # noqa: E402  (the agreement tests must not skip)
 
 # At matching resolution (P = 11) the two models differ only in the placement of cells on
 # pillars other than the centre one (the dense model centres a pattern on every pillar, the
@@ -258,7 +258,6 @@ RTOL_AGREE_CENTRE = 0.04   # sigma_0 converges more slowly next to an edge singu
 RTOL_AGREE_AREA = 0.02     # both carry exact covered areas; differences are contact edges
 
 
-@needs_dense
 @pytest.mark.parametrize("name", ["single-pillar", "paper-fig3-sparse", "paper-fig3-dense"])
 def test_dense_and_fft_agree_at_matching_resolution(name):
     scene = load_scene(name)
@@ -272,7 +271,6 @@ def test_dense_and_fft_agree_at_matching_resolution(name):
     assert abs(b.contact_radius_m - a.contact_radius_m) <= scene.pillars.diameter_m / 11
 
 
-@needs_dense
 @pytest.mark.parametrize("n", [9, 11])
 def test_dense_and_fft_identical_on_flat_scene(n):
     """Odd N on a flat scene: both models use the same cells, kernel and gap."""
@@ -287,7 +285,6 @@ def test_dense_and_fft_identical_on_flat_scene(n):
 
 # --- slow studies -----------------------------------------------------------------------
 @pytest.mark.slow
-@needs_dense
 @pytest.mark.parametrize("name", ["single-pillar", "paper-fig3-sparse"])
 def test_both_bems_converge_to_the_same_continuum_answer(name):
     """Observed orders (three finest levels, ratio 2) and Richardson limits of F_T and

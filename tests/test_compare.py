@@ -104,6 +104,9 @@ def test_real_compare(scene, tmp_path):
     rc, out, report = _run(tmp_path, scene)
     assert rc == 0
     rows = {r["quantity"]: r for r in report["rows"]}
-    tol = 0.05 if scene == "hertz" else 0.25  # Hooke vs elastic pillar differ by design
-    assert abs(rows["F_T"]["relative_difference"]) < tol
+    if scene == "hertz":  # both models solve the same problem: no real difference
+        assert not rows["F_T"]["exceeds"] and not rows["sigma0"]["exceeds"]
+    else:  # E_p = E_l: the Hooke pillar's force is off by -0.55 % (Gecit study), its
+        # centre pressure by -37 %; bound the force at 2 %, 4x the measured gap
+        assert abs(rows["F_T"]["relative_difference"]) < 0.02
     assert (out / "summary.md").exists()

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import itertools
 import json
-import math
 
 import numpy as np
 import pytest
@@ -72,7 +71,6 @@ def test_hertz_force_radius_and_profile(overrides):
     assert_verified(res)
     assert res.total_force_N == pytest.approx(ref.force, rel=RTOL_FORCE)
     assert res.contact_radius_m == pytest.approx(ref.contact_radius, rel=RTOL_RADIUS)
-    assert res.real_contact_area_m2 == pytest.approx(math.pi * res.contact_radius_m**2)
     assert res.centre_pressure_Pa == pytest.approx(ref.centre_pressure, rel=RTOL_CENTRE_HERTZ)
     assert profile_error(res, ref, ref.contact_radius) < ATOL_PROFILE_HERTZ
     assert res.pillars_in_contact == 0 and res.pillar_forces == []
@@ -216,14 +214,13 @@ def test_result_schema_and_vtu(tmp_path):
     assert res.model == "fem-axisym"
     assert set(res.discretisation) == {"mesh_size", "block_size_m", "elements", "dofs"}
     assert res.pillars_in_contact == 1
-    assert res.pillar_forces[0].force_N == res.total_force_N
     prof = res.pillar_top_profile
     r, p = np.array(prof["r_m"]), np.array(prof["pressure_Pa"])
     assert r[0] == 0.0 and r[-1] == pytest.approx(scene.pillars.diameter_m / 2)
     assert np.all(np.diff(r) > 0) and np.all(np.isfinite(p)) and np.all(p >= 0)
     assert np.diff(r)[-1] < np.diff(r)[0] / 20  # resolved towards the edge
-    assert p[0] == res.centre_pressure_Pa
-    # Integrated P1 profile (2 pi r weighted) is the total force.
+    # Integrated P1 profile (2 pi r weighted) is the total force: the P1 profile integrates
+    # exactly, so only the trapezoid rule on 2e5 points (error ~1e-9 here) separates them.
     rr = np.linspace(0, r[-1], 200001)
     integral = np.trapezoid(2 * np.pi * rr * np.interp(rr, r, p), rr)
     assert integral == pytest.approx(res.total_force_N, rel=1e-6)
@@ -274,6 +271,7 @@ def test_lcp_matches_enumeration():
         C = A @ A.T + 0.1 * np.eye(6)
         q = rng.standard_normal(6)
         f, w, _ = solve_lcp(C, q)
+        matches = 0
         for active in itertools.product([False, True], repeat=6):
             act = np.array(active)
             g = np.zeros(6)
@@ -282,6 +280,8 @@ def test_lcp_matches_enumeration():
             ww = C @ g + q
             if np.all(g >= -1e-12) and np.all(ww[~act] >= -1e-12):
                 np.testing.assert_allclose(f, g, atol=1e-10)
+                matches += 1
+        assert matches == 1  # an SPD LCP has exactly one solution, and it was compared
         assert f.min() >= 0 and w.min() >= -1e-12 and abs(f @ w) < 1e-12
 
 

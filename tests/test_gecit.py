@@ -39,11 +39,12 @@ def test_edge_exponent_recovers_power(lam):
     assert fit["status"] == "ok" and fit["n"] == 6
     # (1 - (r/a)^2) = (rho/a)(2 - rho/a): a pure power up to 1 + O(rho/a) ~ 1e-5 here
     assert fit["lambda"] == pytest.approx(lam, abs=1e-4)
-    assert fit["r_squared"] == pytest.approx(1.0, abs=1e-6) or lam == 0.0
+    assert fit["r_squared"] == pytest.approx(1.0, abs=1e-6)
     assert abs(fit["drift"]) < 1e-4
     assert 0 < fit["rho_min_rel"] < fit["rho_max_rel"] < 1e-3
     # default window rho/a in [0.004, 0.03]: the factor (2 - rho/a)^-lambda bends the
-    # log-log line by at most lambda * 0.03 / 2 in slope
+    # log-log line by at most lambda * 0.03 / 2 in slope; the fitted lambda is biased by
+    # about 0.006 lambda (measured), bounded here at 0.01 lambda
     win = edge_exponent(punch_profile(lam), RADIUS)
     assert win["status"] == "ok" and win["n"] > 10
     assert win["rho_min_rel"] >= 0.004 and win["rho_max_rel"] <= 0.03

@@ -21,6 +21,7 @@ import numpy as np
 
 from bem_solver import discretise, full_operator, lens_gap, solve_dense, solve_lcp
 from scenes import load_scene, write_atomic
+from validation.report import figure_png
 
 UNREDUCED_MAX_ELEMENTS = 9000  # 650 MB for the full operator
 
@@ -36,17 +37,16 @@ def _median_time(fn, repeats):
 
 def _peak_mb(fn):
     tracemalloc.start()
-    fn()
-    peak = tracemalloc.get_traced_memory()[1]
-    tracemalloc.stop()
-    return peak / 2**20
+    try:
+        fn()
+        return tracemalloc.get_traced_memory()[1] / 2**20
+    finally:
+        tracemalloc.stop()
 
 
 def _unreduced(scene, result):
     disc = discretise(scene, result.discretisation["elements_per_diameter"],
                       result.discretisation["cells"], result.diagnostics["candidate_radius_m"])
-    if disc.n_elements > UNREDUCED_MAX_ELEMENTS:
-        return None
     K = full_operator(scene, disc)
     sol = solve_lcp(K, scene.indentation_m - lens_gap(scene, disc.img_x, disc.img_y))
     return float(sol.q.sum())
@@ -97,7 +97,6 @@ def run(out: Path, repeats: int = 3, quick: bool = False) -> dict:
 
 
 def _figure(rows) -> bytes:
-    import io
 
     import matplotlib
     matplotlib.use("Agg")
@@ -119,11 +118,7 @@ def _figure(rows) -> bytes:
         ax.legend()
     a1.set_title("Phi = 0.82, zeta = 0.3 um")
     a2.set_title("P = 11, Phi and zeta up to 0.82, 0.5 um")
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    return buf.getvalue()
+    return figure_png(fig, 110)
 
 
 def main(argv=None) -> int:

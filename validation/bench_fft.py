@@ -276,11 +276,9 @@ def _plot(path: Path, scaling: list, side: list) -> None:
     for ax in (ax_t, ax_m):
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
-    fig.tight_layout()
-    tmp = path.with_suffix(".tmp.png")
-    fig.savefig(tmp, dpi=120)
-    plt.close(fig)
-    tmp.replace(path)
+    from validation.report import save_figure
+
+    save_figure(fig, path, 120)
 
 
 def _median(runs: list[dict]) -> dict:

@@ -24,7 +24,7 @@ import numpy as np
 
 from scenes import Scene, analytic, load_scene, write_atomic
 
-from .cmd_converge import QUANTITIES, converge_study, ladder_for, run_cached
+from .cmd_converge import QUANTITIES, converge_study, ladder_for, quantity_values, run_cached
 from .verification import study
 
 FEM, BEM = "fem-axisym", "bem"
@@ -143,7 +143,7 @@ def compare_rows(bem: dict, fem: dict, bem_studies: dict | None, fem_studies: di
 
 
 def _values(result, r_ref: float) -> dict:
-    vals = {key: float(getattr(result, attr)) for key, attr, _, _ in QUANTITIES}
+    vals = quantity_values(result)
     for x, v in zip(PROFILE_POINTS, _profile_at(result.pillar_top_profile, r_ref)):
         vals[f"sigma(r={x:g})"] = v
     return vals

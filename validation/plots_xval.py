@@ -13,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .report import save_figure
+
 _MARKERS = "osd^v<>p"
 
 
@@ -26,17 +28,7 @@ def _pyplot():
 
 
 def _save(fig, path) -> Path:
-    """Lay out, write atomically (a rename: an interrupted run never leaves half a PNG), close."""
-    import matplotlib.pyplot as plt
-
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    fig.savefig(tmp, dpi=120)
-    plt.close(fig)
-    tmp.replace(path)
-    return path
+    return save_figure(fig, path, 120)
 
 
 def plot_convergence(data: dict, path: Path) -> Path:

@@ -22,6 +22,22 @@ def _csv_text(header: list[str], rows) -> str:
     return buf.getvalue()
 
 
+def figure_png(fig, dpi: int = 120) -> bytes:
+    """Lay out ``fig``, close it and return its PNG bytes (write them with write_atomic)."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    plt.close(fig)
+    return buf.getvalue()
+
+
+def save_figure(fig, path, dpi: int = 120) -> Path:
+    """Write ``fig`` as a PNG atomically and close it."""
+    return write_atomic(path, figure_png(fig, dpi))
+
+
 def write_solve_report(result: ContactResult, out: Path) -> None:
     out = Path(out)
     write_atomic(out / "result.json", result.to_json() + "\n")
@@ -107,8 +123,4 @@ def pressure_figure(result: ContactResult) -> bytes:
     name = result.scene.get("name", "")
     ax_prof.set_title(f"{name}: F = {result.total_force_N * 1e6:.3g} uN, "
                       f"sigma_0 = {result.centre_pressure_Pa * kpa:.3g} kPa")
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=120)
-    plt.close(fig)
-    return buf.getvalue()
+    return figure_png(fig)
