@@ -11,12 +11,10 @@ from ._disk import disk_rectangle_area, disk_rectangle_centroid
 from ._dense import lens_gap, solve_dense
 from ._discretise import discretise, overlap_radius
 from ._fft import solve_fft
-from ._lcp import NoConvergenceError, solve_lcp
 from ._love import love_rectangle, love_square
 from ._operator import expansion, full_operator, reduced_operator
 
 __all__ = [
-    "NoConvergenceError",
     "cell_pattern",
     "discretise",
     "disk_rectangle_area",
@@ -30,5 +28,4 @@ __all__ = [
     "reduced_operator",
     "solve_dense",
     "solve_fft",
-    "solve_lcp",
 ]

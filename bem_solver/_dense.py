@@ -12,11 +12,11 @@ import time
 
 import numpy as np
 
-from scenes import ContactResult, PillarForce, Scene, analytic
+from contact import ContactSolution, min_map_residual, solve_dense as solve_contact
+from scenes import ContactResult, PillarForce, Scene, ScopeError, analytic
 
 from ._cells import VARIANTS
 from ._discretise import Discretisation, discretise, overlap_radius
-from ._lcp import LCPSolution, NoConvergenceError, check_solution, solve_lcp, summarise
 from ._operator import reduced_operator
 
 MAX_UNKNOWNS = 12_000  # dense reduced operator: 1.2 GB at this size
@@ -79,21 +79,24 @@ def solve_dense(scene: Scene, elements_per_diameter: int = 11, cells: str = "cov
         rounds += 1
         disc = discretise(scene, P, cells, radius)
         if disc.n_unknowns > MAX_UNKNOWNS:
-            raise ValueError(
+            raise ScopeError(
                 f"elements_per_diameter = {P}: {disc.n_unknowns} unknowns exceed the dense "
                 f"limit {MAX_UNKNOWNS}; use a smaller P or the FFT model (--model bem-fft)")
         M = reduced_operator(scene, disc)
-        rhs = disc.rep_weight * (scene.indentation_m - lens_gap(scene, disc.rep_x, disc.rep_y))
+        # Rows of the reduced operator are weighted by the orbit sizes: gap_i / w_i is in m.
+        b = disc.rep_weight * (lens_gap(scene, disc.rep_x, disc.rep_y) - scene.indentation_m)
         if contact == "exact":
             # Start from the Hertz contact disk: a few active-set steps fewer than {overlap}.
             guess = np.hypot(disc.rep_x, disc.rep_y) <= hertz_radius
-            sol = solve_lcp(M, rhs, groups=disc.rep_orbit, initial=guess)
-            check_solution(sol, RTOL_COMPLEMENTARITY)
+            sol = solve_contact(M, b, scale=scene.indentation_m, weights=disc.rep_weight,
+                                groups=disc.rep_orbit, initial=guess, tol=RTOL_COMPLEMENTARITY)
             extra = {}
+            if not sol.converged:
+                break  # reported in the result; the candidate region is not grown further
         else:
-            sol, extra = _paper_search(scene, disc, M, rhs)
+            sol, extra = _paper_search(scene, disc, M, b)
         violated = (None if contact == "paper" else
-                    _outside_violations(scene, disc, sol.q, reach, radius, r_max))
+                    _outside_violations(scene, disc, sol.pressure, reach, radius, r_max))
         if violated is None:
             break
         radius = min(r_max, violated + (scene.pillars.diameter_m if scene.pillars else
@@ -102,28 +105,35 @@ def solve_dense(scene: Scene, elements_per_diameter: int = 11, cells: str = "cov
                    time.perf_counter() - t0)
 
 
-def _paper_search(scene, disc, M, rhs):
-    """Bisection-like contact radius search of the paper (supplementary sec. 4)."""
+def _paper_search(scene, disc, M, b):
+    """Bisection-like contact radius search of the paper (supplementary sec. 4).
+
+    Its answer is not a solution of the complementarity problem (it leaves tensile elements
+    and interpenetration); ``converged`` says only that the search met its own criterion
+    |a_i+1 - a_i| < b, and the residual and violations are reported beside it."""
     r = np.hypot(disc.rep_x, disc.rep_y)
     a = overlap_radius(scene)
-    b = disc.cell_side
+    side = disc.cell_side
     stopped = False
     for it in range(1, 200):
         idx = np.nonzero(r <= a)[0]
-        q = np.zeros(len(rhs))
+        q = np.zeros(len(b))
         if len(idx):
-            q[idx] = np.linalg.solve(M[np.ix_(idx, idx)], rhs[idx])
+            q[idx] = np.linalg.solve(M[np.ix_(idx, idx)], -b[idx])
         tensile = idx[q[idx] <= 0]
         a_next = r[tensile].min() if len(tensile) else a
-        if len(tensile) == 0 or abs(a_next - a) < b:
+        if len(tensile) == 0 or abs(a_next - a) < side:
             stopped = True
             break
         a = a_next * (1.0 - 1e-12)  # elements at the tensile radius leave the contact
-    sol = summarise(M, rhs, q, it, "paper-radius-search")
-    y = sol.gap
+    # Tensile elements are kept as the search leaves them: evaluate the gap of q as is.
+    gap = M @ q + b
+    sol = ContactSolution(q, gap, stopped, it, float("nan"), "paper-radius-search",
+                          "search met |a_i+1 - a_i| < b" if stopped else
+                          "search did not settle in 199 rounds")
     extra = {"search_radius_m": float(a), "search_stopped": stopped,
              "min_pressure_Pa": float(min(0.0, (q / disc.rep_area).min())),
-             "max_interpenetration_m": float(max(0.0, -(y / disc.rep_weight).min()))}
+             "max_interpenetration_m": float(max(0.0, -(gap / disc.rep_weight).min()))}
     return sol, extra
 
 
@@ -177,9 +187,9 @@ def _smooth_edge_radius(r, pressure, touching, b):
     return float(r_out + b / 2.0)
 
 
-def _result(scene, disc: Discretisation, sol: LCPSolution, P, cells, contact, rounds, extra,
+def _result(scene, disc: Discretisation, sol: ContactSolution, P, cells, contact, rounds, extra,
             wall) -> ContactResult:
-    q, w = sol.q, disc.rep_weight  # q: force on each element of an orbit (N)
+    q, w = sol.pressure, disc.rep_weight  # q: force on each element of an orbit (N)
     pressure = q / disc.rep_area
     force_each = q
     touching = q > 0
@@ -221,8 +231,8 @@ def _result(scene, disc: Discretisation, sol: LCPSolution, P, cells, contact, ro
     gap = sol.gap / w
     diagnostics = {
         "solver": sol.method,
-        "complementarity": sol.complementarity,
-        "min_gap_relative": sol.min_gap,
+        "message": sol.message,
+        "contact_residual": _residual_of(sol, q, gap, scene),
         "max_gap_violation_m": float(max(0.0, -gap.min())),
         "candidate_radius_m": disc.candidate_radius,
         "overlap_radius_m": overlap_radius(scene),
@@ -235,7 +245,7 @@ def _result(scene, disc: Discretisation, sol: LCPSolution, P, cells, contact, ro
     }
     # The paper's search has converged when it met its own criterion |a_i+1 - a_i| < b; its
     # remaining tensile elements and interpenetration are reported in the diagnostics.
-    converged = contact == "exact" or extra["search_stopped"]
+    converged = sol.converged
     return ContactResult(
         model="bem",
         scene=scene.to_dict(),
@@ -259,4 +269,12 @@ def _result(scene, disc: Discretisation, sol: LCPSolution, P, cells, contact, ro
     )
 
 
-__all__ = ["NoConvergenceError", "lens_gap", "solve_dense"]
+def _residual_of(sol, q, gap, scene) -> float:
+    """The min-map residual / zeta; for the paper's search, computed on its own answer (its
+    tensile elements count as in contact)."""
+    if np.isfinite(sol.residual):
+        return float(sol.residual)
+    return min_map_residual(np.abs(q), gap) / scene.indentation_m
+
+
+__all__ = ["lens_gap", "solve_dense"]

@@ -33,18 +33,17 @@ from __future__ import annotations
 
 import math
 import time
-import warnings
 
 import numpy as np
 
+from contact import constrained_cg, diagonal_preconditioner
 from scenes import ContactResult, PillarForce, Scene
 
 from ._dense import _smooth_edge_radius
 from ._fft_grid import CellGrid, build_grid
 from ._fft_operator import CompliancePlan, near_field_correction
-from ._pk import constrained_cg, diagonal_preconditioner
 
-__all__ = ["NoConvergenceWarning", "solve_fft"]
+__all__ = ["solve_fft"]
 
 MODEL_NAME = "bem-fft"
 DEFAULT_TOLERANCE = 1e-8
@@ -54,10 +53,6 @@ HISTORY_MAX = 2000
 # give the fine solve a good start; the fine tolerance decides the accuracy).
 WARM_START_MIN_CELLS = 8
 WARM_START_TOL = 1e-4
-
-
-class NoConvergenceWarning(RuntimeWarning):
-    """The constrained CG stopped before reaching its tolerance; ``converged`` is False."""
 
 
 def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAULT_TOLERANCE,
@@ -78,7 +73,7 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
         (|gap| on the contact set, interpenetration off it) divided by zeta.
     max_iterations : int, optional
         Iteration cap; default 20 sqrt(n_cells) + 500.  Reaching it returns
-        ``converged = False`` and warns (:class:`NoConvergenceWarning`).
+        ``converged = False`` with the reason in ``diagnostics["message"]``.
     workers : int
         Threads for the FFTs.
     warm_start : bool
@@ -134,7 +129,7 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
         levels = []
     if max_iterations is None:
         max_iterations = int(20 * math.sqrt(grid.n_cells)) + 500
-    outcome = constrained_cg(plan, b, q0, zeta, tol=tol, max_iterations=max_iterations,
+    outcome = constrained_cg(plan, b, q0, scale=zeta, tol=tol, max_iterations=max_iterations,
                              precondition=precondition,
                              inverse_diagonal=1.0 / plan.diagonal, callback=progress)
     message = outcome.message
@@ -145,8 +140,6 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
             converged = False
             message = edge
     wall = time.perf_counter() - start
-    if not converged and not _nested:
-        warnings.warn(f"bem-fft: {message}", NoConvergenceWarning, stacklevel=2)
     result = _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, message,
                      wall)
     result.diagnostics["warm_start_levels"] = levels
@@ -253,11 +246,11 @@ def _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, mess
         "tolerance": tol,
         "stopping_criterion": "max |min-map residual| / zeta: |gap| on contact cells, "
                               "interpenetration elsewhere",
-        "final_error": float(outcome.error),
+        "contact_residual": float(outcome.residual),
         "residual_history": [float(v) for v in history],
         "message": message,
         "operator_applications": plan.applications,
-        "reentry_iterations": int(outcome.restarts),
+        "reentry_iterations": int(outcome.reentries),
         "fft_shape": list(plan.fft_shape),
         "grid_shape": list(grid.shape),
         "candidate_cells": grid.n_cells,

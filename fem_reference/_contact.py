@@ -10,58 +10,20 @@ with C the symmetric positive definite compliance of the two bodies at the conta
 q = g(r) - zeta the initial gap minus the indentation and w~ the r-weighted gaps (Kalker's
 variational principle).  It is the minimisation of 1/2 lam^T (D^T C D) lam + (D^T q)^T lam
 over lam >= 0,
-solved exactly by NNLS on the Cholesky factor and polished on the final active set.
+solved exactly by :func:`contact.solve_dense` with the vertex weights (integral of psi_j r dr)
+that turn weighted gaps into mean gaps for the residual.
 
 References
 ----------
 .. [1] J. J. Kalker, Y. van Randen, J. Eng. Math. 6 (1972) 193 (minimum principle).
 .. [2] B. I. Wohlmuth, Acta Numerica 20 (2011) 569 (mortar contact).
-.. [3] C. L. Lawson, R. J. Hanson, *Solving Least Squares Problems*, SIAM 1995, ch. 23 (NNLS).
 """
 
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import cho_factor, cho_solve, cholesky, solve_triangular
-from scipy.optimize import nnls
 
 from ._system import SolveError
-
-
-def solve_lcp(C: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
-    """Solve w = C f + q >= 0, f >= 0, f w = 0 for SPD ``C``.
-
-    Returns f, w (the solution and its gaps) and the number of active-set polish rounds.
-    """
-    C = 0.5 * (C + C.T)
-    try:
-        L = cholesky(C, lower=True)
-    except np.linalg.LinAlgError as exc:
-        raise SolveError(f"contact compliance matrix is not positive definite: {exc}") from exc
-    b = -solve_triangular(L, q, lower=True)
-    f, _ = nnls(L.T, b, maxiter=50 * len(q))
-    # Polish: re-solve exactly on the active set, adding points that penetrate and dropping
-    # points pulled in tension, until the set is stable (NNLS's set is almost always final).
-    active = f > 0
-    for rounds in range(1, 2 * len(q) + 2):
-        f = np.zeros_like(q)
-        if active.any():
-            f[active] = cho_solve(cho_factor(C[np.ix_(active, active)]), -q[active])
-        w = C @ f + q
-        scale_w = max(np.max(np.abs(q)), np.finfo(float).tiny)
-        new = (active & (f > 0)) | (~active & (w < -1e-13 * scale_w))
-        if np.array_equal(new, active):
-            return f, w, rounds
-        active = new
-    raise SolveError("contact active set did not settle")
-
-
-def complementarity_error(f: np.ndarray, w: np.ndarray, indentation: float) -> float:
-    """max of tension, penetration and f w, each relative (to max f, zeta, max f zeta)."""
-    fmax = max(float(np.max(np.abs(f))), np.finfo(float).tiny)
-    return float(max(np.max(np.maximum(-f, 0.0)) / fmax,
-                     np.max(np.maximum(-w, 0.0)) / indentation,
-                     np.max(np.abs(f * w)) / (fmax * indentation)))
 
 
 def mortar_matrix(r: np.ndarray) -> np.ndarray:

@@ -18,6 +18,8 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 from skfem import Basis, ElementTriP1, ElementTriP2, ElementVector
 
+from scenes import ToolError
+
 from .forms.axisymmetric import (divergence_coupling, mixed_coefficients, pressure_mass,
                                  shear_stiffness)
 
@@ -27,8 +29,9 @@ from .forms.axisymmetric import (divergence_coupling, mixed_coefficients, pressu
 INTORDER = 4
 
 
-class SolveError(RuntimeError):
-    """The linear solve or the contact problem failed its verification."""
+class SolveError(ToolError):
+    """A tool underneath failed: the sparse factorisation, or an inconsistency in the
+    assembled system (a non-convergence is reported in the result, never raised)."""
 
 
 @dataclass
@@ -69,7 +72,11 @@ class AxisymmetricSystem:
         # unknowns all get unit diagonal magnitude, which keeps SuperLU's pivots sane.
         S = sp.diags(self.scale)
         self._Ks = (S @ self.K @ S).tocsc()
-        self.lu = splu(self._Ks, permc_spec="COLAMD", diag_pivot_thresh=0.1)
+        try:
+            self.lu = splu(self._Ks, permc_spec="COLAMD", diag_pivot_thresh=0.1)
+        except (RuntimeError, MemoryError) as exc:
+            raise SolveError(f"SuperLU could not factorise the {self._Ks.shape[0]}-unknown "
+                             f"system: {exc}") from None
 
     def solve(self, rhs: np.ndarray) -> tuple[np.ndarray, float]:
         """Solve K_red x = rhs (columns allowed) with one step of iterative refinement.

@@ -6,18 +6,28 @@ Units: SI inside the code (m, Pa, N).  Scene files state their units in the key 
 
 from . import analytic, lattice
 from ._io import apply_overrides, load_scene, preset_names, scene_dict, scene_from_dict, scene_to_toml
-from ._scene import PHI_CLOSE_PACKING, Lens, Material, Pillars, Scene, SceneError
+from ._errors import (EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_NOT_CONVERGED, EXIT_OK,
+                      EXIT_TOOL_FAILURE, InputError, SceneError, ScopeError, ToolError)
+from ._scene import PHI_CLOSE_PACKING, Lens, Material, Pillars, Scene
 from .result import ContactResult, PillarForce, atomic_path, write_atomic
 
 __all__ = [
+    "EXIT_BAD_INPUT",
+    "EXIT_INTERRUPTED",
+    "EXIT_NOT_CONVERGED",
+    "EXIT_OK",
+    "EXIT_TOOL_FAILURE",
     "PHI_CLOSE_PACKING",
     "ContactResult",
+    "InputError",
     "Lens",
     "Material",
     "PillarForce",
     "Pillars",
     "Scene",
     "SceneError",
+    "ScopeError",
+    "ToolError",
     "analytic",
     "apply_overrides",
     "atomic_path",

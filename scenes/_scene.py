@@ -13,12 +13,10 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from ._errors import SceneError
+
 # Surface fraction of hexagonal close packing (pitch = diameter).
 PHI_CLOSE_PACKING = math.pi / (2.0 * math.sqrt(3.0))
-
-
-class SceneError(ValueError):
-    """Bad scene input; the message names the parameter, its value and the allowed range."""
 
 
 def _finite(name: str, value: Any) -> float:

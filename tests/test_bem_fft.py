@@ -5,14 +5,13 @@ dense model.  Slow studies (observed orders of both BEMs, stability extremes) ar
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 import pytest
 
 from scenes import Lens, Material, Pillars, Scene, SceneError, analytic, load_scene
 
-from bem_solver._fft import NoConvergenceWarning, solve_fft
+from bem_solver._fft import solve_fft
 from bem_solver._disk import disk_rectangle_area, disk_rectangle_centroid
 from bem_solver._fft_grid import build_grid
 from bem_solver._fft_operator import CompliancePlan, near_field_correction
@@ -176,7 +175,7 @@ def test_force_balance_and_schema():
     assert res.pillar_top_profile["r_m"][0] == 0.0
     assert res.pillar_top_profile["pressure_Pa"][0] == res.centre_pressure_Pa
     d = res.diagnostics
-    assert d["final_error"] <= d["tolerance"] == 1e-8
+    assert d["contact_residual"] <= d["tolerance"] == 1e-8
     assert d["max_interpenetration_m"] <= 1e-8 * scene.indentation_m
     res.to_json()  # finite, serialisable
 
@@ -218,9 +217,7 @@ def test_unit_rescaling_invariance():
 
 
 def test_non_convergence_is_reported():
-    with pytest.warns(NoConvergenceWarning):
-        res = solve_fft(load_scene("paper-fig3-sparse"), 12, max_iterations=2,
-                        warm_start=False)
+    res = solve_fft(load_scene("paper-fig3-sparse"), 12, max_iterations=2, warm_start=False)
     assert not res.converged
     assert "no convergence" in res.diagnostics["message"]
 
@@ -314,8 +311,6 @@ def test_converges_over_the_extremes(phi, zeta_um, ratio):
     young = "pillars.rigid=true" if math.isinf(ratio) else f"pillars.E_Pa={1.6e6 * ratio}"
     scene = load_scene("paper-fig3-dense", [f"pillars.surface_fraction={phi}",
                                             f"load.indentation_um={zeta_um}", young])
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", NoConvergenceWarning)
-        res = solve_fft(scene, 12)
+    res = solve_fft(scene, 12)
     assert res.converged and res.total_force_N > 0
     assert res.diagnostics["max_interpenetration_m"] <= 1e-8 * scene.indentation_m

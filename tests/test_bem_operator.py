@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 from scipy.integrate import dblquad
 
+from contact import solve_dense as solve_contact
 from bem_solver import (cell_pattern, discretise, disk_rectangle_area, expansion, full_operator,
-                        lens_gap, love_rectangle, reduced_operator, solve_dense, solve_lcp)
+                        lens_gap, love_rectangle, reduced_operator, solve_dense)
 from bem_solver._love import FAR_FIELD_RATIO, FAR_FIELD_RTOL, unit_force_influence
 from scenes import load_scene
 
@@ -77,14 +78,17 @@ def test_raw_collocation_is_symmetric_within_one_orientation():
 def test_reduced_solution_equals_unreduced_solution(sparse_small):
     scene, disc = sparse_small
     M, K = reduced_operator(scene, disc), full_operator(scene, disc)
-    rhs = scene.indentation_m - lens_gap(scene, disc.img_x, disc.img_y)
-    full = solve_lcp(K, rhs)
-    red = solve_lcp(M, disc.rep_weight * (scene.indentation_m - lens_gap(scene, disc.rep_x, disc.rep_y)))
+    zeta = scene.indentation_m
+    full = solve_contact(K, lens_gap(scene, disc.img_x, disc.img_y) - zeta, scale=zeta)
+    red = solve_contact(M, disc.rep_weight * (lens_gap(scene, disc.rep_x, disc.rep_y) - zeta),
+                        scale=zeta, weights=disc.rep_weight)
+    assert full.converged and red.converged
     # The unreduced problem is exactly D6-symmetric except for the centre pillar's square grid
     # (only D2-symmetric); its influence on other pillars differs from a D6-symmetric one by a
     # hexadecapole term ~ (b/r)^4: measured 1.5e-7 at P = 5 and 7e-8 at P = 7.
-    assert full.q.sum() == pytest.approx((disc.rep_weight * red.q).sum(), rel=1e-10)
-    assert np.abs(full.q - expansion(disc) @ red.q).max() < 1e-6 * full.q.max()
+    assert full.pressure.sum() == pytest.approx((disc.rep_weight * red.pressure).sum(), rel=1e-10)
+    assert np.abs(full.pressure - expansion(disc) @ red.pressure).max() \
+        < 1e-6 * full.pressure.max()
 
 
 def test_force_balance_and_unit_rescaling():

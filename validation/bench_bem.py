@@ -19,7 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from bem_solver import discretise, full_operator, lens_gap, solve_dense, solve_lcp
+from bem_solver import discretise, full_operator, lens_gap, solve_dense
+from contact import solve_dense as solve_contact
 from scenes import load_scene, write_atomic
 from validation.report import figure_png
 
@@ -48,8 +49,9 @@ def _unreduced(scene, result):
     disc = discretise(scene, result.discretisation["elements_per_diameter"],
                       result.discretisation["cells"], result.diagnostics["candidate_radius_m"])
     K = full_operator(scene, disc)
-    sol = solve_lcp(K, scene.indentation_m - lens_gap(scene, disc.img_x, disc.img_y))
-    return float(sol.q.sum())
+    zeta = scene.indentation_m
+    sol = solve_contact(K, lens_gap(scene, disc.img_x, disc.img_y) - zeta, scale=zeta)
+    return float(sol.pressure.sum())
 
 
 def bench_case(label, scene, P, repeats, log):

@@ -53,7 +53,7 @@ def _ours(scene_name, overrides, n, tol, edge_correction=True):
             "candidate_cells": d["candidate_cells"],
             "grid_cells": d["grid_shape"][0] * d["grid_shape"][1],
             "fft_shape": d["fft_shape"], "total_force_N": res.total_force_N,
-            "converged": res.converged, "final_error": d["final_error"]}
+            "converged": res.converged, "contact_residual": d["final_error"]}
 
 
 def _contactmechanics(scene_name, overrides, n, tol):

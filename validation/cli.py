@@ -11,7 +11,8 @@ import argparse
 import importlib
 import sys
 
-from scenes import SceneError, preset_names
+from scenes import (EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_TOOL_FAILURE, InputError, ToolError,
+                    preset_names)
 
 COMMANDS = ("validation.cmd_solve", "validation.cmd_compare", "validation.cmd_converge",
             "validation.cmd_gecit", "validation.cmd_tradeoff")
@@ -47,12 +48,15 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)
-    except (SceneError, UserError, ValueError) as exc:
+    except (InputError, UserError, ValueError) as exc:
         print(f"pillar-xval {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
+    except ToolError as exc:
+        print(f"pillar-xval {args.command}: failure: {exc}", file=sys.stderr)
+        return EXIT_TOOL_FAILURE
     except KeyboardInterrupt:
         print(f"pillar-xval {args.command}: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":

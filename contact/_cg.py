@@ -36,25 +36,14 @@ References
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
+
+from ._solution import ContactSolution
 
 # The gap is recomputed from q (one more operator application) after this many iterations
 # with an unchanged contact set, so the recursively updated gap cannot drift.
 REFRESH_EVERY = 50
-
-
-@dataclass
-class PKOutcome:
-    pressure: np.ndarray
-    gap: np.ndarray
-    converged: bool
-    iterations: int
-    error: float
-    history: list = field(default_factory=list)
-    message: str = ""
-    restarts: int = 0  # iterations in which cells re-entered the contact
+METHOD = "constrained-cg"
 
 
 def diagonal_preconditioner(diagonal, spring=0.0, pillar=None, n_pillars=0):
@@ -80,8 +69,8 @@ def diagonal_preconditioner(diagonal, spring=0.0, pillar=None, n_pillars=0):
     return apply
 
 
-def constrained_cg(apply, b, q0, scale, tol=1e-8, max_iterations=10000, precondition=None,
-                   inverse_diagonal=None, callback=None) -> PKOutcome:
+def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, precondition=None,
+                   inverse_diagonal=None, weights=None, callback=None) -> ContactSolution:
     """Polonsky-Keer constrained conjugate gradients, displacement-controlled.
 
     Parameters
@@ -103,6 +92,8 @@ def constrained_cg(apply, b, q0, scale, tol=1e-8, max_iterations=10000, precondi
     inverse_diagonal : ndarray, optional
         1 / diag(A) (Pa/m): scales the steepest-descent re-entry step of interpenetrating
         cells when a preconditioner is used (the step is then tau D^-1 gap, in Pa).
+    weights : ndarray, optional
+        Positive weights: gap_i / w_i is a gap in the unit of ``scale`` (mortar rows).
     callback : callable, optional
         Called as callback(iteration, error) after each iteration (progress output).
     """
@@ -123,10 +114,11 @@ def constrained_cg(apply, b, q0, scale, tol=1e-8, max_iterations=10000, precondi
     # cells equal the sums over the contact set (boolean gathers are slow on 1e6 cells).
     for it in range(1, max_iterations + 1):
         np.greater(q, 0.0, out=active)
-        err = _residual(gap, active, work) / scale
+        err = _residual(gap, active, work, weights) / scale
         history.append(err)
         if err <= tol:
-            return PKOutcome(q, gap, True, it - 1, err, history, "converged", restarts)
+            return ContactSolution(q, gap, True, it - 1, err, METHOD, "converged", history,
+                                   restarts)
         if not active.any():
             # Nothing in contact yet: move every interpenetrating cell by a steepest step.
             np.less(gap, 0.0, out=active)
@@ -144,8 +136,9 @@ def constrained_cg(apply, b, q0, scale, tol=1e-8, max_iterations=10000, precondi
         w = apply(t)
         denom = _dot(w, t)
         if not denom > 0:
-            return PKOutcome(q, gap, False, it, err, history,
-                             f"non-positive curvature {denom:g}: operator not SPD")
+            return ContactSolution(q, gap, False, it, err, METHOD,
+                                   f"non-positive curvature {denom:g}: operator not SPD",
+                                   history, restarts)
         tau = _dot(gap, t) / denom
         np.multiply(t, -tau, out=work)
         q_new = work + q
@@ -181,13 +174,13 @@ def constrained_cg(apply, b, q0, scale, tol=1e-8, max_iterations=10000, precondi
         if callback is not None:
             callback(it, err)
     gap = apply(q) + b
-    err = _residual(gap, q > 0.0, np.empty(n)) / scale
+    err = _residual(gap, q > 0.0, np.empty(n), weights) / scale
     history.append(err)
     converged = err <= tol
-    return PKOutcome(q, gap, converged, max_iterations, err, history,
-                     "converged" if converged else
-                     f"no convergence in {max_iterations} iterations (error {err:.3g} > {tol:g})",
-                     restarts)
+    return ContactSolution(q, gap, converged, max_iterations, err, METHOD,
+                           "converged" if converged else
+                           f"no convergence in {max_iterations} iterations (residual {err:.3g} "
+                           f"> {tol:g})", history, restarts)
 
 
 def _dot(a, b) -> float:
@@ -196,12 +189,13 @@ def _dot(a, b) -> float:
     return float(np.einsum("i,i->", a, b))
 
 
-def _residual(gap, active, work) -> float:
-    """Max-norm min-map residual (m): |gap| on the contact set, interpenetration elsewhere.
-
-    max(|gap| on the set, -gap anywhere) equals it: on the set -gap <= |gap|."""
+def _residual(gap, active, work, weights=None) -> float:
+    """Max-norm min-map residual (m): |gap| on the contact set, interpenetration elsewhere
+    (:func:`contact.min_map_residual`, with work arrays: this runs every iteration)."""
     if gap.size == 0:
         return 0.0
+    if weights is not None:
+        gap = gap / weights
     np.abs(gap, out=work)
     work *= active
     return float(max(work.max(), -gap.min(), 0.0))

@@ -1,0 +1,36 @@
+"""Contact solvers shared by every model: one sign convention, one residual.
+
+The discrete frictionless contact problem, displacement-controlled, for an SPD operator A
+(the compliance of the bodies at the contact unknowns) and b the undeformed gap minus the
+indentation (negative where the undeformed bodies overlap)::
+
+    gap = A p + b,   p >= 0,   gap >= 0,   p_i gap_i = 0 for every i.
+
+It is Kalker's minimum principle: p minimises 1/2 p.A p + b.p over p >= 0.  Every solver
+returns a :class:`ContactSolution` whose ``residual`` is the max-norm min-map residual
+relative to a length ``scale`` (the indentation):
+
+    e_i = |gap_i / w_i|  where p_i > 0,   max(-gap_i / w_i, 0)  where p_i = 0,
+
+with w the optional positive ``weights`` that turn a weighted gap (a row of a
+symmetry-reduced or mortar operator) into a gap in metres.  It is zero exactly at the
+solution and bounds both the interpenetration and the gap on the contact set.  A solver that
+misses its tolerance returns ``converged = False`` and a message; it never raises for that.
+
+- :func:`solve_dense`: exact primal-dual active set on a dense matrix (NNLS if it cycles).
+- :func:`constrained_cg`: Polonsky-Keer constrained conjugate gradients on an operator given
+  as a function (FFT half-space, or an FEM compliance applied by back-substitution).
+"""
+
+from ._active_set import solve_dense
+from ._cg import constrained_cg, diagonal_preconditioner
+from ._solution import ContactSolution, evaluate, min_map_residual
+
+__all__ = [
+    "ContactSolution",
+    "constrained_cg",
+    "diagonal_preconditioner",
+    "evaluate",
+    "min_map_residual",
+    "solve_dense",
+]

@@ -1,0 +1,89 @@
+"""The shared contact solvers: one convention (gap = A p + b), one residual, exact answers.
+
+Both solvers are checked against brute-force enumeration of every active set of small SPD
+problems: an SPD linear complementarity problem has exactly one solution, so agreement to
+round-off (dense, exact) or to the stopping tolerance (constrained CG) proves them right.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from contact import constrained_cg, diagonal_preconditioner, evaluate, min_map_residual, solve_dense
+
+RTOL_ROUNDOFF = 1e-10  # exact active-set solutions: round-off only
+
+
+def _enumerate(A, b):
+    """The unique solution of the SPD LCP by trying all 2^n active sets."""
+    n = len(b)
+    found = []
+    for active in itertools.product([False, True], repeat=n):
+        act = np.array(active)
+        p = np.zeros(n)
+        if act.any():
+            p[act] = np.linalg.solve(A[np.ix_(act, act)], -b[act])
+        gap = A @ p + b
+        if np.all(p >= -1e-12) and np.all(gap[~act] >= -1e-12):
+            found.append(p)
+    assert len(found) >= 1
+    return found[0]
+
+
+def _problems(count, n=6, seed=20261123):
+    rng = np.random.default_rng(seed)
+    for _ in range(count):
+        G = rng.standard_normal((n, n))
+        yield G @ G.T + 0.1 * np.eye(n), rng.standard_normal(n)
+
+
+def test_dense_solver_matches_enumeration():
+    for A, b in _problems(20):
+        sol = solve_dense(A, b, scale=1.0)
+        assert sol.converged, sol.message
+        np.testing.assert_allclose(sol.pressure, _enumerate(A, b), atol=RTOL_ROUNDOFF)
+        assert sol.residual < RTOL_ROUNDOFF
+        assert sol.pressure.min() >= 0.0
+
+
+def test_constrained_cg_matches_enumeration():
+    for A, b in _problems(20):
+        # tol 1e-10: round-off of the recursively updated gap of these O(1), cond ~ 1e3
+        # matrices stalls near 5e-12.
+        sol = constrained_cg(lambda p, A=A: A @ p, b, np.zeros(len(b)), scale=1.0, tol=1e-10,
+                             max_iterations=500,
+                             precondition=diagonal_preconditioner(np.diag(A)),
+                             inverse_diagonal=1.0 / np.diag(A))
+        assert sol.converged, sol.message
+        np.testing.assert_allclose(sol.pressure, _enumerate(A, b), atol=1e-7)
+        assert sol.history[-1] == sol.residual <= 1e-10
+
+
+def test_min_map_residual_definition():
+    p = np.array([1.0, 0.0, 0.0, 2.0])
+    gap = np.array([0.1, 0.5, -0.3, -0.05])
+    # |gap| on the contact set (0.1, 0.05), interpenetration off it (0.3).
+    assert min_map_residual(p, gap) == pytest.approx(0.3)
+    # Weights turn weighted gaps into gaps: 0.3 / 3.
+    assert min_map_residual(p, gap, weights=np.array([1.0, 1.0, 3.0, 1.0])) == pytest.approx(0.1)
+    assert min_map_residual(np.zeros(0), np.zeros(0)) == 0.0
+
+
+def test_residual_is_relative_to_the_scale():
+    A, b = next(_problems(1))
+    sol = solve_dense(A, b, scale=1.0)
+    wrong = sol.pressure * 1.01
+    got = evaluate(A, b, wrong, scale=1e-3)
+    assert got.residual == pytest.approx(min_map_residual(wrong, A @ wrong + b) / 1e-3)
+    assert not got.converged and "tolerance" in got.message
+
+
+def test_non_convergence_is_reported_not_raised():
+    A, b = next(_problems(1, n=40, seed=7))
+    sol = constrained_cg(lambda p: A @ p, b, np.zeros(len(b)), scale=1.0, tol=1e-14,
+                         max_iterations=2)
+    assert not sol.converged and "no convergence" in sol.message
+    assert sol.iterations == 2 and len(sol.history) == 3
