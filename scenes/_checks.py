@@ -15,7 +15,8 @@ Allowed ranges (why: PHYSICS.md, "Scene input")
 - Young's moduli: [1e-3, 1e16] Pa, or ``rigid = true`` (stored as E = inf);
 - Poisson's ratios: [0, 0.5];
 - surface fraction: (0, 0.9069], where anything from pi/(2 sqrt 3) = 0.90689968... up to the
-  printed value 0.9069 means close packing (pitch = diameter);
+  printed value 0.9069 means close packing (pitch = diameter), and whose pitch is a length
+  in range;
 - pitch >= diameter; indentation below the pillar height (or below R/2 on a flat substrate);
   lens radius above 10 x the larger of pillar diameter and height; not both half-spaces rigid.
 """
@@ -107,18 +108,22 @@ def check_poisson(q: str, si: float, naming: Naming = SI) -> float:
 
 def check_surface_fraction(q: str, phi: float, diameter_m: float, naming: Naming = SI) -> float:
     """The pitch in m of surface fraction ``phi`` on pillars of ``diameter_m``; refuses phi
-    outside the range where that pitch is a lattice (>= d) of allowed length."""
-    lo = PHI_CLOSE_PACKING * (diameter_m / LENGTH_RANGE_M[1]) ** 2
-    if not lo <= phi <= PHI_CLOSE_PACKING_PRINTED:
+    above close packing (as printed) and phi so small that the pitch is beyond the longest
+    allowed length."""
+    if not 0.0 < phi <= PHI_CLOSE_PACKING_PRINTED:
         raise naming.error(
-            q, f"allowed range is [{lo:.3g}, {PHI_CLOSE_PACKING_PRINTED}] (a pitch of at most "
-            f"{naming.measure('pillars.pitch_m', LENGTH_RANGE_M[1])}; "
-            f"{PHI_CLOSE_PACKING_PRINTED} or anything above "
-            f"pi/(2 sqrt 3) = {PHI_CLOSE_PACKING!r} is close packing, pitch = diameter)", phi)
+            q, f"allowed range is (0, {PHI_CLOSE_PACKING_PRINTED}] ({PHI_CLOSE_PACKING_PRINTED} "
+            f"or anything above pi/(2 sqrt 3) = {PHI_CLOSE_PACKING!r} is close packing, "
+            "pitch = diameter)", phi)
     if phi >= PHI_CLOSE_PACKING:
         return diameter_m
-    # min(): a fraction at the lower bound may round to a pitch one ulp above the range.
-    return min(diameter_m * math.sqrt(PHI_CLOSE_PACKING / phi), LENGTH_RANGE_M[1])
+    pitch = diameter_m * math.sqrt(PHI_CLOSE_PACKING / phi)
+    if not pitch <= LENGTH_RANGE_M[1]:
+        raise naming.error(
+            q, f"gives a pitch of {naming.measure('pillars.pitch_m', pitch)}, beyond the "
+            f"longest allowed length, {naming.measure('pillars.pitch_m', LENGTH_RANGE_M[1])}",
+            phi)
+    return pitch
 
 
 def check_pitch(diameter_m: float, pitch_m: float, naming: Naming = SI) -> float:

@@ -68,7 +68,7 @@ def show_amount(x: float) -> str:
     """A bound or a derived amount in a message: 12 significant digits, with an exponent from
     1e5 up (``1e+09``, not ``1000000000``)."""
     text = f"{x:.12g}"
-    if "e" in text or not abs(x) >= 1e5:
+    if "e" in text or not 1e5 <= abs(x) < math.inf:
         return text
     mantissa, exponent = f"{x:.11e}".split("e")
     return f"{mantissa.rstrip('0').rstrip('.')}e{exponent}"

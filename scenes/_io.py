@@ -75,7 +75,9 @@ def _read(source) -> tuple[dict, str]:
     except OSError as exc:
         raise SceneError(f"{origin}: cannot read the scene file ({exc.strerror})") from None
     data = _parse_toml(raw, origin)
-    data.setdefault("name", path.stem)
+    # The file's stem names the scene unless it cannot (a scene name is one printable line).
+    stem = path.stem
+    data.setdefault("name", stem if stem.isprintable() and len(stem) <= 200 else "custom")
     return data, origin
 
 

@@ -37,6 +37,8 @@ def apply_overrides(data: dict, overrides: list[str] | tuple[str, ...]) -> dict:
 def apply_overrides_traced(data: dict, overrides) -> tuple[dict, dict[str, str]]:
     """As :func:`apply_overrides`, and the provenance of each overridden file key: the
     ``key=value`` text that set it, for error messages."""
+    if not isinstance(data, dict):
+        raise SceneError(f"expected a scene table to override, got {type(data).__name__}")
     if isinstance(overrides, str):
         overrides = [overrides]  # a lone string is one override, not its characters
     base, data = data, copy.deepcopy(data)

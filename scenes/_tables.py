@@ -110,11 +110,12 @@ def scene_from_dict(data: dict, origin: str | None = None,
     provenance : dict, optional
         File keys set by ``--set`` overrides, each with the ``key=value`` text the user gave.
     """
-    naming = FileNaming(data, origin, provenance)
+    naming = FileNaming(data if isinstance(data, dict) else {}, origin, provenance)
+    if not isinstance(data, dict):
+        raise naming.fail(f"expected a table of scene tables, got {show(data)}")
     _check_structure(data, naming)
-    lens_t, load_t = data["lens"], data["load"]
     radius = _length(naming, "lens.radius_m")
-    lens = Lens(radius, _material(naming, "lens", lens_t))
+    lens = Lens(radius, _material(naming, "lens", data["lens"]))
 
     pillars = None
     if "pillars" in data:

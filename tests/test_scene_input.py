@@ -5,13 +5,14 @@ import math
 import os
 import random
 import re
+import sys
 from importlib import resources
 
 import pytest
 
 from scenes import (LENGTH_RANGE_M, MODULUS_RANGE_PA, PHI_CLOSE_PACKING, InputError, Lens,
                     Material, Pillars, Scene, SceneError, analytic, load_scene, preset_names,
-                    scene_to_toml, write_atomic)
+                    scene_from_dict, scene_to_toml, write_atomic)
 
 # A user's file without [substrate]: the substrate takes the pillars' material (E_s = E_p).
 IMPLIED_SUBSTRATE = """name = "implied"
@@ -54,7 +55,8 @@ def test_huge_integer_modulus_is_one_line(tmp_path):
     message = refused(path)
     assert message.startswith(f"{path}: lens.E_Pa = 99999999...") and "400-digit" in message
     # Beyond Python's int <-> str digit limit, in a file and in an override.
-    path = scene_file(tmp_path, IMPLIED_SUBSTRATE.replace("E_Pa = 1.6e6", "E_Pa = " + "9" * 5000, 1))
+    huge = IMPLIED_SUBSTRATE.replace("E_Pa = 1.6e6", "E_Pa = " + "9" * 5000, 1)
+    path = scene_file(tmp_path, huge)
     assert refused(path).startswith(f"{path}: not valid TOML")
     assert "allowed range" in refused("single-pillar", ["lens.E_Pa=" + "9" * 5000])
 
@@ -72,7 +74,7 @@ def test_extreme_moduli_and_lengths_keep_every_compliance_finite():
     """At the corners of the allowed ranges the compliances, the Hooke spring, the Hertz and
     spring-model answers are finite, positive normal doubles (no underflow, no overflow)."""
     (e_lo, e_hi), (l_lo, l_hi) = MODULUS_RANGE_PA, LENGTH_RANGE_M
-    tiny = 1e3 * math.ulp(0.0) * 2**52  # the smallest normal double, 2.2e-308
+    tiny = sys.float_info.min  # the smallest normal double, 2.2e-308
     for E_l in (e_lo, e_hi):
         for E_p in (e_lo, e_hi):
             for d, h, zeta, R in ((l_lo * 10, l_lo * 10, l_lo, l_hi),
@@ -103,7 +105,8 @@ def test_pitch_and_fraction_overrides_refused_together_like_a_file(tmp_path):
     message = refused("paper-fig3-sparse", ["pillars.pitch_um=20", "pillars.surface_fraction=0.1"])
     assert "--set pillars.pitch_um=20 and --set pillars.surface_fraction=0.1" in message
     refused("paper-fig3-sparse", ["pillars.surface_fraction=0.1", "pillars.pitch_um=20"])
-    both = IMPLIED_SUBSTRATE.replace("surface_fraction = 0.1", "surface_fraction = 0.1\npitch_um = 20")
+    both = IMPLIED_SUBSTRATE.replace("surface_fraction = 0.1",
+                                     "surface_fraction = 0.1\npitch_um = 20")
     assert "both" in refused(scene_file(tmp_path, both))
     # One override still replaces the file's other key; the last of one key wins.
     s = load_scene("paper-fig3-sparse", ["pillars.pitch_um=10", "pillars.pitch_um=20"])
@@ -145,6 +148,9 @@ def test_printed_close_packing_is_close_packing():
         assert s.pillars.surface_fraction == PHI_CLOSE_PACKING
     message = refused("paper-fig3-dense", ["pillars.surface_fraction=0.90691"])
     assert ", 0.9069]" in message and repr(PHI_CLOSE_PACKING) in message
+    for phi in ("1e-300", "5e-324", "1e-17"):  # pitches beyond the longest allowed length
+        assert "beyond the longest allowed length, 1e+09 um" in refused(
+            "paper-fig3-dense", [f"pillars.surface_fraction={phi}"])
     # Just below close packing stays a lattice with a pitch just above the diameter.
     s = load_scene("paper-fig3-dense", ["pillars.surface_fraction=0.9068"])
     assert s.pillars.pitch_m > s.pillars.diameter_m
@@ -233,7 +239,8 @@ def test_rigid_override_last_wins_and_restores_the_modulus(tmp_path):
     assert "not both" in refused("single-pillar", ["pillars.E_Pa=1e9", "pillars.rigid=true"])
     assert "not both" in refused("single-pillar", ["pillars.rigid=true", "pillars.E_Pa=1e9"])
     # A file's rigid body has no modulus to restore: say so.
-    rigid = IMPLIED_SUBSTRATE.replace("E_Pa = 1.6e6\nnu = 0.5\n[load]", "rigid = true\nnu = 0.5\n[load]")
+    rigid = IMPLIED_SUBSTRATE.replace("E_Pa = 1.6e6\nnu = 0.5\n[load]",
+                                      "rigid = true\nnu = 0.5\n[load]")
     message = refused(scene_file(tmp_path, rigid), ["pillars.rigid=false"])
     assert "pillars.E_Pa is missing" in message
 
@@ -261,8 +268,32 @@ def test_si_constructors_name_their_parameters():
     assert Scene(lens, Material(math.inf, 0.5), 1e-7).substrate.rigid
 
 
+@pytest.mark.parametrize("value", [None, object(), 10**5000, -10**400, [1.0], {"a": 1}, "2",
+                                   float("nan"), True, 1j],
+                         ids=["None", "object", "int5000", "int400", "list", "dict", "str",
+                              "nan", "bool", "complex"])
+def test_python_tables_with_odd_values_are_refused_in_one_line(value):
+    """The API takes tables too (scene_from_dict): any Python object in any slot is refused
+    with a SceneError, never another exception."""
+    good = {"lens": {"radius_mm": 2.0, "E_Pa": 1.6e6, "nu": 0.5}, "load": {"indentation_um": 0.3},
+            "substrate": {"E_Pa": 1.6e6, "nu": 0.5}}
+    for table in ("lens", "load", "substrate"):
+        for key in good[table]:
+            data = {t: dict(v) for t, v in good.items()}
+            data[table][key] = value
+            with pytest.raises(SceneError) as info:
+                scene_from_dict(data)
+            assert "\n" not in str(info.value) and len(str(info.value)) < 300
+            assert str(info.value).startswith(f"{table}.{key} = ")
+    odd_tables = [value, {"lens": value, "load": {}}]
+    for data in odd_tables + ([] if isinstance(value, str) else [{"name": value, **good}]):
+        with pytest.raises(SceneError):
+            scene_from_dict(data)
+
+
 # --- fuzz ----------------------------------------------------------------------------------
-BAD_VALUES = ["nan", "inf", "-inf", "-1", "0", "-0.0", "1e-320", "1e400", "9" * 400, "9" * 5000,
+BAD_VALUES = ["nan", "inf", "-inf", "-1", "0", "-0.0", "1e-320", "5e-324", "1e400", "9" * 400,
+              "9" * 5000,
               "1e308", "0.5000001", "0.9069", "0.90691", "1e-9", "1e9", "true", "false",
               '"text"', "[1, 2]", "{a = 1}", "1979-05-27", "0x10", "1_000", "0_3", "''",
               '"\\u0000"', "[[[[1]]]]", "2.0", "0.3", "1e16", "1e-3", "2", "4", "3.9", "1.9",
@@ -278,7 +309,9 @@ def random_value(rng):
     if rng.random() < 0.5:
         return rng.choice(BAD_VALUES)
     magnitude = 10 ** rng.uniform(-330, 308)
-    return repr(rng.choice([1, -1]) * magnitude) if rng.random() < 0.8 else str(rng.randint(-5, 10**6))
+    if rng.random() < 0.8:
+        return repr(rng.choice([1, -1]) * magnitude)
+    return str(rng.randint(-5, 10**6))
 
 
 def mutate_file(text, rng):
@@ -301,7 +334,8 @@ def mutate_file(text, rng):
     elif kind == 5:  # truncate
         return "\n".join(lines).encode()[: rng.randrange(len("\n".join(lines)))]
     elif kind == 6:  # rename a table
-        lines[i] = rng.choice(["[lens]", "[pillars]", "[substrate]", "[load]", "[extra]", "[lens.x]"])
+        lines[i] = rng.choice(["[lens]", "[pillars]", "[substrate]", "[load]", "[extra]",
+                               "[lens.x]"])
     else:  # wrong type for a value
         if "=" in lines[i]:
             lines[i] = lines[i].split("=")[0] + "= " + rng.choice(['"2"', "[2]", "{}", "true"])
