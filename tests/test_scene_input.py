@@ -382,9 +382,7 @@ def test_fuzz_scene_files_and_overrides(tmp_path):
             pytest.fail(f"case {case}: {path} {overrides}: {type(exc).__name__}: {exc}")
         else:
             back = load_scene(scene_file(tmp_path, scene_to_toml(scene), "back.toml"))
-            assert Scene.from_dict(scene.to_dict()) == scene
-            assert back.to_dict().keys() == scene.to_dict().keys()
-            assert back.indentation_m == scene.indentation_m
+            assert back == scene and Scene.from_dict(scene.to_dict()) == scene, case
             counts["scene"] += 1
     # Both outcomes are exercised (a fuzz test that only ever refuses proves little).
     assert counts["scene"] > 100 and counts["refused"] > 500, counts
