@@ -4,7 +4,7 @@ Two variants:
 
 ``centre``  the paper's cells: side b = d/P, kept when the cell centre lies on the disk.  The
             total area jumps with P (+7.0, -3.9, +8.5, +2.1 % for P = 5, 7, 9, 11), which spoils
-            convergence studies (PHYSICS.md).
+            convergence studies (PHYSICS.md, "Boundary-element model of [P]").
 ``covered`` every cell that overlaps the disk, carrying its exact covered area phi b^2: its
             pressure acts on an equivalent square of that area centred on the centroid of the
             covered part, where it is also collocated.  The total area is exact for every P.

@@ -1,14 +1,19 @@
 """Scenes: the problem a model solves.
 
 Units: SI inside the code (m, Pa, N).  Scene files state their units in the key names
-(``radius_mm``, ``diameter_um``, ``E_Pa``); see :mod:`scenes._io`.
+(``radius_mm``, ``diameter_um``, ``E_Pa``); see :mod:`scenes._io` (files and presets),
+:mod:`scenes._overrides` (``--set``), :mod:`scenes._checks` (allowed ranges) and
+:mod:`scenes._tables` (file table to Scene, errors in file keys and units).
 """
 
 from . import analytic, lattice
-from ._io import apply_overrides, load_scene, preset_names, scene_dict, scene_from_dict, scene_to_toml
+from ._checks import LENGTH_RANGE_M, MODULUS_RANGE_PA, PHI_CLOSE_PACKING, POISSON_RANGE
+from ._io import load_scene, preset_names, scene_dict, scene_to_toml
+from ._overrides import apply_overrides
+from ._tables import scene_from_dict
 from ._errors import (EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_NOT_CONVERGED, EXIT_OK,
                       EXIT_TOOL_FAILURE, InputError, SceneError, ScopeError, ToolError)
-from ._scene import PHI_CLOSE_PACKING, Lens, Material, Pillars, Scene
+from ._scene import Lens, Material, Pillars, Scene
 from .result import ContactResult, PillarForce, atomic_path, write_atomic
 
 __all__ = [
@@ -17,7 +22,10 @@ __all__ = [
     "EXIT_NOT_CONVERGED",
     "EXIT_OK",
     "EXIT_TOOL_FAILURE",
+    "LENGTH_RANGE_M",
+    "MODULUS_RANGE_PA",
     "PHI_CLOSE_PACKING",
+    "POISSON_RANGE",
     "ContactResult",
     "InputError",
     "Lens",

@@ -1,9 +1,10 @@
 """The scene: geometry, materials and load of one lens-on-pillars contact, validated, in SI.
 
-A scene is immutable.  Every constructor checks its arguments and raises
-:class:`SceneError` naming the parameter, its value and the allowed range; nothing is
-clipped.  Rigid bodies are a limit, written ``rigid = true`` in a scene file and stored
-with ``E_Pa = inf`` (their compliance is then exactly zero).
+A scene is immutable.  Every constructor checks its arguments (:mod:`scenes._checks`: the
+allowed ranges and why) and raises :class:`SceneError` naming the parameter, its value and
+the allowed range.  Nothing is clipped except a pitch within round-off of the diameter, which
+is close packing.  Rigid bodies are a limit, written ``rigid = true`` in a scene file and
+stored with ``E_Pa = inf`` (their compliance is then exactly zero).
 """
 
 from __future__ import annotations
@@ -13,40 +14,9 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from . import _checks as ck
+from ._checks import PHI_CLOSE_PACKING
 from ._errors import SceneError
-
-# Surface fraction of hexagonal close packing (pitch = diameter).
-PHI_CLOSE_PACKING = math.pi / (2.0 * math.sqrt(3.0))
-
-
-def _finite(name: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise SceneError(f"{name} = {value!r}: expected a number")
-    value = float(value)
-    if not math.isfinite(value):
-        raise SceneError(f"{name} = {value}: must be a finite number")
-    return value
-
-
-def _positive(name: str, value: Any) -> float:
-    value = _finite(name, value)
-    if value <= 0.0:
-        raise SceneError(f"{name} = {value:g}: must be > 0")
-    return value
-
-
-def _poisson(name: str, value: Any) -> float:
-    value = _finite(name, value)
-    if not 0.0 <= value <= 0.5:
-        raise SceneError(f"{name} = {value:g}: allowed range is [0, 0.5]")
-    return value
-
-
-def _modulus(name: str, value: Any) -> float:
-    """Young's modulus in Pa: positive and finite, or +inf for a rigid body."""
-    if isinstance(value, (int, float)) and not isinstance(value, bool) and value == math.inf:
-        return math.inf
-    return _positive(name, value)
 
 
 @dataclass(frozen=True)
@@ -75,7 +45,8 @@ class Lens:
     material: Material
 
     def __post_init__(self):
-        object.__setattr__(self, "radius_m", _positive("lens.radius", self.radius_m))
+        radius = ck.check_length("lens.radius_m", ck.as_float("lens.radius_m", self.radius_m))
+        object.__setattr__(self, "radius_m", radius)
         _check_material("lens", self.material)
 
 
@@ -89,16 +60,12 @@ class Pillars:
     material: Material
 
     def __post_init__(self):
-        d = _positive("pillars.diameter", self.diameter_m)
-        h = _positive("pillars.height", self.height_m)
-        e = _positive("pillars.pitch", self.pitch_m)
-        if e < d * (1.0 - 1e-12):
-            raise SceneError(
-                f"pillars.pitch = {e:g} m: must be >= the diameter {d:g} m "
-                "(pitch = diameter is close packing)")
+        d, h, e = (ck.check_length(q, ck.as_float(q, v)) for q, v in (
+            ("pillars.diameter_m", self.diameter_m), ("pillars.height_m", self.height_m),
+            ("pillars.pitch_m", self.pitch_m)))
         object.__setattr__(self, "diameter_m", d)
         object.__setattr__(self, "height_m", h)
-        object.__setattr__(self, "pitch_m", max(e, d))
+        object.__setattr__(self, "pitch_m", ck.check_pitch(d, e))
         _check_material("pillars", self.material)
 
     @property
@@ -108,12 +75,10 @@ class Pillars:
 
     @staticmethod
     def pitch_from_fraction(diameter_m: float, surface_fraction: Any) -> float:
-        phi = _finite("pillars.surface_fraction", surface_fraction)
-        if not 0.0 < phi <= PHI_CLOSE_PACKING * (1.0 + 1e-12):
-            raise SceneError(
-                f"pillars.surface_fraction = {phi:g}: allowed range is "
-                f"(0, {PHI_CLOSE_PACKING:.6f}] (close packing pi/(2 sqrt 3))")
-        return diameter_m * math.sqrt(PHI_CLOSE_PACKING / min(phi, PHI_CLOSE_PACKING))
+        """Pitch in m of a lattice of pillars of ``diameter_m`` covering ``surface_fraction``
+        (close packing up to the printed 0.9069, see :mod:`scenes._checks`)."""
+        q = "pillars.surface_fraction"
+        return ck.check_surface_fraction(q, ck.as_float(q, surface_fraction), diameter_m)
 
 
 @dataclass(frozen=True)
@@ -129,30 +94,13 @@ class Scene:
 
     def __post_init__(self):
         _check_material("substrate", self.substrate)
-        zeta = _positive("load.indentation", self.indentation_m)
+        zeta = ck.as_float("load.indentation_m", self.indentation_m)
+        zeta = ck.check_length("load.indentation_m", zeta)
         object.__setattr__(self, "indentation_m", zeta)
-        if self.lens.material.rigid and self.substrate.rigid:
-            raise SceneError(
-                "lens.rigid and substrate.rigid are both true: at least one half-space must be "
-                "elastic")
-        R = self.lens.radius_m
-        if self.pillars is None:
-            if zeta >= 0.5 * R:
-                raise SceneError(
-                    f"load.indentation = {zeta:g} m: allowed range is (0, {0.5 * R:g}) m "
-                    "(half the lens radius; the half-space model needs a << R)")
-        else:
-            h, d = self.pillars.height_m, self.pillars.diameter_m
-            if zeta >= h:
-                raise SceneError(
-                    f"load.indentation = {zeta:g} m: allowed range is (0, {h:g}) m, below the "
-                    "pillar height (at zeta >= h the lens reaches the substrate between pillars, "
-                    "which this model does not include)")
-            if R <= 10.0 * max(d, h):
-                raise SceneError(
-                    f"lens.radius = {R:g} m: must exceed {10.0 * max(d, h):g} m "
-                    "(10 x the larger of pillar diameter and height; the model treats the lens "
-                    "as a half-space over many pillars)")
+        p = self.pillars
+        ck.check_scene(self.lens.radius_m, zeta,
+                       None if p is None else (p.diameter_m, p.height_m),
+                       self.lens.material.rigid, self.substrate.rigid)
 
     # --- derived quantities -------------------------------------------------------------
     @property
@@ -210,5 +158,6 @@ class Scene:
 def _check_material(owner: str, m: Material) -> None:
     if not isinstance(m, Material):
         raise SceneError(f"{owner}: expected a Material, got {type(m).__name__}")
-    object.__setattr__(m, "E_Pa", _modulus(f"{owner}.E_Pa", m.E_Pa))
-    object.__setattr__(m, "nu", _poisson(f"{owner}.nu", m.nu))
+    q_e, q_nu = f"{owner}.E_Pa", f"{owner}.nu"
+    object.__setattr__(m, "E_Pa", ck.check_modulus(q_e, ck.as_float(q_e, m.E_Pa)))
+    object.__setattr__(m, "nu", ck.check_poisson(q_nu, ck.as_float(q_nu, m.nu)))

@@ -1,6 +1,7 @@
 """Closed-form limits of the lens-on-pillars contact (SI units throughout).
 
-Every formula cites its source; PHYSICS.md lists the paper's typos these corrections fix.
+Every formula cites its source; PHYSICS.md ("Closed-form limits") lists the paper's slips
+that these formulas correct.
 ``gamma`` always means a compliance (1 - nu^2) / E in 1/Pa.
 
 References

@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
+import secrets
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from importlib import metadata
@@ -95,6 +95,9 @@ class ContactResult:
             + ("" if s.get("pillars") is None
                else f"  Phi = {s['pillars']['surface_fraction']:.4g}")
             + f"  zeta = {s['load']['indentation_m'] * 1e6:.4g} um",
+            "materials        " + "; ".join(
+                f"{part} {_fmt_material(s[part])}" for part in ("lens", "pillars", "substrate")
+                if s.get(part) is not None),
             f"total force      {self.total_force_N * 1e6:.6g} uN",
             f"centre pressure  {self.centre_pressure_Pa * 1e-3:.6g} kPa",
             f"contact radius   {self.contact_radius_m * 1e6:.6g} um",
@@ -104,6 +107,16 @@ class ContactResult:
             f"{self.wall_time_s:.3g} s",
         ]
         return "\n".join(lines)
+
+
+def _fmt_material(m: dict) -> str:
+    """``E = 1.6 MPa, nu = 0.5`` or ``rigid, nu = 0.5``."""
+    if m.get("rigid") or m.get("E_Pa") is None:
+        return f"rigid, nu = {m['nu']:.6g}"
+    E = m["E_Pa"]
+    for factor, unit in ((1e9, "GPa"), (1e6, "MPa"), (1e3, "kPa"), (1.0, "Pa")):
+        if abs(E) >= factor or factor == 1.0:
+            return f"E = {E / factor:.6g} {unit}, nu = {m['nu']:.6g}"
 
 
 def _fmt_disc(disc: dict) -> str:
@@ -126,13 +139,21 @@ def _check_finite(obj: Any, path: str) -> None:
 def atomic_path(path: str | os.PathLike, suffix: str = ".tmp"):
     """Yield a fresh temporary path beside ``path`` (ending in ``suffix``, for writers that
     pick the format from it); when the block succeeds it is renamed to ``path``, so a reader
-    never sees half a file and an interrupted run leaves the old file or the new one."""
+    never sees half a file and an interrupted run leaves the old file or the new one.
+
+    The temporary file is created with mode 0666 filtered by the process umask, as ``open``
+    would create ``path`` itself (``tempfile.mkstemp`` would make every file 0600)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=suffix)
-    os.close(fd)
+    while True:
+        tmp = path.parent / f".{path.name}.{secrets.token_hex(6)}{suffix}"
+        try:
+            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+            break
+        except FileExistsError:
+            continue
     try:
-        yield Path(tmp)
+        yield tmp
         os.replace(tmp, path)
     finally:
         if os.path.exists(tmp):

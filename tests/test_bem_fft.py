@@ -231,11 +231,12 @@ def test_refuses_bad_resolution():
 
 
 @pytest.mark.parametrize("overrides", [
-    ["pillars.E_Pa=160"],                                   # E_p / E_l = 1e-4
+    ["pillars.E_Pa=160", "substrate.E_Pa=160"],             # E_p / E_l = 1e-4
     ["pillars.E_Pa=1.6e15"],                                # E_p / E_l = 1e9
     ["pillars.rigid=true"],
     ["pillars.surface_fraction=2e-3", "load.indentation_um=1.8"],
-    ["pillars.surface_fraction=0.9", "load.indentation_um=0.005", "pillars.E_Pa=160"],
+    ["pillars.surface_fraction=0.9", "load.indentation_um=0.005", "pillars.E_Pa=160",
+     "substrate.E_Pa=160"],
 ])
 def test_converges_at_extremes_fast(overrides):
     res = solve_fft(load_scene("paper-fig3-sparse", overrides), 8)
@@ -308,9 +309,10 @@ def test_both_bems_converge_to_the_same_continuum_answer(name):
 @pytest.mark.parametrize("ratio", [1e-4, 1.0, 1e9, math.inf])
 def test_converges_over_the_extremes(phi, zeta_um, ratio):
     """E_p / E_l from 1e-4 to 1e9 and rigid, Phi from 2e-3 to 0.9, zeta up to 0.9 h."""
-    young = "pillars.rigid=true" if math.isinf(ratio) else f"pillars.E_Pa={1.6e6 * ratio}"
+    young = (["pillars.rigid=true", "substrate.rigid=true"] if math.isinf(ratio) else
+             [f"pillars.E_Pa={1.6e6 * ratio}", f"substrate.E_Pa={1.6e6 * ratio}"])  # E_s = E_p
     scene = load_scene("paper-fig3-dense", [f"pillars.surface_fraction={phi}",
-                                            f"load.indentation_um={zeta_um}", young])
+                                            f"load.indentation_um={zeta_um}", *young])
     res = solve_fft(scene, 12)
     assert res.converged and res.total_force_N > 0
     assert res.diagnostics["max_interpenetration_m"] <= 1e-8 * scene.indentation_m

@@ -26,7 +26,8 @@ def test_rigid_punch_limit():
     assert r.centre_pressure_Pa == pytest.approx(punch.centre_pressure, rel=RTOL_PUNCH_P21)
     assert r.real_contact_area_m2 == pytest.approx(math.pi * 4e-12, rel=1e-12)
     # Stiff pillars and substrate approach the same limit.
-    stiff = solve_dense(load_scene("single-pillar", ["pillars.E_Pa=1.6e15"]), 21)
+    stiff = solve_dense(load_scene("single-pillar", ["pillars.E_Pa=1.6e15",
+                                                     "substrate.E_Pa=1.6e15"]), 21)
     assert stiff.total_force_N == pytest.approx(r.total_force_N, rel=1e-6)
 
 
@@ -52,7 +53,8 @@ def test_soft_flat_punch_limit_across_stiffness(E_p):
     # discretisation error.  (At R = 2 mm the lens sag over the pillar top, 1 nm, is not
     # negligible against the half-space share of zeta when E_p << E_l: the BEM is then right
     # and the spring model off by up to 3 %.)  R = 2 m, one pillar within the overlap radius.
-    scene = load_scene("single-pillar", [f"pillars.E_Pa={E_p}", "lens.radius_mm=2000",
+    scene = load_scene("single-pillar", [f"pillars.E_Pa={E_p}", f"substrate.E_Pa={E_p}",
+                                         "lens.radius_mm=2000",
                                          "pillars.surface_fraction=1e-5"])
     model = an.spring_model(scene)
     r = solve_dense(scene, 21)

@@ -36,7 +36,8 @@ def test_love_self_term_and_far_field():
 
 def test_cell_areas():
     # The paper's cells: 97 in the disk at P = 11 (54 in the half disk), and the area errors
-    # of PHYSICS.md; the covered cells carry the exact area for every P.
+    # of PHYSICS.md ("Boundary-element model of [P]"); the covered cells carry the exact area
+    # for every P.
     assert len(cell_pattern(11, "centre").x) == 97
     for P, err in [(5, 7.0), (7, -3.9), (9, 8.5), (11, 2.1), (13, 3.2), (15, 0.2)]:
         area = cell_pattern(P, "centre").area.sum()
@@ -101,7 +102,8 @@ def test_force_balance_and_unit_rescaling():
     # Lengths x 10 and moduli x 1000: pressures x 1000, forces x 1e5, radii x 10.
     scaled = solve_dense(load_scene("paper-fig3-sparse", [
         "lens.radius_mm=20", "pillars.diameter_um=40", "pillars.height_um=20",
-        "load.indentation_um=3", "lens.E_Pa=1.6e9", "pillars.E_Pa=1.6e9"]), 7)
+        "load.indentation_um=3", "lens.E_Pa=1.6e9", "pillars.E_Pa=1.6e9",
+        "substrate.E_Pa=1.6e9"]), 7)
     assert scaled.total_force_N == pytest.approx(1e5 * base.total_force_N, rel=1e-10)
     assert scaled.centre_pressure_Pa == pytest.approx(1e3 * base.centre_pressure_Pa, rel=1e-10)
     assert scaled.contact_radius_m == pytest.approx(10 * base.contact_radius_m, rel=1e-10)

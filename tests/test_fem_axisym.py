@@ -38,7 +38,8 @@ FLAT_LENS = ["lens.radius_mm=1e5", "pillars.surface_fraction=1e-7"]  # R = 100 m
 
 
 def punch_scene(*extra):
-    return load_scene("single-pillar", ["pillars.rigid=true", *FLAT_LENS, *extra])
+    return load_scene("single-pillar", ["pillars.rigid=true", "substrate.rigid=true",
+                                        *FLAT_LENS, *extra])
 
 
 def profile_error(result, reference, radius):
@@ -94,7 +95,7 @@ def test_rigid_flat_punch(nu):
 def test_rigid_pillar_between_elastic_bodies_is_two_springs_in_series():
     """nu = 0.5: a bonded rigid punch acts like a frictionless one, so F = d zeta /
     (gamma_l + gamma_s) exactly, and the pillar sinks by zeta gamma_s / (gamma_l + gamma_s)."""
-    scene = punch_scene("substrate.E_Pa=6.4e6", "substrate.nu=0.5")
+    scene = punch_scene("substrate.rigid=false", "substrate.E_Pa=6.4e6", "substrate.nu=0.5")
     gl, gs = scene.lens.material.compliance, scene.substrate.compliance
     res = solve_axisymmetric(scene)
     assert_verified(res)
@@ -106,7 +107,7 @@ def test_rigid_pillar_between_elastic_bodies_is_two_springs_in_series():
 
 def test_paper_curvature_correction_of_the_punch():
     """With the paper's R = 2 mm the curved lens lowers the punch force by a^2/(3 R zeta)."""
-    scene = load_scene("single-pillar", ["pillars.rigid=true"])
+    scene = load_scene("single-pillar", ["pillars.rigid=true", "substrate.rigid=true"])
     a, R, zeta = scene.pillars.diameter_m / 2, scene.lens.radius_m, scene.indentation_m
     corrected = analytic.rigid_punch(scene).force * (1 - a**2 / (3 * R * zeta))
     res = solve_axisymmetric(scene)
@@ -175,10 +176,12 @@ def test_block_truncation_extrapolates_away():
 def test_stiffness_ratio_extremes_solve_accurately():
     """E_p/E_l = 1e-3 .. 1e6 (E_s = E_p, the paper's choice): residual stays tiny, the
     stiff end reaches the rigid pillar (measured 0.999998), the soft end is linear in E_p."""
-    rigid = solve_axisymmetric(load_scene("single-pillar", ["pillars.rigid=true"]))
+    rigid = solve_axisymmetric(load_scene("single-pillar", ["pillars.rigid=true",
+                                                            "substrate.rigid=true"]))
     forces = {}
     for ratio in (1e-3, 1e-2, 1.0, 1e6):
-        res = solve_axisymmetric(load_scene("single-pillar", [f"pillars.E_Pa={ratio * 1.6e6}"]))
+        res = solve_axisymmetric(load_scene("single-pillar", [f"pillars.E_Pa={ratio * 1.6e6}",
+                                                              f"substrate.E_Pa={ratio * 1.6e6}"]))
         assert_verified(res)
         forces[ratio] = res.total_force_N
     assert forces[1e6] == pytest.approx(rigid.total_force_N, rel=1e-4)

@@ -128,8 +128,14 @@ def test_real_gecit_limits(tmp_path):
     if "fem-axisym" not in models.MODELS:
         pytest.skip("fem-axisym not registered in validation.models yet")
     out = tmp_path / "gecit"
+    # The paper's E_s = E_p: a scene without [substrate], whose substrate follows the pillars.
+    scene = tmp_path / "implied-substrate.toml"
+    scene.write_text("[lens]\nradius_mm = 2.0\nE_Pa = 1.6e6\nnu = 0.5\n"
+                     "[pillars]\ndiameter_um = 4.0\nheight_um = 2.0\nsurface_fraction = 2.3e-3\n"
+                     "E_Pa = 1.6e6\nnu = 0.5\n[load]\nindentation_um = 0.3\n")
     # mesh_size 0.5 (the default): at 1 no profile node is left in the fit window
-    assert main(["gecit", "--out", str(out), "--ratios", "1e-3", "1e6", "--aspect", "0.5"]) == 0
+    assert main(["gecit", "--scene", str(scene), "--out", str(out), "--ratios", "1e-3", "1e6",
+                 "--aspect", "0.5"]) == 0
     soft, stiff = json.loads((out / "gecit.json").read_text())["rows"]
     assert stiff["edge_exponent"] == pytest.approx(0.5, abs=0.02)
     assert abs(soft["edge_exponent"]) < 0.02

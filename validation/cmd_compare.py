@@ -32,7 +32,7 @@ FEM, BEM = "fem-axisym", "bem"
 DISPLAY = {"F_T": (1e6, "uN"), "sigma0": (1e-3, "kPa"), "a": (1e6, "um"), "A": (1e12, "um^2"),
            "profile": (1e-3, "kPa")}
 # Profile sample points r / r_ref; the edge (r_ref) is singular for a stiff pillar, so the
-# comparison stops short of it (STYLE: compare pressure away from singular edges).
+# comparison stops short of it (PHYSICS.md, "The elastic pillar").
 PROFILE_POINTS = (0.25, 0.5, 0.75, 0.9)
 # FEM levels 2, 1, 0.5 by default: measured on single-pillar (hertz), mesh_size 2 / 1 / 0.5 /
 # 0.25 took 0.5 / 1.1 / 8-20 / 290 s (0.6 / 6 / 122 s for 0.5 / 0.25), while F_T moved by

@@ -254,7 +254,8 @@ class OrderFit:
 
 
 def loglog_order(h, err) -> OrderFit:
-    """Fit err = C h^p by least squares in log-log ([STYLE]: a rate over >= 3 levels).
+    """Fit err = C h^p by least squares in log-log (a rate over >= 3 levels: PHYSICS.md,
+    "Verification").
 
     Parameters
     ----------

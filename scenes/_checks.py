@@ -1,0 +1,169 @@
+"""What a valid scene is: the allowed ranges of its quantities and the relations between
+them, checked once and named in the user's own words.
+
+The checks are written once, on SI values, and used by two callers: the SI constructors
+(:mod:`scenes._scene`), whose errors name the constructors' parameters (``pillars.pitch_m``),
+and the scene-file reader (:mod:`scenes._tables`), whose errors name the file's keys in the
+file's units (``pillars.pitch_um = 3.9``) and print the value exactly as it was written.  A
+:class:`Naming` is what tells them apart.  Both run the same predicates on the same floats, so
+a table that passes the reader's checks always builds a Scene.
+
+Allowed ranges (why: PHYSICS.md, "Scene input")
+-----------------------------------------------
+- every length (lens radius, pillar diameter, height and pitch, indentation):
+  [1e-9, 1e3] m, a nanometre to a kilometre;
+- Young's moduli: [1e-3, 1e16] Pa, or ``rigid = true`` (stored as E = inf);
+- Poisson's ratios: [0, 0.5];
+- surface fraction: (0, 0.9069], where anything from pi/(2 sqrt 3) = 0.90689968... up to the
+  printed value 0.9069 means close packing (pitch = diameter), and whose pitch is a length
+  in range;
+- pitch >= diameter; indentation below the pillar height (or below R/2 on a flat substrate);
+  lens radius above 10 x the larger of pillar diameter and height; not both half-spaces rigid.
+"""
+
+from __future__ import annotations
+
+import math
+
+from ._errors import SceneError, show, show_amount
+
+LENGTH_RANGE_M = (1e-9, 1e3)
+MODULUS_RANGE_PA = (1e-3, 1e16)
+POISSON_RANGE = (0.0, 0.5)
+# Surface fraction of hexagonal close packing (pitch = diameter), and the value the paper and
+# the README print for it, which is accepted as close packing too.
+PHI_CLOSE_PACKING = math.pi / (2.0 * math.sqrt(3.0))
+PHI_CLOSE_PACKING_PRINTED = 0.9069
+
+
+class Naming:
+    """How a scene error names a quantity: by its SI key (``lens.radius_m``, ``pillars.E_Pa``;
+    the constructors' parameters and the keys of ``Scene.to_dict``) and its SI value."""
+
+    def key(self, q: str) -> str:
+        return q
+
+    def unit(self, q: str) -> str:
+        return "m" if q.endswith("_m") else "Pa" if q.endswith("E_Pa") else ""
+
+    def amount(self, q: str, si: float) -> str:
+        """A bound or a derived value of quantity ``q`` in the unit of :meth:`unit`."""
+        return show_amount(si)
+
+    def error(self, q: str, problem: str, value=None) -> SceneError:
+        """``key = value: problem`` (``value`` is the SI value, or the bad object itself)."""
+        return SceneError(f"{self.key(q)} = {show(value)}: {problem}")
+
+    def measure(self, q: str, si: float) -> str:
+        """An amount of quantity ``q`` with its unit."""
+        unit = self.unit(q)
+        return f"{self.amount(q, si)} {unit}" if unit else self.amount(q, si)
+
+    def quote(self, q: str, si: float) -> str:
+        """Another quantity cited in a message, with its value and unit."""
+        return f"{self.key(q)} = {self.measure(q, si)}"
+
+
+SI = Naming()
+
+
+def as_float(q: str, value, naming: Naming = SI, per_si: float = 1.0) -> float:
+    """``value``, a number in a unit of which ``per_si`` make one SI unit (1e6 for um), as an
+    SI float; integers too large for a double become +-inf, for the range check to refuse with
+    the user's value.  Dividing by the exact 1e6 rounds 20 um to the double nearest 2e-5 m;
+    multiplying by the inexact 1e-6 would not."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise naming.error(q, "expected a number", value)
+    try:
+        return float(value) / per_si
+    except OverflowError:
+        return -math.inf if value < 0 else math.inf
+
+
+def check_range(q: str, si: float, lo: float, hi: float, naming: Naming = SI,
+                note: str = "") -> float:
+    """Refuse ``si`` outside [lo, hi] (NaN included); ``note`` says why the range is what it is."""
+    if not lo <= si <= hi:
+        unit = f" {naming.unit(q)}" if naming.unit(q) else ""
+        raise naming.error(q, f"allowed range is [{naming.amount(q, lo)}, "
+                              f"{naming.amount(q, hi)}]{unit}{note}", si)
+    return si
+
+
+def check_length(q: str, si: float, naming: Naming = SI) -> float:
+    return check_range(q, si, *LENGTH_RANGE_M, naming)
+
+
+def check_modulus(q: str, si: float, naming: Naming = SI, rigid_allowed: bool = True) -> float:
+    """Young's modulus in range, or +inf (a rigid body) where the caller stores rigid that way."""
+    if rigid_allowed and si == math.inf:
+        return si
+    return check_range(q, si, *MODULUS_RANGE_PA, naming,
+                       " (a stiffer body: rigid = true)")
+
+
+def check_poisson(q: str, si: float, naming: Naming = SI) -> float:
+    return check_range(q, si, *POISSON_RANGE, naming)
+
+
+def check_surface_fraction(q: str, phi: float, diameter_m: float, naming: Naming = SI) -> float:
+    """The pitch in m of surface fraction ``phi`` on pillars of ``diameter_m``; refuses phi
+    above close packing (as printed) and phi so small that the pitch is beyond the longest
+    allowed length."""
+    if not 0.0 < phi <= PHI_CLOSE_PACKING_PRINTED:
+        raise naming.error(
+            q, f"allowed range is (0, {PHI_CLOSE_PACKING_PRINTED}] ({PHI_CLOSE_PACKING_PRINTED} "
+            f"or anything above pi/(2 sqrt 3) = {PHI_CLOSE_PACKING!r} is close packing, "
+            "pitch = diameter)", phi)
+    if phi >= PHI_CLOSE_PACKING:
+        return diameter_m
+    pitch = diameter_m * math.sqrt(PHI_CLOSE_PACKING / phi)
+    if not pitch <= LENGTH_RANGE_M[1]:
+        raise naming.error(
+            q, f"gives a pitch of {naming.measure('pillars.pitch_m', pitch)}, beyond the "
+            f"longest allowed length, {naming.measure('pillars.pitch_m', LENGTH_RANGE_M[1])}",
+            phi)
+    return pitch
+
+
+def check_pitch(diameter_m: float, pitch_m: float, naming: Naming = SI) -> float:
+    """The pitch, at least the diameter (pitch = diameter is close packing); a relative shortfall
+    of 1e-12 is round-off of a pitch computed from close packing and reads as the diameter."""
+    if pitch_m < diameter_m * (1.0 - 1e-12):
+        raise naming.error(
+            "pillars.pitch_m",
+            f"must be >= {naming.quote('pillars.diameter_m', diameter_m)} "
+            "(pitch = diameter is close packing)", pitch_m)
+    return max(pitch_m, diameter_m)
+
+
+def check_scene(radius_m: float, indentation_m: float, pillars: tuple[float, float] | None,
+                lens_rigid: bool, substrate_rigid: bool, naming: Naming = SI) -> None:
+    """The relations between the parts of a scene; ``pillars`` is (diameter, height) in m, or
+    None for a flat substrate.  Each quantity is already in its own range."""
+    R, zeta = radius_m, indentation_m
+    if lens_rigid and substrate_rigid:
+        raise naming.error(
+            "substrate.rigid", f"not with {naming.key('lens.rigid')} = true (at least one "
+            "half-space must be elastic)", True)
+    if pillars is None:
+        if zeta >= 0.5 * R:
+            raise naming.error(
+                "load.indentation_m",
+                f"must be below half of {naming.quote('lens.radius_m', R)}, "
+                f"{naming.measure('load.indentation_m', 0.5 * R)} "
+                "(the half-space model needs a contact radius far below R)", zeta)
+        return
+    d, h = pillars
+    if zeta >= h:
+        raise naming.error(
+            "load.indentation_m",
+            f"must be below the pillar height, {naming.quote('pillars.height_m', h)} (at "
+            "zeta >= h the lens reaches the substrate between pillars, which this model does not "
+            "include)", zeta)
+    if R <= 10.0 * max(d, h):
+        raise naming.error(
+            "lens.radius_m",
+            f"must exceed {naming.measure('lens.radius_m', 10.0 * max(d, h))}, 10 x the larger "
+            "of pillar diameter and height (the model treats the lens as a half-space over many "
+            "pillars)", R)
