@@ -33,13 +33,13 @@ test-slow: $(STAMP)
 	$(PY) -m pytest -q -m slow
 
 bench-bem: $(STAMP)
-	$(PY) -m validation.bench_bem --out $(OUT)/bench-bem
+	$(PY) -m validation.bench.bem --out $(OUT)/bench-bem
 	$(MAKE) bench-fft
 
 # FFT BEM: cells vs time vs memory, and ContactMechanics side by side (optional extra).
 bench-fft: $(STAMP)
 	$(PY) -m pip install --quiet -e '.[bench]' || echo "bench-fft: ContactMechanics not installed; the comparison will be skipped"
-	$(PY) -m validation.bench_fft --out $(OUT)/bench-fft
+	$(PY) -m validation.bench.fft --out $(OUT)/bench-fft
 
 clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache
