@@ -17,7 +17,7 @@ Example
 """
 
 from ._case import (COMPUTING_PACKAGES, Case, accepts_vtu, canonical_json, case_key,
-                    code_version, compute_case, scene_physics, solver_of)
+                    code_version, compute_case, scene_physics, solver_of, source_digest)
 from ._engine import CASE_ERRORS, Engine, Outcome
 from ._executors import EXECUTORS, default_workers, make_executor
 from ._progress import Progress
@@ -45,6 +45,7 @@ __all__ = [
     "read_journal",
     "scene_physics",
     "solver_of",
+    "source_digest",
 ]
 
 

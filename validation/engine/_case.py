@@ -36,23 +36,33 @@ from scenes.result import package_version
 COMPUTING_PACKAGES = ("scenes", "contact", "bem_solver", "fem_reference", "meshes")
 
 
-@functools.lru_cache(maxsize=1)
-def code_version() -> str:
-    """``<package version>+src.<12 hex digits>``: see the module docstring."""
+def source_digest(roots: dict[str, Path | None]) -> str:
+    """12 hex digits of SHA-256 over the ``*.py`` and ``*.toml`` files under each root (name ->
+    folder, None for an absent package), with their relative paths, in sorted order."""
     digest = hashlib.sha256()
-    for name in COMPUTING_PACKAGES:
-        spec = importlib.util.find_spec(name)
-        if spec is None or not spec.submodule_search_locations:
+    for name in sorted(roots):
+        root = roots[name]
+        if root is None:
             digest.update(f"{name}:absent".encode())
             continue
-        root = Path(list(spec.submodule_search_locations)[0])
-        files = sorted(p for p in root.rglob("*") if p.suffix in (".py", ".toml")
+        files = sorted(p for p in Path(root).rglob("*") if p.suffix in (".py", ".toml")
                        and "__pycache__" not in p.parts)
         for path in files:
             digest.update(f"{name}/{path.relative_to(root).as_posix()}\0".encode())
             digest.update(path.read_bytes())
             digest.update(b"\0")
-    return f"{package_version()}+src.{digest.hexdigest()[:12]}"
+    return digest.hexdigest()[:12]
+
+
+@functools.lru_cache(maxsize=1)
+def code_version() -> str:
+    """``<package version>+src.<12 hex digits>``: see the module docstring."""
+    roots = {}
+    for name in COMPUTING_PACKAGES:
+        spec = importlib.util.find_spec(name)
+        locations = list(spec.submodule_search_locations or []) if spec else []
+        roots[name] = Path(locations[0]) if locations else None
+    return f"{package_version()}+src.{source_digest(roots)}"
 
 
 def canonical_json(obj) -> str:
