@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: demo study-gecit test test-slow bench-bem bench-fft clean
+.PHONY: demo study-gecit test test-slow bench-bem bench-fft bench-engine clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -40,6 +40,11 @@ bench-bem: $(STAMP)
 bench-fft: $(STAMP)
 	$(PY) -m pip install --quiet -e '.[bench]' || echo "bench-fft: ContactMechanics not installed; the comparison will be skipped"
 	$(PY) -m validation.bench.fft --out $(OUT)/bench-fft
+
+# Study engine: a sweep killed (kill -9) mid-way and resumed loses and repeats nothing; the
+# same sweep on a Dask scheduler + two worker processes (127.0.0.1) gives the pool's table.
+bench-engine: $(STAMP)
+	$(PY) -m validation.bench.engine --out $(OUT)/bench-engine
 
 clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache

@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import shutil
 import signal
 import subprocess
 import sys
@@ -343,34 +342,13 @@ def test_a_waiting_process_takes_over_a_case_whose_holder_died(tmp_path):
 @pytest.fixture
 def dask_cluster(tmp_path):
     """A scheduler and two single-threaded workers, separate processes on 127.0.0.1."""
-    dask = shutil.which("dask", path=os.path.dirname(sys.executable)) or shutil.which("dask")
-    if dask is None:
-        pytest.fail("the dask command is missing: dask[distributed] is a dependency")
-    info = tmp_path / "scheduler.json"
-    common = {"cwd": tmp_path, "stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL}
-    procs = [subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", "0",
-                               "--no-dashboard", "--scheduler-file", str(info)], **common)]
-    try:
-        assert _wait_for(lambda: info.exists() and info.stat().st_size > 0, timeout=60)
-        for _ in range(2):
-            procs.append(subprocess.Popen(
-                [dask, "worker", "--scheduler-file", str(info), "--host", "127.0.0.1",
-                 "--nthreads", "1", "--nworkers", "1", "--no-dashboard"], **common))
-        address = json.loads(info.read_text())["address"]
-        from distributed import Client
+    from validation.bench.engine import dask_processes
 
-        with Client(address, timeout="30s") as client:
-            client.wait_for_workers(2, timeout=60)
-        yield address
-    finally:
+    with dask_processes(tmp_path) as (address, procs):
         family = {q for p in procs for q in _descendants(p.pid)}
-        # A killed `dask worker` takes its worker process with it (the worker ends when the
-        # pipe to its nanny closes): the teardown is quick and leaves nothing behind.
-        for p in procs[::-1]:
-            p.kill()
-            p.wait(15)
-        assert _wait_for(lambda: not any(_alive(q) for q in family), timeout=15), \
-            "dask processes outlived the test"
+        yield address
+    assert _wait_for(lambda: not any(_alive(q) for q in family), timeout=15), \
+        "dask processes outlived the test"
 
 
 def _descendants(pid: int) -> set[int]:

@@ -200,6 +200,9 @@ class Engine:
             if record is not None:
                 outcomes[case.key] = self._cached(case, store, progress, record)
                 return None
+        # Start the executor before holding any lock: a pool forks its workers, and a fork
+        # copies the lock's descriptor into them.
+        executor = self.executor
         lock = store.try_lock(case)
         if lock is None:
             return False
@@ -215,7 +218,7 @@ class Engine:
         try:
             store.journal("start", case, executor=self.executor_name)
             progress.started(case.describe())
-            future = self.executor.submit(compute_case, case.spec())
+            future = executor.submit(compute_case, case.spec())
         except BaseException:
             lock.release()
             raise
