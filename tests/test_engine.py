@@ -185,6 +185,26 @@ def test_a_case_asking_for_the_vtu_recomputes_one_cached_without(fakes, tmp_path
     assert Engine("serial").run_one(plain, tmp_path).cached  # and the VTU does not hurt
 
 
+def test_result_arrays_are_kept_on_request(tmp_path):
+    plain = Engine("serial").run_one(_bem_case(), tmp_path)
+    assert plain.field_arrays() == {}
+    kept = Engine("serial").run_one(_bem_case(fields=True), tmp_path)
+    assert not kept.cached  # the cached record had no arrays
+    arrays = kept.field_arrays()
+    # the kept map carries the result: the element forces of the D6 orbits, each counted
+    # weight times, sum to the total force
+    total = (arrays["force_N"] * arrays["weight"]).sum()
+    assert total == pytest.approx(plain.result.total_force_N, rel=1e-12)
+    assert arrays["pressure_Pa"].shape == arrays["x_m"].shape
+    npz = kept.files["fields.npz"]
+    npz.write_bytes(npz.read_bytes()[:100])
+    record, reason = CaseStore(tmp_path).load(_bem_case(fields=True))
+    assert record is None and "fields.npz" in reason
+    again = Engine("serial").run_one(_bem_case(fields=True), tmp_path)
+    assert not again.cached
+    assert (again.field_arrays()["force_N"] == arrays["force_N"]).all()
+
+
 def test_more_timing_repeats_recompute_fewer_do_not(tmp_path):
     once = Engine("serial").run_one(_bem_case(repeats=1), tmp_path)
     assert once.timing["repeats"] == 1

@@ -14,7 +14,7 @@ from scenes import InputError, SceneError, load_scene
 from validation.cli import main
 from validation.engine import Engine, read_journal
 from validation.studies.sweep import (ModelSpec, Sweep, crossed, linear, log, run_sweep,
-                                      write_table, zipped)
+                                      run_sweep_cases, table_rows, write_table, zipped)
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "validation" / "examples" / "sweep-phi-zeta.toml"
 
@@ -174,3 +174,18 @@ def test_example_spec_is_valid():
     cases, skipped = sweep.cases()
     assert sweep.name == "phi-zeta" and not skipped
     assert len(cases) == 4 * 3 * 2 * 3  # Phi x zeta x materials x (two P + one FFT)
+
+
+def test_sweep_cases_give_results_and_pressure_maps(tmp_path):
+    """What a figure needs: each case's result and, on request, its arrays."""
+    sweep = Sweep("paper-fig3-sparse", axes=(crossed("pillars.surface_fraction", [0.03, 0.1]),),
+                  models=(ModelSpec("bem", {"elements_per_diameter": 3}),))
+    pairs = run_sweep_cases(sweep, tmp_path, engine=Engine("serial", quiet=True), fields=True)
+    assert [c.point for c, _ in pairs] == [{"pillars.surface_fraction": 0.03},
+                                           {"pillars.surface_fraction": 0.1}]
+    for case, outcome in pairs:
+        arrays = outcome.field_arrays()
+        total = (arrays["force_N"] * arrays["weight"]).sum()  # D6 orbits, weight each
+        assert total == pytest.approx(outcome.result.total_force_N, rel=1e-12)
+    assert [r["total_force_N"] for r in table_rows(sweep, pairs)] == \
+        [o.result.total_force_N for _, o in pairs]

@@ -73,9 +73,10 @@ def dask_processes(folder: Path, workers: int = 2, timeout: float = 60.0):
     dask = shutil.which("dask", path=os.path.dirname(sys.executable)) or shutil.which("dask")
     if dask is None:
         raise RuntimeError("the dask command is missing (pip install 'dask[distributed]')")
-    info = Path(folder) / "scheduler.json"
+    folder = Path(folder).resolve()  # the processes run in it: relative paths would move
+    info = folder / "scheduler.json"
     info.unlink(missing_ok=True)
-    log = open(Path(folder) / "dask.log", "ab")  # noqa: SIM115  (closed below)
+    log = open(folder / "dask.log", "ab")  # noqa: SIM115  (closed below)
     quiet = {"cwd": folder, "stdout": log, "stderr": subprocess.STDOUT}
     procs = [subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", "0",
                                "--no-dashboard", "--scheduler-file", str(info)], **quiet)]
@@ -84,14 +85,15 @@ def dask_processes(folder: Path, workers: int = 2, timeout: float = 60.0):
         while not (info.exists() and info.stat().st_size > 0):
             if time.monotonic() > end or procs[0].poll() is not None:
                 log.flush()
-                tail = (Path(folder) / "dask.log").read_text(errors="replace")[-800:]
+                tail = (folder / "dask.log").read_text(errors="replace")[-800:]
                 raise RuntimeError(f"the dask scheduler did not start (exit "
                                    f"{procs[0].poll()}): {tail}")
             time.sleep(0.05)
         for _ in range(workers):
             procs.append(subprocess.Popen(
                 [dask, "worker", "--scheduler-file", str(info), "--host", "127.0.0.1",
-                 "--nthreads", "1", "--nworkers", "1", "--no-dashboard"], **quiet))
+                 "--nthreads", "1", "--nworkers", "1", "--no-dashboard",
+                 "--local-directory", str(folder / "dask-scratch")], **quiet))
         address = json.loads(info.read_text())["address"]
         from distributed import Client
 

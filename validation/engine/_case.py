@@ -89,9 +89,10 @@ class Case:
     """One computation: ``model`` on ``scene`` with ``options``.
 
     ``repeats`` timed runs (the median is kept; a first run slower than ``single_above``
-    seconds is not repeated) and ``vtu`` (ask a model that can write one for its VTU fields)
-    say how to run it; they are not part of the key, since they do not change the result: a
-    cached case with fewer repeats, or without the VTU a case asks for, is recomputed.
+    seconds is not repeated), ``vtu`` (ask a model that can write one for its VTU fields) and
+    ``fields`` (keep the result's numeric arrays, e.g. a pressure map, as ``fields.npz``) say
+    how to run it; they are not part of the key, since they do not change the result: a
+    cached case with fewer repeats, or without a file the case asks for, is recomputed.
     ``tag`` labels the case in progress lines.
     """
 
@@ -101,6 +102,7 @@ class Case:
     repeats: int = 1
     single_above: float = float("inf")
     vtu: bool = False
+    fields: bool = False
     tag: str = ""
 
     @functools.cached_property
@@ -121,7 +123,7 @@ class Case:
         """What a worker needs (plain data: crosses process and machine boundaries)."""
         return {"model": self.model, "scene": self.scene.to_dict(), "options": dict(self.options),
                 "key": self.key, "code_version": code_version(), "repeats": self.repeats,
-                "single_above": self.single_above, "vtu": self.vtu}
+                "single_above": self.single_above, "vtu": self.vtu, "fields": self.fields}
 
 
 def solver_of(model: str):
@@ -188,6 +190,24 @@ def _measured_run(solver, scene, kwargs) -> tuple[ContactResult, float, dict]:
     return result, wall, memory
 
 
+def _npz_bytes(fields: dict) -> bytes:
+    """The numeric arrays and numbers of ``fields`` as a compressed ``.npz`` (objects such
+    as a discretisation are left out: they need pickling to be read back)."""
+    import io
+
+    import numpy as np
+
+    arrays = {}
+    for name, value in fields.items():
+        array = np.asarray(value) if isinstance(value, (list, tuple, float, int, np.ndarray)) \
+            else None
+        if array is not None and array.dtype.kind in "biuf":
+            arrays[name] = array
+    buf = io.BytesIO()
+    np.savez_compressed(buf, **arrays)
+    return buf.getvalue()
+
+
 def compute_case(spec: dict) -> dict:
     """Run one case (in a worker: a pool process, a Dask worker or the parent).
 
@@ -214,6 +234,8 @@ def compute_case(spec: dict) -> dict:
         result, wall, memory = _measured_run(solver, scene, first_kwargs)
         for path in sorted(Path(tmp).iterdir()):
             files[path.name] = path.read_bytes()
+    if spec.get("fields"):
+        files["fields.npz"] = _npz_bytes(result.fields)
     times = [wall]
     if wall <= spec.get("single_above", float("inf")):
         for _ in range(max(1, int(spec.get("repeats", 1))) - 1):

@@ -50,6 +50,17 @@ class Outcome:
     def ok(self) -> bool:
         return self.error is None
 
+    def field_arrays(self) -> dict:
+        """The result's arrays kept by a case with ``fields=True`` (e.g. ``x_m``, ``y_m``,
+        ``pressure_Pa`` of the pressure map), SI units; {} when none were kept."""
+        path = self.files.get("fields.npz")
+        if path is None:
+            return {}
+        import numpy as np
+
+        with np.load(path) as data:
+            return {name: data[name] for name in data.files}
+
     def unwrap(self) -> ContactResult:
         """The result, or the case's error raised."""
         if self.error is not None:

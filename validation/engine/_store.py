@@ -139,6 +139,8 @@ class CaseStore:
             return f"timed {timing.get('repeats_requested', 1)} time(s), {case.repeats} asked"
         if case.vtu and accepts_vtu(case.model) and "fields.vtu" not in record.get("files", {}):
             return "the case asks for the VTU, the record has none"
+        if case.fields and "fields.npz" not in record.get("files", {}):
+            return "the case asks for the result's arrays, the record has none"
         for name, meta in record.get("files", {}).items():
             reason = self._check_companion(case, name, meta)
             if reason:
@@ -154,13 +156,18 @@ class CaseStore:
         if size != meta.get("bytes") or _sha256(path) != meta.get("sha256"):
             return f"companion {path.name} truncated or changed ({size} bytes, " \
                    f"{meta.get('bytes')} recorded)"
-        if name.endswith(".vtu"):
-            try:
+        try:
+            if name.endswith(".vtu"):
                 import meshio
 
                 meshio.read(path)
-            except Exception as exc:  # any parser failure means an unusable file
-                return f"companion {path.name} does not parse ({type(exc).__name__})"
+            elif name.endswith(".npz"):
+                import numpy as np
+
+                with np.load(path) as data:
+                    data.files  # noqa: B018  (reads the archive's directory)
+        except Exception as exc:  # any parser failure means an unusable file
+            return f"companion {path.name} does not parse ({type(exc).__name__})"
         return ""
 
     def result_of(self, record: dict) -> ContactResult:
@@ -178,7 +185,8 @@ class CaseStore:
             files[name] = {"bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
         record = {"format": RECORD_FORMAT, "key": case.key, "code_version": code_version(),
                   "case": {"model": case.model, "scene": case.scene.to_dict(),
-                           "options": dict(case.options), "repeats": case.repeats},
+                           "options": dict(case.options), "repeats": case.repeats,
+                           "vtu": case.vtu, "fields": case.fields},
                   "result": payload["result"], "timing": payload["timing"], "files": files,
                   "worker": payload.get("worker", {}), "finished": time.time()}
         try:
