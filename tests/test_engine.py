@@ -134,6 +134,9 @@ def _doubled(text):
     (_set(["result", "total_force_N"], lambda f: 2 * f), "pillar forces sum"),
     (_set(["result"], {"model": "bem"}), "does not parse"),
     (_set(["timing"], None), "timing"),
+    (_set(["case"], 5), "malformed"),
+    (_set(["files"], {"fields.vtu": 3}), "malformed"),
+    (lambda t: "[1, 2]", "not a case record"),
 ])
 def test_corrupt_record_is_recomputed(tmp_path, corrupt, why, capsys):
     case = _bem_case()
@@ -409,3 +412,16 @@ def test_dask_cluster_gives_the_serial_table(tmp_path, dask_cluster):
     parents = {e["pid"] for e in journal}
     assert workers and not workers & parents  # computed by the cluster's workers
     assert all(math.isfinite(float(r["total_force_N"])) for r in b)
+
+
+def test_local_dask_cluster_gives_the_serial_results(tmp_path):
+    """``--executor dask`` without an address: a local cluster on 127.0.0.1, closed after."""
+    cases = [Case("bem", load_scene("paper-fig3-sparse", [f"load.indentation_um={z}"]),
+                  {"elements_per_diameter": 3}) for z in (0.2, 0.3, 0.4)]
+    serial = Engine("serial", quiet=True).run(cases, tmp_path / "serial")
+    with Engine("dask", workers=2, quiet=True) as engine:
+        dask = engine.run(cases, tmp_path / "dask")
+        assert engine.executor.address.startswith("tcp://127.0.0.1:")
+    assert [o.result.to_dict() | {"wall_time_s": 0} for o in dask] == \
+        [o.result.to_dict() | {"wall_time_s": 0} for o in serial]
+    assert not any(o.cached for o in dask)

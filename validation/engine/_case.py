@@ -15,6 +15,7 @@ and do not change the key.
 
 from __future__ import annotations
 
+import ctypes
 import functools
 import hashlib
 import importlib
@@ -168,10 +169,24 @@ def _reset_peak() -> bool:
         return False
 
 
+def _release_free_memory() -> None:
+    """Hand memory freed by earlier cases back to the system (glibc ``malloc_trim``), so that
+    the next case's allocations show in the resident set instead of reusing free heap."""
+    import gc
+
+    gc.collect()
+    try:
+        ctypes.CDLL(None).malloc_trim(0)
+    except (OSError, AttributeError):
+        pass
+
+
 def _measured_run(solver, scene, kwargs) -> tuple[ContactResult, float, dict]:
     """One run: (result, wall time s, memory dict).  Peak memory is the resident set's high
     water mark (VmHWM) after resetting it, so C buffers count and nothing slows the run;
-    ``peak_memory_MB`` is what the run added to the resident set it started from."""
+    ``peak_memory_MB`` is what the run added to the resident set it started from (freed
+    memory of earlier cases is first handed back to the system)."""
+    _release_free_memory()
     reset = _reset_peak()
     rss0 = _status_kib("VmRSS")
     start = time.perf_counter()

@@ -147,7 +147,7 @@ class DaskExecutor:
             else:
                 self._cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
                                              processes=True, host="127.0.0.1",
-                                             dashboard_address=None, worker_dashboard_address=None,
+                                             dashboard_address="127.0.0.1:0",
                                              silence_logs=logging.ERROR)
                 self._client = Client(self._cluster)
         except (OSError, TimeoutError) as exc:

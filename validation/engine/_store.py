@@ -108,7 +108,10 @@ class CaseStore:
             record = json.loads(path.read_text(), parse_constant=_no_constants)
         except (OSError, ValueError, UnicodeDecodeError) as exc:
             return None, f"unreadable ({exc})"
-        reason = self._check(case, record)
+        try:
+            reason = self._check(case, record)
+        except (AttributeError, KeyError, TypeError, ValueError) as exc:
+            reason = f"malformed record ({type(exc).__name__}: {exc})"
         return (None, reason) if reason else (record, "")
 
     def _check(self, case: Case, record) -> str:
