@@ -135,7 +135,7 @@ def _doubled(text):
     (_set(["result"], {"model": "bem"}), "does not parse"),
     (_set(["timing"], None), "timing"),
     (_set(["case"], 5), "malformed"),
-    (_set(["files"], {"fields.vtu": 3}), "malformed"),
+    (_set(["files"], {"fields.vtu": 3}), "companion"),
     (lambda t: "[1, 2]", "not a case record"),
 ])
 def test_corrupt_record_is_recomputed(tmp_path, corrupt, why, capsys):
