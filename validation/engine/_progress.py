@@ -62,7 +62,7 @@ class Progress:
         rate, eta = self._rate()
         if self._bar is not None:
             self._bar.update(1)
-            self._bar.set_postfix_str(f"{what}: {how}"[-60:], refresh=True)
+            self._bar.set_postfix_str(how[:40], refresh=True)  # the bar keeps its width
             return
         speed = "" if rate is None else f", {rate:.3g} case/s, {eta}"
         self.line(f"{self.finished}/{self.total} {what}: {how}{speed}")
