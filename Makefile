@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: demo study-gecit test test-slow bench-bem bench-fft clean
+.PHONY: demo study-gecit test test-slow bench-bem bench-fft bench-engine clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -33,13 +33,18 @@ test-slow: $(STAMP)
 	$(PY) -m pytest -q -m slow
 
 bench-bem: $(STAMP)
-	$(PY) -m validation.bench_bem --out $(OUT)/bench-bem
+	$(PY) -m validation.bench.bem --out $(OUT)/bench-bem
 	$(MAKE) bench-fft
 
 # FFT BEM: cells vs time vs memory, and ContactMechanics side by side (optional extra).
 bench-fft: $(STAMP)
 	$(PY) -m pip install --quiet -e '.[bench]' || echo "bench-fft: ContactMechanics not installed; the comparison will be skipped"
-	$(PY) -m validation.bench_fft --out $(OUT)/bench-fft
+	$(PY) -m validation.bench.fft --out $(OUT)/bench-fft
+
+# Study engine: a sweep killed (kill -9) mid-way and resumed loses and repeats nothing; the
+# same sweep on a Dask scheduler + two worker processes (127.0.0.1) gives the pool's table.
+bench-engine: $(STAMP)
+	$(PY) -m validation.bench.engine --out $(OUT)/bench-engine
 
 clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache

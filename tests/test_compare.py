@@ -8,7 +8,7 @@ import pytest
 from scenes import analytic, load_scene
 from validation import models
 from validation.cli import main
-from validation.cmd_compare import closed_form, compare_rows
+from validation.studies.compare import closed_form, compare_rows
 
 from test_converge import C_BEM, C_FEM, fakes  # noqa: F401  (fixture)
 

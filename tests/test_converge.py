@@ -14,7 +14,9 @@ import pytest
 from scenes import ContactResult, PillarForce, analytic, load_scene
 from validation import models
 from validation.cli import main
-from validation.cmd_converge import LADDERS, case_key, converge_study, run_cached
+from validation.engine import Case, Engine, case_key
+from validation.ladders import LADDERS
+from validation.studies.converge import converge_study
 
 CALLS: list[tuple] = []
 # Fake discretisation errors: f = f_exact (1 + C_FEM h^2) (FEM, h = mesh_size) and
@@ -128,12 +130,14 @@ def test_study_recovers_fake_order_and_resumes(fakes, tmp_path):
     assert again["studies"]["F_T"]["gci"] == gci
 
 
-def test_run_cached_writes_vtu_when_model_can(fakes, tmp_path):
+def test_engine_writes_vtu_when_model_can(fakes, tmp_path):
     scene = load_scene("single-pillar")
-    run_cached("fem-axisym", scene, {"mesh_size": 1.0}, tmp_path, vtu=True)
+    engine = Engine("serial")
+    out = engine.run_one(Case("fem-axisym", scene, {"mesh_size": 1.0}, vtu=True), tmp_path)
     assert len(list(tmp_path.glob("*.vtu"))) == 1 and len(list(tmp_path.glob("*.json"))) == 1
-    run_cached("bem", scene, {"elements_per_diameter": 11}, tmp_path, vtu=True)  # no VTU option
-    assert len(list(tmp_path.glob("*.vtu"))) == 1
+    assert out.files["fields.vtu"].exists()
+    engine.run_one(Case("bem", scene, {"elements_per_diameter": 11}, vtu=True), tmp_path)
+    assert len(list(tmp_path.glob("*.vtu"))) == 1  # the BEM has no VTU option
 
 
 def test_cli_converge_writes_report(fakes, tmp_path, capsys):
@@ -185,10 +189,11 @@ def test_real_fem_converges_on_single_pillar(tmp_path):
 
 def test_unreadable_cache_entry_is_recomputed(fakes, tmp_path):
     scene = load_scene("single-pillar")
-    run_cached("fem-axisym", scene, {"mesh_size": 1.0}, tmp_path)
+    case = Case("fem-axisym", scene, {"mesh_size": 1.0})
+    Engine("serial").run_one(case, tmp_path)
     (entry,) = [p for p in tmp_path.glob("*.json")]
     entry.write_text('{"model": "fem-axisym"}')  # an older schema
     fakes.clear()
-    result, cached = run_cached("fem-axisym", scene, {"mesh_size": 1.0}, tmp_path)
-    assert not cached and fakes == [("fem", 1.0)] and result.converged
-    assert run_cached("fem-axisym", scene, {"mesh_size": 1.0}, tmp_path)[1]
+    out = Engine("serial").run_one(case, tmp_path)
+    assert not out.cached and fakes == [("fem", 1.0)] and out.result.converged
+    assert Engine("serial").run_one(case, tmp_path).cached

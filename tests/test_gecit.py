@@ -8,7 +8,7 @@ import pytest
 
 from scenes import analytic, load_scene
 from validation.cli import main
-from validation.cmd_gecit import edge_exponent, outer_load_fraction, plateau_ratio
+from validation.profiles import edge_exponent, outer_load_fraction, plateau_ratio
 
 from test_converge import edge_exponent_of, fakes  # noqa: F401  (fixture)
 

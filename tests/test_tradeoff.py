@@ -8,7 +8,12 @@ import json
 import pytest
 
 from scenes import load_scene
-from validation.cmd_tradeoff import LADDERS, Ladder, reference_values, tradeoff, write_outputs
+from validation.ladders import LADDERS, Ladder
+from validation.studies.tradeoff import reference_values, tradeoff, write_outputs
+
+
+def _ladder(option, rungs):
+    return Ladder(option, rungs[0], 2.0, "int", -1.0, tuple(rungs))
 
 
 def _rows(model, levels, values):
@@ -28,7 +33,7 @@ def test_reference_is_richardson_of_the_tightest_model():
 
 
 def test_models_of_other_physics_get_their_own_reference():
-    from validation.cmd_tradeoff import physics_group
+    from validation.studies.tradeoff import physics_group
 
     pillars, flat = load_scene("single-pillar"), load_scene("hertz")
     assert physics_group("bem", pillars) == physics_group("bem-fft", pillars)
@@ -47,14 +52,14 @@ def test_every_registered_ladder_names_a_model():
 
     for name, ladder in LADDERS.items():
         assert name in MODELS
-        sizes = [ladder.size(level) for level in ladder.levels]
+        sizes = [ladder.size(level) for level in ladder.rungs]
         assert sizes == sorted(sizes, reverse=True)  # coarse to fine
         assert ladder.option in MODELS[name][2]
 
 
 def test_tradeoff_writes_csv_json_png(tmp_path):
     scene = load_scene("single-pillar")
-    ladders = {"bem-fft": Ladder("cells_per_diameter", (8, 16, 32))}
+    ladders = {"bem-fft": _ladder("cells_per_diameter", (8, 16, 32))}
     doc = tradeoff(scene, ["bem-fft"], repeats=2, ladders=ladders)
     assert [r["level"] for r in doc["rows"]] == [8, 16, 32]
     assert doc["references"]["hooke-pillar"]["F_T"]["status"] == "richardson"
@@ -79,7 +84,7 @@ def test_cli_tradeoff(tmp_path, capsys):
     assert code == 0
     out = capsys.readouterr()
     assert "bem-fft" in out.out and "references (hooke-pillar):" in out.out
-    assert "tradeoff: bem-fft" in out.err  # progress lines on stderr
+    assert "[tradeoff] " in out.err and "bem-fft" in out.err  # progress lines on stderr
     assert (tmp_path / "tradeoff.csv").exists()
 
 
@@ -98,8 +103,8 @@ def test_a_model_that_refuses_the_scene_is_skipped(monkeypatch):
     import validation.models as models
 
     monkeypatch.setitem(models.MODELS, "refuser", (__name__, "refusing_model", ("n",)))
-    ladders = {"refuser": Ladder("n", (1, 2)),
-               "bem-fft": Ladder("cells_per_diameter", (8, 12, 16))}
+    ladders = {"refuser": _ladder("n", (1, 2)),
+               "bem-fft": _ladder("cells_per_diameter", (8, 12, 16))}
     doc = tradeoff(load_scene("single-pillar"), ["refuser", "bem-fft"], repeats=1,
                    ladders=ladders)
     assert "refused" in doc["skipped"]["refuser"]

@@ -1,1 +1,11 @@
-"""What users run: the CLI, comparisons, convergence studies, reports."""
+"""What users run.
+
+- :mod:`validation.cli`: the ``pillar-xval`` commands, thin layers over the studies;
+- :mod:`validation.engine`: the study engine (cases, cache, locks, executors, progress);
+- :mod:`validation.studies`: converge, compare, gecit, tradeoff and sweep;
+- :mod:`validation.ladders`: each model's refinement ladder and the compared quantities;
+- :mod:`validation.verification` (GCI), :mod:`validation.profiles` (pressure-profile shape),
+  :mod:`validation.plots`, :mod:`validation.report`;
+- :mod:`validation.models`: the registry of models by ``--model`` name;
+- ``validation/bench/``: benchmarks run by the Makefile, never imported by the CLI.
+"""

@@ -6,12 +6,11 @@ from pathlib import Path
 
 from scenes import load_scene
 
-from .models import model_names, run_model
+from ..models import model_names, run_model
+from ._args import add_scene_arguments
 
 
 def add_parser(sub) -> None:
-    from .cli import add_scene_arguments
-
     p = sub.add_parser("solve", help="solve one scene with one model")
     add_scene_arguments(p)
     p.add_argument("--model", default="bem", choices=model_names(),
@@ -47,7 +46,7 @@ def run(args) -> int:
         options["vtu_path"] = args.out / "fields.vtu"  # models with volume fields write them
     result = run_model(args.model, scene, **options)
     if args.out is not None:
-        from .report import write_solve_report
+        from ..report import write_solve_report
 
         write_solve_report(result, args.out)
     if args.json:

@@ -1,6 +1,6 @@
 """Figures of the cross-validation studies (matplotlib, Agg) and the off-screen pyvista render.
 
-The pyvista render runs in a child process (``python -m validation.plots_xval render ...``):
+The pyvista render runs in a child process (``python -m validation.plots render ...``):
 a headless machine without an OpenGL context can abort inside VTK, and that must cost the
 report one picture, never the whole run.
 """
@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .ladders import QUANTITIES
 from .report import save_figure
 
 _MARKERS = "osd^v<>p"
@@ -37,12 +38,11 @@ def plot_convergence(data: dict, path: Path) -> Path:
     The error is |f - f_exact| / |f_exact| with the Richardson estimate when the study has
     one, otherwise |f - f_finest| / |f_finest| on the coarser levels (marked 'vs finest').
     """
-    from .cmd_converge import QUANTITIES
-
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 4.8))
     hs_all, errs_all = [], []
-    for i, (key, _, _, label) in enumerate(QUANTITIES):
+    for i, q in enumerate(QUANTITIES):
+        key, label = q.key, q.label
         s = data["studies"][key]
         h, f = np.array(s["h"]), np.array(s["f"])
         ref = s["gci"]["f_exact"]
@@ -175,7 +175,7 @@ def render_stress(vtu_path: Path, png_path: Path, roi_m: float, *,
     Runs in a child process; returns (success, message).  ``roi_m`` is the half-size (m) of
     the region around the axis and the contact that is shown.
     """
-    cmd = [sys.executable, "-m", "validation.plots_xval", "render", str(vtu_path),
+    cmd = [sys.executable, "-m", "validation.plots", "render", str(vtu_path),
            str(png_path), repr(float(roi_m))]
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s)
@@ -248,7 +248,7 @@ def _render(vtu: str, png: str, roi_m: float) -> str:
     return f"rendered {name} ({sub.n_cells} cells revolved{scale}) to {png}"
 
 
-if __name__ == "__main__":  # python -m validation.plots_xval render VTU PNG ROI_M
+if __name__ == "__main__":  # python -m validation.plots render VTU PNG ROI_M
     if len(sys.argv) == 5 and sys.argv[1] == "render":
         import shutil
 
@@ -258,4 +258,4 @@ if __name__ == "__main__":  # python -m validation.plots_xval render VTU PNG ROI
             pyvista.start_xvfb()  # without Xvfb, VTK >= 9.4 falls back to EGL or OSMesa
         print(_render(sys.argv[2], sys.argv[3], float(sys.argv[4])))
     else:
-        sys.exit("usage: python -m validation.plots_xval render VTU PNG ROI_M")
+        sys.exit("usage: python -m validation.plots render VTU PNG ROI_M")

@@ -1,7 +1,7 @@
 """Benchmark of the FFT boundary-element solver: cells vs time vs memory, and a side-by-side run
 against ContactMechanics (Polonsky-Keer CG on its free-boundary FFT half-space).
 
-Run as ``python -m validation.bench_fft --out DIR`` (``make bench-fft``).  Each solve runs in
+Run as ``python -m validation.bench.fft --out DIR`` (``make bench-fft``).  Each solve runs in
 its own subprocess, so the peak resident memory (``ru_maxrss``) belongs to that solve alone.
 
 The side-by-side problem is the same discrete problem for both codes: rigid pillars and a rigid
@@ -111,7 +111,7 @@ def run_case(solver, scene, overrides, n, tol=TOL, timeout=1800) -> dict:
     """One solve in a fresh interpreter; returns its measurements or {'error': ...}."""
     spec = {"solver": solver, "scene": scene, "overrides": list(overrides), "n": n, "tol": tol}
     try:
-        proc = subprocess.run([sys.executable, "-m", "validation.bench_fft", "--worker",
+        proc = subprocess.run([sys.executable, "-m", "validation.bench.fft", "--worker",
                                json.dumps(spec)], capture_output=True, text=True,
                               timeout=timeout)
     except subprocess.TimeoutExpired:
@@ -134,7 +134,7 @@ def contactmechanics_available() -> str:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m validation.bench_fft", description=__doc__,
+    ap = argparse.ArgumentParser(prog="python -m validation.bench.fft", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", type=Path, default=Path("out/bench-fft"))
     ap.add_argument("--levels", type=int, nargs="*", default=list(SCALING_LEVELS),

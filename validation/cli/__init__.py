@@ -1,8 +1,9 @@
 """Command line: ``pillar-xval COMMAND --scene PRESET|FILE [--set table.key=value ...]``.
 
-Each command lives in its own module of this package, listed in ``COMMANDS``; a module
-provides ``add_parser(subparsers)`` (which sets ``func``) and the function it names.
-Bad input ends the program with one line on stderr and exit status 2, never a traceback.
+Each command lives in its own module of this package, listed in ``COMMANDS``: a thin layer
+that parses options, calls a study (:mod:`validation.studies`) and prints.  A module provides
+``add_parser(subparsers)`` (which sets ``func``) and the function it names.  Bad input ends
+the program with one line on stderr and exit status 2, never a traceback.
 """
 
 from __future__ import annotations
@@ -11,25 +12,18 @@ import argparse
 import importlib
 import sys
 
-from scenes import (EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_TOOL_FAILURE, InputError, ToolError,
-                    preset_names)
+from scenes import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_TOOL_FAILURE, InputError, ToolError
 
-COMMANDS = ("validation.cmd_solve", "validation.cmd_compare", "validation.cmd_converge",
-            "validation.cmd_gecit", "validation.cmd_tradeoff")
+from ._args import add_scene_arguments
+
+__all__ = ["COMMANDS", "UserError", "add_scene_arguments", "build_parser", "main"]
+
+COMMANDS = ("validation.cli.solve", "validation.cli.compare", "validation.cli.converge",
+            "validation.cli.gecit", "validation.cli.tradeoff", "validation.cli.sweep")
 
 
 class UserError(Exception):
     """An error in what the user asked for; printed as one line."""
-
-
-def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument(
-        "--scene", required=True,
-        help=f"preset ({', '.join(preset_names())}) or a TOML scene file")
-    parser.add_argument(
-        "--set", dest="overrides", action="append", default=[], metavar="TABLE.KEY=VALUE",
-        help="override a scene value in file units, e.g. --set pillars.E_Pa=1e9 (repeatable); "
-             "--set pillars=none removes the pillars")
 
 
 def build_parser() -> argparse.ArgumentParser:

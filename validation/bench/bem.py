@@ -1,4 +1,4 @@
-"""Benchmark of the dense BEM: ``python -m validation.bench_bem --out DIR`` (``make bench-bem``).
+"""Benchmark of the dense BEM: ``python -m validation.bench.bem --out DIR`` (``make bench-bem``).
 
 Times one solve (median of ``--repeats``) against the elements per diameter P on the dense
 Fig. 3 scene, and against the number of pillars in contact up to Phi = 0.82, zeta = 0.5 um,
@@ -124,7 +124,7 @@ def _figure(rows) -> bytes:
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m validation.bench_bem", description=__doc__)
+    p = argparse.ArgumentParser(prog="python -m validation.bench.bem", description=__doc__)
     p.add_argument("--out", type=Path, default=Path("out/bench-bem"))
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--quick", action="store_true", help="a few small cases (for tests)")

@@ -1,4 +1,4 @@
-"""``pillar-xval compare``: BEM (Hooke pillar) against FEM (elastic pillar) on one scene, with
+"""BEM (Hooke pillar) against FEM (elastic pillar) on one scene, with
 the FEM's numerical uncertainty beside every difference.
 
 The FEM runs on three refinements (mesh_size 2, 1, 0.5 by default, see ``FEM_COARSEST``);
@@ -22,10 +22,13 @@ from pathlib import Path
 
 import numpy as np
 
-from scenes import Scene, analytic, load_scene, write_atomic
+from scenes import InputError, Scene, analytic, write_atomic
 
-from .cmd_converge import QUANTITIES, converge_study, ladder_for, quantity_values, run_cached
-from .verification import study
+from ..engine import Engine
+from ..ladders import QUANTITIES, ladder_for, quantity_values
+from ..profiles import profile_at
+from ..verification import study
+from .converge import level_cases, study_levels
 
 FEM, BEM = "fem-axisym", "bem"
 # Display units: (scale factor from SI, unit label).
@@ -38,43 +41,6 @@ PROFILE_POINTS = (0.25, 0.5, 0.75, 0.9)
 # 0.25 took 0.5 / 1.1 / 8-20 / 290 s (0.6 / 6 / 122 s for 0.5 / 0.25), while F_T moved by
 # 1e-4 relative from 1 to 0.5: the 0.25 level would cost minutes for a band already < 0.1 %.
 FEM_COARSEST = 2.0
-
-
-def add_parser(sub) -> None:
-    """Register ``compare`` on the CLI's subparsers."""
-    from .cli import add_scene_arguments
-
-    p = sub.add_parser("compare", help="BEM (Hooke pillar) against FEM (elastic pillar) with "
-                                       "the FEM's GCI uncertainty")
-    add_scene_arguments(p)
-    p.add_argument("--out", type=Path, default=None,
-                   help="report folder (default out/compare/<scene>)")
-    p.add_argument("--fem-levels", type=int, default=3, metavar="N",
-                   help="FEM refinements for the GCI (default 3)")
-    p.add_argument("--fem-coarsest", type=float, default=FEM_COARSEST, metavar="MESH_SIZE",
-                   help=f"FEM mesh_size of the coarsest level, halved per level (default "
-                        f"{FEM_COARSEST:g})")
-    p.add_argument("--bem-levels", type=int, default=3, metavar="N",
-                   help="BEM refinements (default 3, for its own GCI; 1: no BEM uncertainty)")
-    p.add_argument("--elements-per-diameter", type=int, default=None, metavar="P",
-                   help="BEM elements per diameter on its coarsest level (default 11)")
-    p.add_argument("--no-render", action="store_true", help="skip the pyvista render")
-    p.add_argument("--fresh", action="store_true", help="recompute cached cases")
-    p.set_defaults(func=run)
-
-
-def _profile_at(profile: dict, r_ref: float) -> list[float | None]:
-    r = np.asarray(profile.get("r_m", []), dtype=float)
-    p = np.asarray(profile.get("pressure_Pa", []), dtype=float)
-    if r.size < 2:
-        return [None] * len(PROFILE_POINTS)
-    order = np.argsort(r)
-    r, p = r[order], p[order]
-    out = []
-    for x in PROFILE_POINTS:
-        rx = x * r_ref
-        out.append(float(np.interp(rx, r, p)) if r[0] <= rx <= r[-1] else None)
-    return out
 
 
 def reference_radius(scene: Scene) -> tuple[float, str]:
@@ -117,7 +83,7 @@ def compare_rows(bem: dict, fem: dict, bem_studies: dict | None, fem_studies: di
                  reference: dict) -> list[dict]:
     """One row per quantity: values, difference, uncertainty bands and the verdict."""
     rows = []
-    for key in [q[0] for q in QUANTITIES] + [f"sigma(r={x:g})" for x in PROFILE_POINTS]:
+    for key in [q.key for q in QUANTITIES] + [f"sigma(r={x:g})" for x in PROFILE_POINTS]:
         fb, ff = bem.get(key), fem.get(key)
         st_f = fem_studies.get(key)
         u_f, gci_f = _band(st_f)
@@ -144,14 +110,14 @@ def compare_rows(bem: dict, fem: dict, bem_studies: dict | None, fem_studies: di
 
 def _values(result, r_ref: float) -> dict:
     vals = quantity_values(result)
-    for x, v in zip(PROFILE_POINTS, _profile_at(result.pillar_top_profile, r_ref)):
+    for x, v in zip(PROFILE_POINTS, profile_at(result.pillar_top_profile, r_ref, PROFILE_POINTS)):
         vals[f"sigma(r={x:g})"] = v
     return vals
 
 
 def _profile_studies(data: dict, r_ref: float) -> dict:
     h = [lv["h"] for lv in data["levels"]]
-    samples = [_profile_at(res.pillar_top_profile, r_ref) for res in data["results"]]
+    samples = [profile_at(res.pillar_top_profile, r_ref, PROFILE_POINTS) for res in data["results"]]
     out = {}
     for i, x in enumerate(PROFILE_POINTS):
         f = [s[i] for s in samples]
@@ -218,7 +184,7 @@ def _profile_curves(scene: Scene, bem_res, fem_data: dict, r_ref: float) -> list
 def summary_markdown(scene: Scene, rows: list[dict], ref_name: str, r_label: str,
                      meta: dict) -> str:
     """summary.md: what ran, the table, and which differences exceed the uncertainty."""
-    lines = [f"# {_title(scene)}", "",
+    lines = [f"# {title(scene)}", "",
              f"- FEM: {meta['fem_levels']} levels of mesh_size "
              f"{', '.join(f'{v:g}' for v in meta['fem_sizes'])}; finest VTU: "
              f"`{meta['vtu'] or 'not written'}`",
@@ -247,27 +213,42 @@ def profiles_csv(bem_res, fem_res) -> str:
     return "\n".join(lines) + "\n"
 
 
-def run(args) -> int:
-    """``pillar-xval compare``: run both models, write the report folder, print the table; exit 1
-    if a run did not converge."""
+def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None,
+                  fem_levels: int = 3, fem_coarsest: float = FEM_COARSEST, bem_levels: int = 3,
+                  elements_per_diameter: int | None = None, render: bool = True) -> dict:
+    """Run both models (one batch on the engine, cached in ``out/cases``), write the report
+    folder and return the report dict (``rows``, ``converged``, ``render``, ...)."""
     t0 = time.perf_counter()
-    scene = load_scene(args.scene, args.overrides)
-    out = args.out or Path("out") / "compare" / scene.name
+    if bem_levels < 1:
+        raise InputError(f"--bem-levels {bem_levels}: must be >= 1")
     cache = out / "cases"
     r_ref, r_label = reference_radius(scene)
-    fem_data = converge_study(FEM, scene, args.fem_levels, cache, coarsest=args.fem_coarsest,
-                              fresh=args.fresh, tag="compare fem", vtu_finest=True)
+    fem_cases = level_cases(FEM, scene, fem_levels, coarsest=fem_coarsest, tag="fem",
+                            vtu_finest=True)
+    if bem_levels >= 2:
+        bem_cases = level_cases(BEM, scene, bem_levels, coarsest=elements_per_diameter,
+                                tag="bem")
+    else:
+        from ..engine import Case
+
+        bem_cases = [Case(BEM, scene, ladder_for(BEM).options(0, elements_per_diameter),
+                          tag="bem")]
+    own = engine is None
+    engine = engine or Engine("serial")
+    try:
+        outcomes = engine.run(fem_cases + bem_cases, cache, label="compare")
+    finally:
+        if own:
+            engine.close()
+    fem_data = study_levels(FEM, scene, outcomes[:len(fem_cases)])
     fem_res = fem_data["results"][-1]
     fem_studies = dict(fem_data["studies"]) | _profile_studies(fem_data, r_ref)
-    if args.bem_levels >= 2:
-        bem_data = converge_study(BEM, scene, args.bem_levels, cache, fresh=args.fresh,
-                                  coarsest=args.elements_per_diameter, tag="compare bem")
+    if bem_levels >= 2:
+        bem_data = study_levels(BEM, scene, outcomes[len(fem_cases):])
         bem_res = bem_data["results"][-1]
         bem_studies = dict(bem_data["studies"]) | _profile_studies(bem_data, r_ref)
     else:
-        bem_opts = ladder_for(BEM).options(0, args.elements_per_diameter)
-        bem_res, _ = run_cached(BEM, scene, bem_opts, cache, fresh=args.fresh, tag="compare bem")
-        bem_data, bem_studies = None, None
+        bem_res, bem_data, bem_studies = outcomes[-1].unwrap(), None, None
     ref_name, reference = closed_form(scene)
     rows = compare_rows(_values(bem_res, r_ref), _values(fem_res, r_ref), bem_studies,
                         fem_studies, reference)
@@ -278,25 +259,25 @@ def run(args) -> int:
         vtu = str(shutil.copyfile(vtu, out / "fem_finest.vtu"))
         if sidecar.exists():
             shutil.copyfile(sidecar, out / "fem_finest.json")
-    if args.no_render:
-        render = "skipped (--no-render)"
+    if not render:
+        render_msg = "skipped (--no-render)"
     elif not vtu:
-        render = "not possible: the FEM model wrote no VTU"
+        render_msg = "not possible: the FEM model wrote no VTU"
     else:
-        from .plots_xval import render_stress
+        from ..plots import render_stress
 
         (out / "fem_stress_3d.png").unlink(missing_ok=True)  # never report a stale picture
         ok, msg = render_stress(Path(vtu), out / "fem_stress_3d.png", roi_m=2.5 * r_ref)
-        render = msg if ok else f"not rendered on this machine: {msg}"
-    from .plots_xval import plot_profiles
+        render_msg = msg if ok else f"not rendered on this machine: {msg}"
+    from ..plots import plot_profiles
 
     plot_profiles(_profile_curves(scene, bem_res, fem_data, r_ref), r_ref, out / "profiles.png",
                   f"pressure across the {'contact' if scene.is_flat else 'pillar top'}: "
                   f"{scene.name}", r_label)
-    meta = {"fem_levels": args.fem_levels, "bem_levels": args.bem_levels,
+    meta = {"fem_levels": fem_levels, "bem_levels": bem_levels,
             "fem_sizes": [lv["value"] for lv in fem_data["levels"]],
-            "bem_discretisation": bem_res.discretisation, "vtu": vtu, "render": render,
-            "wall_time_s": time.perf_counter() - t0}
+            "bem_discretisation": bem_res.discretisation, "vtu": vtu, "render": render_msg,
+            "executor": engine.describe(), "wall_time_s": time.perf_counter() - t0}
     converged = fem_res.converged and bem_res.converged and fem_data["all_converged"]
     report = {"scene": scene.to_dict(), "closed_form": {"name": ref_name, **reference},
               "profile_radius_m": r_ref, "profile_points": list(PROFILE_POINTS), "rows": rows,
@@ -310,16 +291,12 @@ def run(args) -> int:
     write_atomic(out / "report.json", json.dumps(report, indent=2, allow_nan=False, default=str))
     write_atomic(out / "summary.md", summary_markdown(scene, rows, ref_name, r_label, meta))
     write_atomic(out / "profiles.csv", profiles_csv(bem_res, fem_res))
-    print(_title(scene))
-    print(table_text(rows, ref_name, r_label))
-    print(f"render: {render}")
-    print(f"report: {out}/ (report.json, summary.md, profiles.png, profiles.csv"
-          + (", fem_finest.vtu" if vtu else "")
-          + (", fem_stress_3d.png" if (out / "fem_stress_3d.png").exists() else "") + ")")
-    return 0 if converged else 1
+    report["title"] = title(scene)
+    report["table"] = table_text(rows, ref_name, r_label)
+    return report
 
 
-def _title(scene) -> str:
+def title(scene) -> str:
     if scene.is_flat:
         return f"BEM vs FEM on {scene.name} (flat substrate: both solve the Hertz problem)"
     return f"BEM (Hooke pillar) vs FEM (elastic pillar) on {scene.name}"

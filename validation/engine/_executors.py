@@ -1,0 +1,194 @@
+"""Where cases run: in this process, in a local pool of processes, or on a Dask cluster.
+
+Every executor offers ``capacity`` (cases worth keeping in flight), ``submit(fn, arg)`` (a
+future with ``done``, ``result`` and ``exception``), ``wait(futures, timeout)`` (the finished
+ones, at least one unless the timeout passed) and ``close(kill=False)``.
+
+No orphans: pool workers ask the kernel for SIGKILL when their parent dies
+(``PR_SET_PDEATHSIG``; elsewhere a watchdog thread polls the parent), and ignore SIGINT, so a
+Ctrl-C reaches the parent alone, which then kills them.  The workers of a local Dask cluster
+are children of nanny objects that live in this process, and ``distributed`` ends a worker
+process as soon as the pipe to its parent closes: a ``kill -9`` of the parent ends them too.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import ctypes
+import multiprocessing as mp
+import os
+import signal
+import sys
+import threading
+import time
+
+from scenes import InputError, ToolError
+
+EXECUTORS = ("serial", "pool", "dask")
+PR_SET_PDEATHSIG = 1
+
+
+def default_workers() -> int:
+    """2 on this machine: one per core, at most 2 (a BLAS thread each)."""
+    return max(1, min(2, os.cpu_count() or 1))
+
+
+def _die_with_parent(parent_pid: int) -> None:
+    """Pool worker initializer: end this process when ``parent_pid`` ends."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    armed = False
+    if sys.platform.startswith("linux"):
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            armed = libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0) == 0
+        except (OSError, AttributeError):
+            armed = False
+    if os.getppid() != parent_pid:  # the parent died before the signal was armed
+        os._exit(1)
+    if not armed:
+        def watch():
+            while os.getppid() == parent_pid:
+                time.sleep(1.0)
+            os._exit(1)
+
+        threading.Thread(target=watch, daemon=True, name="parent-watchdog").start()
+    try:  # one BLAS thread per worker: the workers already fill the cores
+        from threadpoolctl import threadpool_limits
+
+        threadpool_limits(1)
+    except ImportError:
+        pass
+
+
+def _noop() -> int:
+    return os.getpid()
+
+
+class SerialExecutor:
+    """Cases run in this process, one at a time, when submitted."""
+
+    name = "serial"
+    capacity = 1
+
+    def submit(self, fn, arg):
+        future = cf.Future()
+        try:
+            future.set_result(fn(arg))
+        except KeyboardInterrupt:
+            raise
+        except BaseException as exc:  # the engine sorts case errors from fatal ones
+            future.set_exception(exc)
+        return future
+
+    def wait(self, futures, timeout=None):
+        return {f for f in futures if f.done()}
+
+    def close(self, kill: bool = False) -> None:
+        pass
+
+
+class PoolExecutor:
+    """A local pool of ``workers`` forked processes."""
+
+    name = "pool"
+
+    def __init__(self, workers: int):
+        ctx = mp.get_context("fork") if "fork" in mp.get_all_start_methods() else None
+        self.capacity = workers
+        self._pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx,
+                                            initializer=_die_with_parent,
+                                            initargs=(os.getpid(),))
+        # Start every worker now, from this thread (the death signal follows the thread that
+        # forked) and before the engine holds any lock (a fork copies descriptors).
+        for f in [self._pool.submit(_noop) for _ in range(workers)]:
+            f.result()
+
+    @property
+    def pids(self) -> list[int]:
+        return [p.pid for p in (self._pool._processes or {}).values()]
+
+    def submit(self, fn, arg):
+        try:
+            return self._pool.submit(fn, arg)
+        except cf.process.BrokenProcessPool as exc:
+            raise ToolError(f"the process pool broke (a worker died: {exc})") from None
+
+    def wait(self, futures, timeout=None):
+        done, _ = cf.wait(futures, timeout=timeout, return_when=cf.FIRST_COMPLETED)
+        return done
+
+    def close(self, kill: bool = False) -> None:
+        if kill:
+            for pid in self.pids:
+                try:
+                    os.kill(pid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
+        self._pool.shutdown(wait=not kill, cancel_futures=True)
+
+
+class DaskExecutor:
+    """A Dask distributed cluster: ``address`` (``tcp://host:port``) or, without one, a local
+    cluster of ``workers`` single-threaded processes on 127.0.0.1."""
+
+    name = "dask"
+
+    def __init__(self, address: str | None, workers: int):
+        try:
+            import logging
+
+            from distributed import Client, LocalCluster
+        except ImportError as exc:
+            raise ToolError(f"dask.distributed is not installed ({exc})") from None
+        self._cluster = None
+        try:
+            if address:
+                self._client = Client(address, timeout="20s")
+            else:
+                self._cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
+                                             processes=True, host="127.0.0.1",
+                                             dashboard_address="127.0.0.1:0",
+                                             silence_logs=logging.ERROR)
+                self._client = Client(self._cluster)
+        except (OSError, TimeoutError) as exc:
+            raise ToolError(f"dask: cannot reach the scheduler {address or '(local)'}: "
+                            f"{exc}") from None
+        self.address = self._client.scheduler.address
+        threads = sum(self._client.nthreads().values())
+        self.capacity = max(1, threads or workers)
+
+    def submit(self, fn, arg):
+        return self._client.submit(fn, arg, pure=False)
+
+    def wait(self, futures, timeout=None):
+        from distributed import wait
+
+        try:
+            wait(list(futures), timeout=timeout, return_when="FIRST_COMPLETED")
+        except TimeoutError:
+            pass
+        return {f for f in futures if f.done()}
+
+    def close(self, kill: bool = False) -> None:
+        try:
+            self._client.close()
+        finally:
+            if self._cluster is not None:
+                self._cluster.close()
+
+
+def make_executor(executor: str = "pool", workers: int | None = None,
+                  scheduler: str | None = None):
+    """The executor the user named (``--executor``, ``--workers``, ``--scheduler``)."""
+    if scheduler:
+        executor = "dask"
+    if executor not in EXECUTORS:
+        raise InputError(f"--executor {executor!r}: allowed: {', '.join(EXECUTORS)}")
+    if workers is not None and workers < 1:
+        raise InputError(f"--workers {workers}: must be >= 1")
+    n = workers or default_workers()
+    if executor == "serial":
+        return SerialExecutor()
+    if executor == "pool":
+        return SerialExecutor() if n == 1 else PoolExecutor(n)
+    return DaskExecutor(scheduler, n)

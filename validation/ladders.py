@@ -1,0 +1,104 @@
+"""What every study refines and what it measures: one ladder per model, one quantity list.
+
+``converge``, ``compare`` and ``gecit`` climb a model's ladder geometrically from its
+``coarsest`` rung by ``factor`` per level (:meth:`Ladder.value`); ``tradeoff`` walks its
+``rungs``, a gentler sequence that samples the cost curve.  Both come from the same entry, so a
+model joins every study by one line in :data:`LADDERS`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from scenes import ContactResult
+
+
+@dataclass(frozen=True)
+class Quantity:
+    """A compared quantity: short ``key``, :class:`ContactResult` attribute, SI unit, label."""
+
+    key: str
+    attr: str
+    unit: str
+    label: str
+
+
+# The quantities every study reports, in this order.
+QUANTITIES: tuple[Quantity, ...] = (
+    Quantity("F_T", "total_force_N", "N", "total force F_T"),
+    Quantity("sigma0", "centre_pressure_Pa", "Pa", "centre pressure sigma_0"),
+    Quantity("a", "contact_radius_m", "m", "contact radius a"),
+    Quantity("A", "real_contact_area_m2", "m^2", "real contact area A"),
+)
+
+
+def quantity_values(result: ContactResult) -> dict[str, float]:
+    """The :data:`QUANTITIES` of a result, SI, by key."""
+    return {q.key: float(getattr(result, q.attr)) for q in QUANTITIES}
+
+
+@dataclass(frozen=True)
+class Ladder:
+    """How a model is refined.
+
+    Option ``option`` takes ``coarsest * factor**k`` on level k, rounded by ``kind``:
+    ``"float"`` (none), ``"int"`` (nearest integer) or ``"odd"``
+    (``round((coarsest + 1) factor**k) - 1``, which keeps an odd count odd for factor 2, so a
+    centre element stays centred).  ``rungs`` are the explicit values, coarse to fine, that a
+    cost study walks.  The relative cell size of a value is ``h = value**h_power``; ``fixed``
+    holds the options every rung shares.
+    """
+
+    option: str
+    coarsest: float
+    factor: float
+    kind: str
+    h_power: float
+    rungs: tuple = ()
+    fixed: dict = field(default_factory=dict)
+    h_meaning: str = ""
+
+    def value(self, k: int, coarsest: float | None = None):
+        """Value of the refined option on level ``k`` (0 = coarsest)."""
+        v0 = self.coarsest if coarsest is None else coarsest
+        if self.kind == "odd":
+            return int(round((v0 + 1) * self.factor**k)) - 1
+        if self.kind == "int":
+            return int(round(v0 * self.factor**k))
+        return float(v0 * self.factor**k)
+
+    def size(self, value) -> float:
+        """Relative cell size h of an option value."""
+        return float(value) ** self.h_power
+
+    def options(self, k: int, coarsest: float | None = None) -> dict:
+        """Model options of level ``k``: the fixed ones and the refined one."""
+        return self.options_at(self.value(k, coarsest))
+
+    def options_at(self, value) -> dict:
+        """Model options with the refined option at ``value``."""
+        return {**self.fixed, self.option: value}
+
+
+LADDERS: dict[str, Ladder] = {
+    # BEM: square elements across a pillar (or Hertz contact) diameter, 11, 23, 47, ...;
+    # 'covered' cells carry the true disk area, so the sequence converges smoothly.
+    "bem": Ladder("elements_per_diameter", 11, 2.0, "odd", -1.0, (5, 7, 9, 11, 15, 21),
+                  {"cells": "covered"}, "element side / diameter = 1/P"),
+    # FFT BEM: grid cells across a pillar diameter, 32, 64, 128, ...
+    "bem-fft": Ladder("cells_per_diameter", 32, 2.0, "int", -1.0, (8, 12, 16, 24, 32, 48, 64),
+                      {}, "cell side / diameter = 1/N"),
+    # FEM: the mesh builder's single size parameter scales every element size.
+    "fem-axisym": Ladder("mesh_size", 1.0, 0.5, "float", 1.0, (4.0, 2.0, 1.0, 0.5), {},
+                         "mesh_size (relative)"),
+}
+
+
+def ladder_for(model: str) -> Ladder:
+    """The refinement ladder of ``model``; InputError (one line) for a model without one."""
+    from scenes import InputError
+
+    if model not in LADDERS:
+        raise InputError(f"--model {model!r}: no refinement ladder; known: "
+                         f"{', '.join(sorted(LADDERS))}")
+    return LADDERS[model]

@@ -1,0 +1,127 @@
+"""Grid convergence of one model: N refinement levels on the engine, observed order,
+Richardson estimate and GCI per quantity (F_T, sigma0, a, A), with tables and a plot."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from pathlib import Path
+
+from scenes import InputError, Scene, write_atomic
+
+from ..engine import Case, Engine, Outcome
+from ..ladders import QUANTITIES, ladder_for, quantity_values
+from ..verification import study
+
+
+def level_cases(model: str, scene: Scene, levels: int, *, coarsest: float | None = None,
+                tag: str = "", vtu_finest: bool = False) -> list[Case]:
+    """The cases of ``levels`` refinements of ``model`` on ``scene``, coarse to fine."""
+    if not 2 <= levels <= 8:
+        raise InputError(f"--levels {levels}: allowed range is 2..8")
+    ladder = ladder_for(model)
+    return [Case(model, scene, ladder.options(k, coarsest), vtu=vtu_finest and k == levels - 1,
+                 tag=f"{tag + ' ' if tag else ''}{k + 1}/{levels}") for k in range(levels)]
+
+
+def study_levels(model: str, scene: Scene, outcomes: list[Outcome]) -> dict:
+    """The verification study of finished levels (coarse to fine).
+
+    Returns a JSON-ready dict with the ladder, one row per level and, per quantity, the
+    :func:`validation.verification.study` dict, plus ``results`` (the ContactResults, not
+    JSON).  A level that failed raises its error.
+    """
+    ladder = ladder_for(model)
+    rows, results = [], []
+    for k, o in enumerate(outcomes):
+        result = o.unwrap()
+        value = o.case.options[ladder.option]
+        vtu = o.files.get("fields.vtu")
+        rows.append({"level": k, "options": dict(o.case.options), "value": value,
+                     "h": ladder.size(value), "cached": o.cached,
+                     "converged": bool(result.converged), "wall_time_s": o.timing["wall_time_s"],
+                     "vtu": None if vtu is None else str(vtu), **quantity_values(result)})
+        results.append(result)
+    h = [r["h"] for r in rows]
+    studies = {q.key: study(h, [r[q.key] for r in rows]) for q in QUANTITIES}
+    return {"model": model, "scene": scene.to_dict(),
+            "ladder": {"option": ladder.option, "h_meaning": ladder.h_meaning,
+                       "fixed": ladder.fixed},
+            "levels": rows, "studies": studies,
+            "all_converged": all(r["converged"] for r in rows), "results": results}
+
+
+def converge_study(model: str, scene: Scene, levels: int, cache_dir: Path, *,
+                   coarsest: float | None = None, engine: Engine | None = None,
+                   tag: str = "converge", vtu_finest: bool = False) -> dict:
+    """Run (or resume from ``cache_dir``) ``levels`` refinements and study each quantity
+    (see :func:`study_levels`); ``vtu_finest`` asks for the finest level's VTU (its path is in
+    ``levels[-1]['vtu']``).  Without ``engine`` the levels run serially in this process."""
+    cases = level_cases(model, scene, levels, coarsest=coarsest, tag=tag, vtu_finest=vtu_finest)
+    own = engine is None
+    engine = engine or Engine("serial", label=tag)
+    try:
+        outcomes = engine.run(cases, cache_dir, label=tag)
+    finally:
+        if own:
+            engine.close()
+    return study_levels(model, scene, outcomes)
+
+
+def study_table(data: dict) -> str:
+    """Plain-text table of the per-quantity GCI results."""
+    lines = [f"{'quantity':<8}{'finest':>13}{'':5}{'order p':>9}{'Richardson':>14}"
+             f"{'GCI_fine':>10}{'GCI23/r^pGCI12':>16}  status"]
+    for q in QUANTITIES:
+        g = data["studies"][q.key]["gci"]
+        lines.append(
+            f"{q.key:<8}{g['f'][0]:>13.6g} {q.unit:<4}"
+            + f"{_num(g['order'], '.3f'):>9}{_num(g['f_exact'], '.7g'):>14}"
+            + f"{_num(None if g['gci_fine'] is None else 100 * g['gci_fine'], '.3g', '%'):>10}"
+            + f"{_num(g['asymptotic_ratio'], '.3f'):>16}  {g['status']}")
+    return "\n".join(lines)
+
+
+def _num(x, fmt: str, suffix: str = "") -> str:
+    return "-" if x is None else f"{x:{fmt}}{suffix}"
+
+
+def levels_csv(data: dict) -> str:
+    """CSV of the levels (coarse to fine): option value, h and every quantity (SI)."""
+    buf = io.StringIO()
+    w = csv.writer(buf)
+    w.writerow(["level", data["ladder"]["option"], "h", *(f"{q.key}_{q.unit}" for q in QUANTITIES),
+                "converged", "wall_time_s"])
+    for r in data["levels"]:
+        w.writerow([r["level"], r["value"], repr(r["h"]), *(repr(r[q.key]) for q in QUANTITIES),
+                    r["converged"], f"{r['wall_time_s']:.4g}"])
+    return buf.getvalue()
+
+
+def gci_csv(data: dict) -> str:
+    """CSV of the per-quantity verification results (GCI as fractions, SI values)."""
+    buf = io.StringIO()
+    w = csv.writer(buf)
+    cols = ["order", "f_exact", "gci_fine", "gci_coarse", "uncertainty", "asymptotic_ratio",
+            "fallback_uncertainty", "status"]
+    w.writerow(["quantity", "unit", "f_finest", *cols, "lsq_order", "lsq_r_squared"])
+    for q in QUANTITIES:
+        s = data["studies"][q.key]
+        g = s["gci"]
+        w.writerow([q.key, q.unit, repr(g["f"][0]), *("" if g[c] is None else g[c] for c in cols),
+                    "" if s["lsq"]["order"] is None else s["lsq"]["order"],
+                    "" if s["lsq"]["r_squared"] is None else s["lsq"]["r_squared"]])
+    return buf.getvalue()
+
+
+def write_report(data: dict, out: Path) -> list[str]:
+    """converge.json, levels.csv, gci.csv and convergence.png in ``out``; returns the names."""
+    from ..plots import plot_convergence
+
+    doc = {k: v for k, v in data.items() if k != "results"}
+    write_atomic(out / "converge.json", json.dumps(doc, indent=2, allow_nan=False))
+    write_atomic(out / "levels.csv", levels_csv(doc))
+    write_atomic(out / "gci.csv", gci_csv(doc))
+    plot_convergence(doc, out / "convergence.png")
+    return ["converge.json", "levels.csv", "gci.csv", "convergence.png"]

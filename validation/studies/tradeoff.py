@@ -1,0 +1,232 @@
+"""What each model's accuracy costs in time and memory.
+
+For every model that has a ladder in :data:`validation.ladders.LADDERS` (and is registered in
+:mod:`validation.models`), the study solves the scene on each of the ladder's ``rungs``, one
+case at a time on the engine (timings are not shared with another case running beside them),
+and records the wall time (median of ``repeats`` runs inside the case, stored with it), the
+peak memory (the resident set's high-water mark during the first run, above where it
+started) and the four compared quantities F_T, sigma_0, a and A.  Finished rungs are cached:
+an interrupted study resumes.  The reference of each quantity is a Richardson extrapolation
+from the three finest rungs of one model (observed order, Celik et al. 2008); among models
+whose extrapolation succeeded, the one with the smallest GCI band is taken.  The error of
+every rung is |f - f_ref| / |f_ref|.
+
+Outputs: ``tradeoff.csv`` (one row per model and rung), ``tradeoff.json`` (rows,
+references with their orders and bands, scene and versions) and ``tradeoff.png`` (log-log
+error against wall time, one panel per quantity, one line per model).
+
+References
+----------
+.. [1] I. B. Celik et al., J. Fluids Eng. 130 (2008) 078001 (Richardson extrapolation, GCI).
+"""
+
+from __future__ import annotations
+
+import csv
+import importlib
+import io
+import json
+import tempfile
+from pathlib import Path
+
+from scenes import InputError, write_atomic
+from scenes.result import package_version
+
+from ..engine import Case, Engine
+from ..ladders import LADDERS, QUANTITIES
+from ..report import save_figure
+
+# Models that solve the same equations share a reference; a model with other physics (the
+# elastic pillar of the FEM against the Hooke pillar of the BEM) is measured against its own,
+# so that its errors are discretisation errors, not the modelling difference (which
+# ``pillar-xval compare`` reports).  On a flat scene every model solves the Hertz problem.
+PHYSICS = {"bem": "hooke-pillar", "bem-fft": "hooke-pillar", "fem-axisym": "elastic-pillar"}
+
+
+def physics_group(model: str, scene) -> str:
+    return "half-space" if scene.is_flat else PHYSICS.get(model, model)
+
+
+def tradeoff(scene, models, cache_dir: Path | None = None, *, engine: Engine | None = None,
+             repeats: int = 3, single_above: float = 20.0, max_time: float = 600.0,
+             ladders=None) -> dict:
+    """Solve every rung of every model and attach errors against the Richardson reference.
+
+    Rungs run one by one on ``engine`` (default: serial, in this process), cached in
+    ``cache_dir`` when given.  A model that refuses the scene (an InputError, e.g. the FEM on
+    a scene with several pillars in contact) is skipped with its reason; a model stops
+    climbing after a rung slower than ``max_time`` seconds.
+    """
+    from ..models import MODELS
+
+    if repeats < 1:
+        raise InputError(f"--repeats {repeats}: must be >= 1")
+    ladders = ladders or LADDERS
+    own = engine is None
+    engine = engine or Engine("serial", label="tradeoff")
+    scratch = None
+    if cache_dir is None:
+        scratch = tempfile.TemporaryDirectory(prefix="pillar-xval-tradeoff-")
+        cache_dir = Path(scratch.name)
+    rows, skipped = [], {}
+    try:
+        for name in models:
+            ladder = ladders[name]
+            try:
+                importlib.import_module(MODELS[name][0])
+            except ImportError as exc:
+                skipped[name] = f"not available ({exc})"
+                continue
+            for k, level in enumerate(ladder.rungs):
+                case = Case(name, scene, ladder.options_at(level), repeats=repeats,
+                            single_above=single_above,
+                            tag=f"{name} {k + 1}/{len(ladder.rungs)}")
+                outcome = engine.run_one(case, cache_dir, label="tradeoff")
+                if isinstance(outcome.error, ValueError):  # the model refuses this scene
+                    skipped[name] = f"refused {ladder.option}={level}: {outcome.error}"
+                    break
+                result, timing = outcome.unwrap(), outcome.timing
+                row = {"model": name, "option": ladder.option, "level": level,
+                       "h": ladder.size(level), "wall_time_s": timing["wall_time_s"],
+                       "peak_memory_MB": timing["peak_memory_MB"],
+                       "iterations": result.iterations, "converged": bool(result.converged),
+                       "cached": outcome.cached}
+                for q in QUANTITIES:
+                    row[q.key] = float(getattr(result, q.attr))
+                rows.append(row)
+                if timing["wall_time_s"] > max_time and k + 1 < len(ladder.rungs):
+                    skipped[name] = (f"stopped after {ladder.option}={level} "
+                                     f"({timing['wall_time_s']:.0f} s > --max-time)")
+                    break
+    finally:
+        if own:
+            engine.close()
+        if scratch is not None:
+            scratch.cleanup()
+    for row in rows:
+        row["physics"] = physics_group(row["model"], scene)
+    references = {group: reference_values([r for r in rows if r["physics"] == group])
+                  for group in sorted({r["physics"] for r in rows})}
+    for row in rows:
+        for q in QUANTITIES:
+            ref = references[row["physics"]][q.key]["value"]
+            row[f"err_{q.key}"] = abs(row[q.key] - ref) / abs(ref) if ref else None
+    return {"scene": scene.to_dict(), "models": list(models), "rows": rows,
+            "references": references, "skipped": skipped, "repeats": repeats,
+            "ladders": {m: {"option": ladders[m].option, "levels": list(ladders[m].rungs)}
+                        for m in models if m in ladders},
+            "version": package_version()}
+
+
+def reference_values(rows: list) -> dict:
+    """Per quantity: the Richardson estimate with the smallest band among the models, or the
+    most expensive converged solution when no model's three finest rungs allow an estimate."""
+    from ..verification import gci_three
+
+    out = {}
+    models = sorted({r["model"] for r in rows})
+    for short in (q.key for q in QUANTITIES):
+        candidates, per_model = [], {}
+        for m in models:
+            mine = sorted((r for r in rows if r["model"] == m and r["converged"]),
+                          key=lambda r: r["h"])
+            if len(mine) < 3:
+                continue
+            g = gci_three([r["h"] for r in mine[:3]], [r[short] for r in mine[:3]])
+            per_model[m] = {"f_exact": g.f_exact, "order": g.order, "band": g.uncertainty,
+                            "status": g.status}
+            if g.status == "ok" and g.uncertainty is not None:
+                candidates.append((g.uncertainty, m, g))
+        if candidates:
+            band, m, g = min(candidates, key=lambda c: c[0])
+            out[short] = {"value": g.f_exact, "model": m, "order": g.order,
+                          "band": band, "status": "richardson",
+                          "sizes": g.h}
+        else:
+            # Sizes h of different models are in different units: take the most expensive
+            # converged solution, a unit-free stand-in for the most resolved one.
+            done = [r for r in rows if r["converged"]]
+            finest = max(done, key=lambda r: r.get("wall_time_s", 0.0)) if done else None
+            out[short] = {"value": finest[short] if finest else 0.0,
+                          "model": finest["model"] if finest else None, "order": None,
+                          "band": None,
+                          "status": "most expensive solution (no Richardson estimate)",
+                          "sizes": [finest["h"]] if finest else []}
+        # Every model's own extrapolation: do the models converge to the same answer?
+        out[short]["per_model"] = per_model
+    return out
+
+
+CSV_COLUMNS = ("model", "physics", "option", "level", "h", "wall_time_s", "peak_memory_MB", "iterations",
+               "converged", "F_T", "sigma0", "a", "A", "err_F_T", "err_sigma0", "err_a",
+               "err_A")
+
+
+def write_outputs(doc: dict, out: Path) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=CSV_COLUMNS, extrasaction="ignore")
+    writer.writeheader()
+    for row in doc["rows"]:
+        writer.writerow({k: ("" if row.get(k) is None else row.get(k)) for k in CSV_COLUMNS})
+    write_atomic(out / "tradeoff.csv", buf.getvalue())
+    write_atomic(out / "tradeoff.json", json.dumps(doc, indent=2, allow_nan=False))
+    plot_pareto(doc, out / "tradeoff.png")
+
+
+def plot_pareto(doc: dict, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(2, 2, figsize=(10, 8))
+    for ax, short in zip(axes.ravel(), (q.key for q in QUANTITIES)):
+        for model in doc["models"]:
+            pts = [(r["wall_time_s"], r[f"err_{short}"]) for r in doc["rows"]
+                   if r["model"] == model and r[f"err_{short}"]]
+            if pts:
+                ax.loglog(*zip(*pts), "o-", label=model)
+        refs = ", ".join(f"{g}: {ref[short]['model']}" for g, ref in doc["references"].items())
+        ax.set(xlabel="wall time (s)", ylabel=f"relative error of {short}",
+               title=f"{short}  (reference {refs})")
+        ax.grid(True, which="both", alpha=0.3)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=8)
+        else:  # every error is zero (e.g. an area fixed by the geometry): nothing to plot
+            ax.text(0.5, 0.5, "all errors zero", ha="center", transform=ax.transAxes)
+    fig.suptitle(f"speed against accuracy, scene {doc['scene'].get('name', '?')}")
+    save_figure(fig, path, 110)
+
+
+def pareto_table(doc: dict) -> str:
+    lines = [f"{'model':<9} {'level':>5} {'time s':>8} {'mem MB':>7} "
+             + " ".join(f"{'err ' + q.key:>10}" for q in QUANTITIES)]
+    for r in doc["rows"]:
+        errs = " ".join(f"{r[f'err_{s}']:>10.2e}" if r[f"err_{s}"] is not None
+                        else f"{'-':>10}" for s in (q.key for q in QUANTITIES))
+        flag = "" if r["converged"] else "  NOT CONVERGED"
+        lines.append(f"{r['model']:<9} {r['level']:>5} {r['wall_time_s']:>8.3g} "
+                     f"{r['peak_memory_MB']:>7.0f} {errs}{flag}")
+    for group, refs in doc["references"].items():
+        lines += _reference_lines(group, refs)
+    for m, why in doc["skipped"].items():
+        lines.append(f"{m}: {why}")
+    return "\n".join(lines)
+
+
+def _reference_lines(group: str, references: dict) -> list:
+    lines = [f"references ({group}): " + "; ".join(
+        f"{s} = {ref['value']:.6g} ({ref['model']}, {ref['status']}"
+        + (f", order {ref['order']:.2f}" if ref["order"] else "") + ")"
+        for s, ref in references.items())]
+    for s, ref in references.items():
+        for m, est in ref.get("per_model", {}).items():
+            if est["f_exact"] is not None and est["order"] is not None:
+                lines.append(f"  {s} extrapolated by {m}: {est['f_exact']:.6g} +- "
+                             f"{est['band']:.2g} (order {est['order']:.2f})")
+            elif est["f_exact"] is not None:
+                lines.append(f"  {s} by {m}: {est['f_exact']:.6g} ({est['status']})")
+            else:
+                lines.append(f"  {s} extrapolated by {m}: none ({est['status']})")
+    return lines
