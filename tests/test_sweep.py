@@ -126,9 +126,9 @@ def test_python_sweep_table_matches_direct_solves(tmp_path):
         # file units, named as in a scene file: values as written, derived ones converted
         assert row["lens.radius_mm"] == 3.0 and row["pillars.diameter_um"] == 4.0
         assert row["pillars.pitch_um"] == pytest.approx(scene.pillars.pitch_m * 1e6, rel=1e-12)
-        # the preset has no [substrate]: the scene gives it the pillars' material, and so must
-        # the table (it reports the scene solved, not only what the file says)
-        assert row["substrate.E_Pa"] == scene.substrate.E_Pa == row["pillars.E_Pa"]
+        # the table reports the scene solved: the preset's own [substrate] (Table 1), which
+        # an override of the pillars leaves alone
+        assert row["substrate.E_Pa"] == scene.substrate.E_Pa == 1.6e6
         assert row["status"] == "ok" and row["converged"] is True
     paths = write_table(rows, tmp_path, "api")
     import pyarrow.parquet as pq
