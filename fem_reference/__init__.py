@@ -8,7 +8,7 @@ flat (Hertz) scene or a single-pillar scene with the pillar as an elastic body b
 substrate, Taylor-Hood P2/P1 in (r, z), and exact frictionless contact.
 """
 
-from ._axisym import BLOCK_FACTOR, MODEL, solve_axisymmetric
+from ._axisym import BLOCK_FACTOR, MODEL, estimate_memory, solve_axisymmetric
 from ._system import SolveError
 
-__all__ = ["BLOCK_FACTOR", "MODEL", "SolveError", "solve_axisymmetric"]
+__all__ = ["BLOCK_FACTOR", "MODEL", "SolveError", "estimate_memory", "solve_axisymmetric"]
