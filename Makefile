@@ -5,7 +5,8 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: demo study-gecit test test-slow bench-bem bench-fft bench-engine clean
+.PHONY: demo study-gecit test test-slow bench-bem bench-fft bench-engine clean calibrate \
+	validate-planner extremes
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -45,6 +46,19 @@ bench-fft: $(STAMP)
 # same sweep on a Dask scheduler + two worker processes (127.0.0.1) gives the pool's table.
 bench-engine: $(STAMP)
 	$(PY) -m validation.bench.engine --out $(OUT)/bench-engine
+
+# The planner's error and cost models, measured (convergence ladders, Gecit grid, closed forms,
+# FEM truncation; resumable) and installed as the package's data (validation/data/*.json).
+calibrate: $(STAMP)
+	$(VENV)/bin/pillar-xval calibrate --out $(OUT)/calibrate --install
+
+# The planner validated on 60 seeded scenes it never saw (resumable; about half an hour).
+validate-planner: $(STAMP)
+	$(VENV)/bin/pillar-xval validate-plan --out $(OUT)/validate-plan
+
+# Every model over the corners and edges of the parameter space: table and heat map.
+extremes: $(STAMP)
+	$(VENV)/bin/pillar-xval extremes --out $(OUT)/extremes
 
 clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache

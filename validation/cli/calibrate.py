@@ -1,0 +1,63 @@
+"""``pillar-xval calibrate``: measure the planner's error and cost models
+(:mod:`validation.studies.calibrate`)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+from ._args import add_engine_arguments, engine_from_args
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser(
+        "calibrate", help="measure the planner's error and cost models (convergence ladders, "
+                          "Gecit grid, closed forms, FEM truncation) on seeded scenes",
+        description="Run the calibration studies on the engine (resumable) and write "
+                    "error_models.json, cost_models.json and calibration.json to --out; "
+                    "--install copies the two models into the package's data folder, where "
+                    "`pillar-xval plan` reads them.")
+    p.add_argument("--out", type=Path, default=Path("out") / "calibrate",
+                   help="folder for the data files, the report and the cached cases "
+                        "(default out/calibrate)")
+    p.add_argument("--install", action="store_true",
+                   help="copy error_models.json and cost_models.json into validation/data")
+    p.add_argument("--quick", action="store_true",
+                   help="a handful of scenes per study (a smoke test, not a calibration)")
+    p.add_argument("--json", action="store_true",
+                   help="print one JSON document (the files written and the provenance)")
+    add_engine_arguments(p, "recompute cached cases")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from ..studies.calibrate import calibrate, write_data
+    from ..studies.planner_tables import data_dir
+
+    with engine_from_args(args, "calibrate") as engine:
+        doc = calibrate(args.out, engine, quick=args.quick)
+    names = write_data(doc, args.out)
+    installed = []
+    if args.install:
+        for name in ("error_models.json", "cost_models.json"):
+            installed.append(str(shutil.copyfile(args.out / name, data_dir() / name)))
+    prov = doc["errors"]["provenance"]
+    if args.json:
+        print(json.dumps({"written": [str(args.out / n) for n in names],
+                          "installed": installed, "provenance": prov}, indent=2))
+        return 0
+    print(f"calibration: {len(doc['errors']['tables'])} error tables, "
+          f"{len(doc['costs']['models'])} cost fits from {prov['scenes']} scenes in "
+          f"{prov['wall_time_s']:.0f} s")
+    for t in doc["errors"]["tables"]:
+        loo = ", ".join(f"{q} {v:.2f}" for q, v in t["loo"].items())
+        opt = ",".join(f"{k}={v}" for k, v in t["option"].items())
+        print(f"  {t['kind']:<15}{t['component']:<15}{'/'.join(t['models']):<26}"
+              f"{opt:<24}{'/'.join(t['regimes']):<13}{len(t['points']):>4} pts  "
+              f"LOO {loo}")
+    for m, f in doc["costs"]["models"].items():
+        print(f"  cost {m:<12} {f['samples']:>4} runs, ln-time residual {f['rms']:.2f}")
+    print(f"written to {args.out}/ ({', '.join(names)})"
+          + (f"; installed {', '.join(installed)}" if installed else ""))
+    return 0
