@@ -189,7 +189,7 @@ def _synthetic(hooke=0.0, fast_err=0.05, slow_err=0.002, spring_err=0.003):
     if hooke:
         tables.append(ErrorTable("model", ["fast", "slow", "closed"], ["single"], [], [[]],
                                  {"F_T": [hooke], "sigma0": [-hooke]}, component="hooke"))
-    costs = {m: CostFit(m, "none", None, [], [], math.log(t))
+    costs = {m: CostFit(m, "none", None, None, [0], [t])
              for m, t in (("fast", 0.01), ("slow", 1.0), ("closed", 1e-4))}
     return PlannerData(cands, tables, costs)
 

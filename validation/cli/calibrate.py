@@ -51,13 +51,20 @@ def run(args) -> int:
           f"{len(doc['costs']['models'])} cost fits from {prov['scenes']} scenes in "
           f"{prov['wall_time_s']:.0f} s")
     for t in doc["errors"]["tables"]:
-        loo = ", ".join(f"{q} {v:.2f}" for q, v in t["loo"].items())
+        loo = ", ".join(f"{q} {_median(v):.2f}" for q, v in t["loo"].items())
         opt = ",".join(f"{k}={v}" for k, v in t["option"].items())
         print(f"  {t['kind']:<15}{t['component']:<15}{'/'.join(t['models']):<26}"
               f"{opt:<24}{'/'.join(t['regimes']):<13}{len(t['points']):>4} pts  "
-              f"LOO {loo}")
+              f"LOO median {loo}")
     for m, f in doc["costs"]["models"].items():
         print(f"  cost {m:<12} {f['samples']:>4} runs, ln-time residual {f['rms']:.2f}")
     print(f"written to {args.out}/ ({', '.join(names)})"
           + (f"; installed {', '.join(installed)}" if installed else ""))
     return 0
+
+
+def _median(values) -> float:
+    import statistics
+
+    known = [v for v in values if v is not None]
+    return statistics.median(known) if known else float("nan")

@@ -38,12 +38,14 @@ from ..verification import gci_three
 from .calibrate_scenes import flat_scenes, gecit_scenes, lattice_scenes, punch_scenes
 from .planner_costs import size_terms
 from .planner_features import features, regime
-from .planner_tables import DATA_FORMAT, CostFit, ErrorTable
+from .planner_tables import DATA_FORMAT, DEFAULT_POLICY, CostFit, ErrorTable
 from .tradeoff import reference_values
 
 __all__ = ["CALIBRATION_SEED", "CANDIDATES", "calibrate", "write_data"]
 
 CALIBRATION_SEED = 20240901
+# The planner adds each table's local leave-one-out misfit, times this scale.
+POLICY = dict(DEFAULT_POLICY)
 QKEYS = [q.key for q in QUANTITIES]
 # Which candidates may run in which regime, and why not elsewhere (the models' own scopes).
 SCOPES = {
@@ -57,6 +59,9 @@ NUMERICAL = ("bem", "bem-fft", "fem-axisym")
 # Features of the discretisation tables, per regime.
 DISC_FEATURES = {"flat": ["log_zeta_r"], "single": ["w", "log_sag"],
                  "multi": ["w", "log_phi_s", "phi"]}
+# Dense BEM rungs that give the Hooke reference where one pillar touches (the Gecit-like
+# study's, factor 2: 11/15/21 alone were pre-asymptotic there, observed order ~1.7).
+SINGLE_REFERENCE_RUNGS = (23, 47, 95)
 # fem-axisym on blocks of these sizes (pillar or Hertz radii) measures the truncation.
 TRUNCATION_BLOCKS = (1e3, 1e4, 1e5)
 
@@ -91,6 +96,9 @@ def _cases_of(entry: dict) -> list:
     if reg in ("flat", "single"):
         cases += [Case("fem-axisym", entry["scene"], LADDERS["fem-axisym"].options_at(v),
                        tag=f"{entry['name']} fem") for v in LADDERS["fem-axisym"].rungs]
+        # One pillar is cheap: the Hooke reference gets the dense BEM refined further.
+        cases += [Case("bem", entry["scene"], LADDERS["bem"].options_at(v),
+                       tag=f"{entry['name']} bem ref") for v in SINGLE_REFERENCE_RUNGS]
     cases += [Case(m, entry["scene"], {}, tag=f"{entry['name']} {m}")
               for m in ("hertz", "spring") if reg in SCOPES[m][0]]
     return cases
@@ -105,7 +113,8 @@ def _row(outcome) -> dict | None:
     value = case.options.get(ladder.option) if ladder else None
     return {"model": case.model, "value": value, "h": ladder.size(value) if ladder else None,
             "converged": bool(result.converged), "wall_time_s": outcome.timing["wall_time_s"],
-            "peak_memory_MB": outcome.timing.get("peak_memory_MB"), **quantity_values(result)}
+            "peak_memory_MB": outcome.timing.get("peak_memory_MB"),
+            "pillars": result.pillars_in_contact, **quantity_values(result)}
 
 
 def _relative(f, ref) -> float | None:
@@ -238,7 +247,7 @@ def _punch_table(records: list) -> ErrorTable:
     return ErrorTable("model", ["spring"], ["single"], ["w", "log_sag"], points, errors,
                       component="flat-punch", source="calibrate: single pillars over zeta",
                       note="the spring model's flat punch against the Hooke BEM with the "
-                           "lens's curvature (dense BEM Richardson, P = 11, 15, 21)")
+                           "lens's curvature (dense BEM Richardson, P = 23, 47, 95)")
 
 
 def _truncation_tables(records: list) -> list:
@@ -282,27 +291,43 @@ def _truncation(cache: Path, scene_names=("single-pillar", "hertz")) -> list:
     return out
 
 
+# Cost laws: time = sum_k c_k n^p_k (see planner_tables.CostFit): start-up, then assembly
+# and dense factorisation for the dense BEM; FFTs per iteration times iterations that grow
+# about as sqrt(n) for the FFT BEM; a sparse LU for the FEM.
+COST_LAWS = {"bem": ("dense-unknowns", "elements_per_diameter", "log_unknowns", [0, 2, 3],
+                     {"kind": "estimate"}),
+             "bem-fft": ("fft-grid", "cells_per_diameter", "log_points", [0, 1, 1.5], None),
+             "fem-axisym": ("fem-dofs", "mesh_size", "log_dofs", [0, 1, 1.5],
+                            {"kind": "estimate"}),
+             "hertz": ("none", None, None, [0], None), "spring": ("none", None, None, [0], None)}
+
+
 def _cost_fits(samples: list) -> dict:
-    """One least-squares fit of ln(time) per model (and the FFT's memory per point)."""
-    spec = {"bem": ("dense-unknowns", "elements_per_diameter",
-                    ["log_unknowns", "log_unknowns^2"], {"kind": "estimate"}),
-            "bem-fft": ("fft-grid", "cells_per_diameter", ["log_points", "log_cells"], None),
-            "fem-axisym": ("fem-dofs", "mesh_size", ["log_dofs"], {"kind": "estimate"}),
-            "hertz": ("none", None, [], None), "spring": ("none", None, [], None)}
+    """One fit per model of :data:`COST_LAWS` (nonnegative coefficients, least squares in
+    ln(time)), and the FFT's memory per padded point."""
+    from scipy.optimize import least_squares
+
     fits = {}
-    for model, (size, option, terms, memory) in spec.items():
+    for model, (size, option, term, powers, memory) in COST_LAWS.items():
         mine = [s for s in samples if s["model"] == model and s["wall_time_s"] > 0]
         if not mine:
             continue
-        X = np.array([[_term_value(s["terms"], t) for t in terms] for s in mine]).reshape(
-            len(mine), len(terms))
+        n = np.array([math.exp(s["terms"][term]) if term else 1.0 for s in mine])
         y = np.log([s["wall_time_s"] for s in mine])
-        A = np.column_stack([np.ones(len(mine)), X])
-        coef, *_ = np.linalg.lstsq(A, y, rcond=None)
-        rms = float(np.sqrt(np.mean((A @ coef - y) ** 2)))
+        basis = np.column_stack([n**p for p in powers])
+
+        def residual(log_c):
+            return np.log(basis @ np.exp(log_c)) - y
+
+        # start from each law's share of the largest runs
+        start = [float(np.median(y))] + [float(np.median(y) - p * np.log(n.max()))
+                                         for p in powers[1:]]
+        sol = least_squares(residual, start)
+        coef = [float(c) for c in np.exp(sol.x)]
+        rms = float(np.sqrt(np.mean(sol.fun**2)))
         if memory is None:
             mem = [s["peak_memory_MB"] * 2**20 for s in mine if s["peak_memory_MB"]]
-            if "log_points" in terms and mem:
+            if term == "log_points" and mem:
                 pts = np.array([math.exp(s["terms"]["log_points"]) for s in mine
                                 if s["peak_memory_MB"]])
                 slope, fixed = np.polyfit(pts, mem, 1)
@@ -310,13 +335,9 @@ def _cost_fits(samples: list) -> dict:
                           "per_point": float(max(slope, 0.0))}
             else:
                 memory = {"kind": "fixed", "fixed": float(np.median(mem)) if mem else 0.0}
-        fits[model] = CostFit(model, size, option, terms, [float(c) for c in coef[1:]],
-                              float(coef[0]), rms, memory, len(mine))
+        fits[model] = CostFit(model, size, option, term, list(powers), coef, rms, memory,
+                              len(mine))
     return fits
-
-
-def _term_value(terms: dict, name: str) -> float:
-    return terms[name[:-2]] ** 2 if name.endswith("^2") else terms[name]
 
 
 def _cost_samples(outcomes: list) -> list:
@@ -324,11 +345,9 @@ def _cost_samples(outcomes: list) -> list:
     for o in outcomes:
         if not o.ok:
             continue
-        fit_size = {"bem": ("dense-unknowns", "elements_per_diameter"),
-                    "bem-fft": ("fft-grid", "cells_per_diameter"),
-                    "fem-axisym": ("fem-dofs", "mesh_size")}.get(o.case.model, ("none", None))
-        value = o.case.options.get(fit_size[1]) if fit_size[1] else None
-        terms, _ = size_terms(fit_size[0], o.case.scene, value)
+        size, option = COST_LAWS.get(o.case.model, ("none", None))[:2]
+        value = o.case.options.get(option) if option else None
+        terms, _ = size_terms(size, o.case.scene, value)
         out.append({"model": o.case.model, "terms": terms,
                     "wall_time_s": o.timing["wall_time_s"],
                     "peak_memory_MB": o.timing.get("peak_memory_MB")})
@@ -353,7 +372,7 @@ def calibrate(out: Path, engine: Engine | None = None, *, n_lattice: int = 40,
     try:
         batches = [_cases_of(e) for e in sample]
         punch_batches = [[Case("bem", e["scene"], LADDERS["bem"].options_at(v),
-                               tag=f"{e['name']} bem") for v in (11, 15, 21)]
+                               tag=f"{e['name']} bem") for v in SINGLE_REFERENCE_RUNGS]
                          + [Case("spring", e["scene"], {}, tag=f"{e['name']} spring")]
                          for e in punches]
         flat = [c for b in batches + punch_batches for c in b]
@@ -383,8 +402,8 @@ def calibrate(out: Path, engine: Engine | None = None, *, n_lattice: int = 40,
                              "gecit": len(gecit), "punch": len(punches)},
                   "executor": engine.describe(), "wall_time_s": time.perf_counter() - t0,
                   "created": time.strftime("%Y-%m-%dT%H:%M:%S")}
-    errors = {"format": DATA_FORMAT, "provenance": provenance, "candidates": CANDIDATES,
-              "tables": [t.to_dict() for t in tables]}
+    errors = {"format": DATA_FORMAT, "provenance": provenance, "policy": dict(POLICY),
+              "candidates": CANDIDATES, "tables": [t.to_dict() for t in tables]}
     costs = {"format": DATA_FORMAT, "provenance": provenance,
              "models": {m: f.to_dict() for m, f in fits.items()}}
     report = {"provenance": provenance, "scenes": records, "gecit": gecit_doc["rows"],

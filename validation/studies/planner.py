@@ -90,6 +90,7 @@ def _candidate(scene, x, reg, cand, data, quantities, free) -> dict:
         out["why"] = f"no measured convergence for {reg['name']} scenes"
         return out
     components = data.tables_for(model, {}, reg["name"], "model")
+    scale = float(data.policy["margin_scale"])
     extrapolated = set()
     for q in quantities:
         parts = {}
@@ -98,14 +99,15 @@ def _candidate(scene, x, reg, cand, data, quantities, free) -> dict:
             if pred is None:
                 out["why"] = f"no measured convergence of {q} for {reg['name']} scenes"
                 return out
-            parts["discretisation"] = pred[0] * disc[0].margin(q)
+            parts["discretisation"] = pred[0] * disc[0].margin(q, x, scale)
             if pred[1]:
                 extrapolated.add(f"discretisation ({', '.join(disc[0].features)})")
         for t in components:
             pred = t.predict(x, q)
             if pred is None:
                 continue
-            parts[t.component] = parts.get(t.component, 0.0) + abs(pred[0]) + t.margin(q)
+            share = abs(pred[0]) + t.margin(q, x, scale)
+            parts[t.component] = parts.get(t.component, 0.0) + share
             if pred[1]:
                 extrapolated.add(f"{t.component} ({', '.join(t.features)})")
         model_part = sum(v for k, v in parts.items() if k != "discretisation")

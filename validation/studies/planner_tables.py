@@ -16,9 +16,11 @@ feature space, :mod:`.planner_features`) and quantity.  ``kind`` says what it me
 
 Interpolation is piecewise linear on the Delaunay triangulation of the points (features
 scaled to [0, 1] by their measured range), and the nearest point outside it: a prediction
-outside the measured range is marked ``extrapolated``.  ``loo`` holds the table's
-leave-one-out misfit (90th percentile of |log10 predicted / measured| for discretisation
-tables, of |predicted - measured| for model tables), the margin the planner adds.
+outside the measured range is marked ``extrapolated``.  ``loo`` holds each point's
+leave-one-out misfit (|log10 predicted / measured| for discretisation tables, |predicted -
+measured| for model tables); interpolated at a scene's features it is the local margin the
+planner adds to a prediction, so rough regions of a table carry wide margins and smooth
+ones narrow.
 """
 
 from __future__ import annotations
@@ -39,7 +41,12 @@ __all__ = ["CostFit", "DATA_FORMAT", "ErrorTable", "PlannerData", "load_data"]
 DATA_FORMAT = "pillar-xval planner data 1"
 # Errors below this are round-off, not discretisation: floor of the log10 interpolation.
 ERROR_FLOOR = 1e-9
-LOO_QUANTILE = 0.9
+# Discretisation misfits are counted where the measured error is at least this: below it a
+# factor-2 misprediction cannot carry an error past any useful tolerance.
+LOO_RELEVANT = 1e-3
+# The planner's margin: the local leave-one-out misfit times this scale.
+DEFAULT_POLICY = {"margin_scale": 1.0}
+EXTRAPOLATION_SLACK = 0.05
 
 
 @dataclass
@@ -98,34 +105,53 @@ class ErrorTable:
         if not len(vals):
             return None
         q = np.array([float(x[f]) for f in self.features])
-        value, outside = _interpolate(scaled, vals, (q - lo) / span)
-        if not self.features:
-            outside = False
-        else:
-            outside = outside or bool(np.any(q < lo - 1e-9 * span) or
-                                      np.any(q > hi + 1e-9 * span))
+        value, _ = _interpolate(scaled, vals, (q - lo) / span)
+        # Beyond the measured range by more than EXTRAPOLATION_SLACK of it: extrapolated
+        # (inside the range but outside the triangulation, the nearest point stands in).
+        slack = EXTRAPOLATION_SLACK * span
+        outside = bool(self.features) and bool(np.any(q < lo - slack) or np.any(q > hi + slack))
         return (10.0 ** value if self.log_scale else value), outside
 
-    def margin(self, quantity: str) -> float:
-        """Leave-one-out misfit: a factor (discretisation) or an absolute error (model)."""
-        m = self.loo.get(quantity)
-        if m is None:
-            return 1.0 if self.log_scale else 0.0
-        return 10.0 ** m if self.log_scale else m
+    def margin(self, quantity: str, x: dict, scale: float = 1.0) -> float:
+        """The local leave-one-out misfit at ``x`` (the misfits of the measured points,
+        interpolated like the errors), times ``scale``: a factor for discretisation tables,
+        an absolute error for model ones; none (1 or 0) where it was not measured."""
+        misfits = self.loo.get(quantity)
+        none = 1.0 if self.log_scale else 0.0
+        if not misfits:
+            return none
+        pts, lo, hi, span = self._scaled
+        m = np.array([np.nan if v is None else v for v in misfits], dtype=float)
+        keep = np.isfinite(m)
+        if not keep.any():
+            return none
+        q = np.array([float(x[f]) for f in self.features])
+        value, _ = _interpolate((pts[keep] - lo) / span, m[keep], (q - lo) / span)
+        value = max(value, 0.0) * scale
+        return 10.0 ** value if self.log_scale else value
 
     def leave_one_out(self) -> dict:
-        """The LOO_QUANTILE quantile of each quantity's leave-one-out misfit."""
+        """Each measured point's leave-one-out misfit (the point predicted from the others):
+        |log10 ratio| in discretisation tables, where the measured error is at least
+        :data:`LOO_RELEVANT` (None below); |difference| in model tables.  Lists aligned with
+        ``errors``; a quantity measured on fewer than three points has none."""
         out = {}
-        for quantity in self.errors:
-            scaled, vals = self._values(quantity)
-            if len(vals) < 3:
+        pts, lo, hi, span = self._scaled
+        for quantity, raw in self.errors.items():
+            v = np.array([np.nan if e is None else e for e in raw], dtype=float)
+            idx = np.nonzero(np.isfinite(v))[0]
+            if len(idx) < 3:
                 continue
-            miss = []
-            for i in range(len(vals)):
-                keep = np.arange(len(vals)) != i
-                v, _ = _interpolate(scaled[keep], vals[keep], scaled[i])
-                miss.append(abs(v - vals[i]))
-            out[quantity] = float(np.quantile(miss, LOO_QUANTILE))
+            vals = np.log10(np.maximum(np.abs(v), ERROR_FLOOR)) if self.log_scale else v
+            scaled = (pts - lo) / span
+            miss = [None] * len(raw)
+            for i in idx:
+                if self.log_scale and vals[i] < np.log10(LOO_RELEVANT):
+                    continue
+                others = idx[idx != i]
+                pred, _ = _interpolate(scaled[others], vals[others], scaled[i])
+                miss[i] = float(abs(pred - vals[i]))
+            out[quantity] = miss
         return out
 
 
@@ -158,26 +184,32 @@ def _interpolate(points: np.ndarray, values: np.ndarray, q: np.ndarray) -> tuple
 class CostFit:
     """Time and memory of one model's solves on this machine.
 
-    ln(time / s) = intercept + sum coef_k term_k, the terms given by the size function
-    ``size`` of :mod:`.planner_costs` applied to the model option ``option``; ``rms`` is the
-    fit's residual (natural log).  ``memory``: ``{"kind": "estimate"}`` takes the size
-    function's own estimate, ``{"kind": "per_point", "fixed": B, "per_point": b}`` a line in
-    the FFT's padded points, ``{"kind": "fixed", "fixed": B}`` a constant (bytes).
+    time (s) = sum_k coef_k n^powers_k with n = exp(``term``) of the size function ``size``
+    of :mod:`.planner_costs` applied to the model option ``option`` (n: the dense BEM's
+    unknowns, the FFT's padded points, the FEM's unknowns; a constant for closed forms), so
+    that a fixed start-up, assembly (n^2) and dense solves (n^3) each keep their own law when
+    extrapolated; ``rms`` is the fit's residual in ln(time).  ``memory``:
+    ``{"kind": "estimate"}`` takes the size function's own estimate,
+    ``{"kind": "per_point", "fixed": B, "per_point": b}`` a line in the FFT's padded points,
+    ``{"kind": "fixed", "fixed": B}`` a constant (bytes).
     """
 
     model: str
     size: str
     option: str | None
-    terms: list
+    term: str | None
+    powers: list
     coef: list
-    intercept: float
     rms: float = 0.0
     memory: dict = field(default_factory=dict)
     samples: int = 0
 
     def to_dict(self) -> dict:
-        return {k: getattr(self, k) for k in ("model", "size", "option", "terms", "coef",
-                                               "intercept", "rms", "memory", "samples")}
+        return {k: getattr(self, k) for k in ("model", "size", "option", "term", "powers",
+                                               "coef", "rms", "memory", "samples")}
+
+    def time(self, n: float) -> float:
+        return float(sum(c * n**p for c, p in zip(self.coef, self.powers)))
 
     def predict(self, scene, options: dict) -> tuple[float, float]:
         """(wall time s, peak memory bytes) of the model with ``options`` on ``scene``."""
@@ -185,8 +217,7 @@ class CostFit:
 
         value = options.get(self.option) if self.option else None
         terms, estimate = size_terms(self.size, scene, value)
-        log_t = self.intercept + sum(c * _term(terms, name) for c, name in zip(self.coef,
-                                                                                 self.terms))
+        n = math.exp(terms[self.term]) if self.term else 1.0
         kind = self.memory.get("kind", "fixed")
         if kind == "estimate" and estimate is not None:
             memory = estimate
@@ -195,14 +226,7 @@ class CostFit:
                 terms["log_points"])
         else:
             memory = self.memory.get("fixed", 0.0)
-        return math.exp(log_t), float(memory)
-
-
-def _term(terms: dict, name: str) -> float:
-    """A fit term: a size term by name, or ``NAME^2`` its square."""
-    if name.endswith("^2"):
-        return terms[name[:-2]] ** 2
-    return terms[name]
+        return self.time(n), float(memory)
 
 
 @dataclass
@@ -213,6 +237,7 @@ class PlannerData:
     tables: list
     costs: dict
     provenance: dict = field(default_factory=dict)
+    policy: dict = field(default_factory=lambda: dict(DEFAULT_POLICY))
 
     def tables_for(self, model: str, option: dict, regime: str, kind: str) -> list:
         return [t for t in self.tables if t.kind == kind and t.applies(model, option, regime)]
@@ -241,4 +266,5 @@ def load_data(folder: str | Path | None = None) -> PlannerData:
         tables=[ErrorTable(**t) for t in errors["tables"]],
         costs={m: CostFit(**c) for m, c in costs["models"].items()},
         provenance={"errors": errors.get("provenance", {}),
-                    "costs": costs.get("provenance", {})})
+                    "costs": costs.get("provenance", {})},
+        policy={**DEFAULT_POLICY, **errors.get("policy", {})})

@@ -131,26 +131,53 @@ ASYMPTOTIC_RATIO_TOL = 0.25
 
 
 def _model_estimate(rows: list, short: str, model: str) -> dict | None:
-    """The Richardson estimate of one model from its three finest converged rungs, with the
-    reasons it is pre-asymptotic (empty when it looks asymptotic); None below three rungs."""
-    from ..verification import gci_three
+    """The Richardson estimates of one model from its finest converged rungs: the observed
+    order's over three (``f_exact``, ``order``, ``band``, ``status``, and the reasons it is
+    pre-asymptotic, empty when it looks asymptotic) and, for a model with an expected order,
+    the two finest extrapolated at that order (``assumed``: Roache's two-grid GCI, Fs = 3).
+    None below three rungs."""
+    from ..verification import gci_three, gci_two
 
     mine = sorted((r for r in rows if r["model"] == model and r["converged"]),
                   key=lambda r: r["h"])
     if len(mine) < 3:
         return None
-    g = gci_three([r["h"] for r in mine[:3]], [r[short] for r in mine[:3]])
+    h, f = [r["h"] for r in mine[:3]], [r[short] for r in mine[:3]]
+    g = gci_three(h, f)
     est = {"f_exact": g.f_exact, "order": g.order, "band": g.uncertainty, "status": g.status,
-           "asymptotic_ratio": g.asymptotic_ratio, "sizes": g.h, "pre_asymptotic": []}
+           "asymptotic_ratio": g.asymptotic_ratio, "sizes": g.h, "pre_asymptotic": [],
+           "assumed": None}
+    expected = EXPECTED_ORDER.get(model)
+    if expected is not None and f[0] != f[1]:
+        a = gci_two(h[:2], f[:2], expected)
+        if a.f_exact is not None:
+            est["assumed"] = {"f_exact": a.f_exact, "order": expected, "band": a.uncertainty,
+                              "sizes": a.h}
     if g.status != "ok" or g.uncertainty is None:
         return est
-    expected = EXPECTED_ORDER.get(model)
     if expected is not None and abs(g.order - expected) > ORDER_TOL:
         est["pre_asymptotic"].append(f"observed order {g.order:.2f}, expected {expected:g}")
     if g.asymptotic_ratio is not None and \
             abs(g.asymptotic_ratio - 1.0) > ASYMPTOTIC_RATIO_TOL:
         est["pre_asymptotic"].append(f"GCI23 / (r^p GCI12) = {g.asymptotic_ratio:.2f}")
     return est
+
+
+def _tiers(per_model: dict) -> tuple[dict, dict, dict]:
+    """The models' estimates in order of trust: observed-order estimates that look
+    asymptotic; for models whose observed order is pre-asymptotic or unobservable (or
+    oscillating), the estimate at their expected order; observed-order estimates that are
+    pre-asymptotic and have no expected order."""
+    asymptotic, assumed, pre = {}, {}, {}
+    for m, e in per_model.items():
+        observed = e["status"] == "ok" and e["band"] is not None
+        if observed and not e["pre_asymptotic"]:
+            asymptotic[m] = e
+        elif e["assumed"] is not None:
+            assumed[m] = e["assumed"]
+        elif observed:
+            pre[m] = e
+    return asymptotic, assumed, pre
 
 
 def _disagreements(estimates: dict) -> list[str]:
@@ -174,30 +201,37 @@ def reference_values(rows: list) -> dict:
     Each model with three converged rungs gives an estimate (observed order, Richardson value,
     GCI band).  An estimate whose order is far from the model's expected one
     (:data:`EXPECTED_ORDER`) or whose asymptotic ratio is far from 1 is pre-asymptotic and
-    not preferred.  Among the preferred estimates (or all usable ones when none is preferred):
-    if they agree (every pair closer than its bands combined in quadrature), the narrowest is
-    the reference; if not, the disagreement is flagged and the reference is the middle of the
-    union of their bands, with a band that covers it.  Disagreements with a not-preferred estimate are flagged too.  Without any
+    not preferred: such a model (or one whose order cannot be observed) enters at its expected
+    order instead, from its two finest rungs with the two-grid band (Fs = 3), after every
+    asymptotic estimate (:func:`_tiers`).  Among the estimates of the most trusted tier
+    present: if they agree (every pair closer than its bands combined in quadrature), the
+    narrowest is the reference; if not, the disagreement is flagged and the reference is the
+    middle of the union of their bands, with a band that covers it.  Every pre-asymptotic
+    estimate and every disagreement between the models' estimates is flagged.  Without any
     estimate, the most expensive converged solution stands in (no band).
     """
     out = {}
     models = sorted({r["model"] for r in rows})
+    tier_names = ("asymptotic", "expected order", "pre-asymptotic")
     for short in (q.key for q in QUANTITIES):
         per_model = {}
         for m in models:
             est = _model_estimate(rows, short, m)
             if est is not None:
                 per_model[m] = est
-        usable = {m: e for m, e in per_model.items()
-                  if e["status"] == "ok" and e["band"] is not None}
-        preferred = {m: e for m, e in usable.items() if not e["pre_asymptotic"]}
-        pool = preferred or usable
+        tiers = _tiers(per_model)
         flags = [f"{m}: pre-asymptotic ({'; '.join(e['pre_asymptotic'])})"
-                 for m, e in usable.items() if e["pre_asymptotic"]]
-        flags += _disagreements(usable)
-        if pool:
-            clash = _disagreements(pool)
-            if not clash:
+                 for m, e in per_model.items() if e["pre_asymptotic"]]
+        observed = {m: e for m, e in per_model.items()
+                    if e["status"] == "ok" and e["band"] is not None}
+        everyone = {m: e for tier in tiers for m, e in tier.items()}
+        for flag in _disagreements(observed) + _disagreements(everyone):
+            if flag not in flags:
+                flags.append(flag)
+        level = next((k for k, tier in enumerate(tiers) if tier), None)
+        if level is not None:
+            pool = tiers[level]
+            if not _disagreements(pool):
                 m = min(pool, key=lambda k: pool[k]["band"])
                 e = pool[m]
                 ref = {"value": e["f_exact"], "model": m, "order": e["order"],
@@ -210,9 +244,8 @@ def reference_values(rows: list) -> dict:
                        "order": None, "band": 0.5 * (hi - lo), "sizes": [],
                        "status": "richardson",
                        "basis": "the union of disagreeing estimates' bands"}
-            ref["pre_asymptotic"] = not preferred
-            if not preferred:
-                ref["basis"] += " (every estimate pre-asymptotic)"
+            ref["basis"] += f" ({tier_names[level]})"
+            ref["pre_asymptotic"] = level > 0
         else:
             # Sizes h of different models are in different units: take the most expensive
             # converged solution, a unit-free stand-in for the most resolved one.
