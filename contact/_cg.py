@@ -36,9 +36,8 @@ References
 
 from __future__ import annotations
 
-import numpy as np
-
 from ._solution import ContactSolution
+from ._xp import NUMPY
 
 # The gap is recomputed from q (one more operator application) after this many iterations
 # with an unchanged contact set, so the recursively updated gap cannot drift.
@@ -46,7 +45,7 @@ REFRESH_EVERY = 50
 METHOD = "constrained-cg"
 
 
-def diagonal_preconditioner(diagonal, spring=0.0, pillar=None, n_pillars=0):
+def diagonal_preconditioner(diagonal, spring=0.0, pillar=None, n_pillars=0, backend=None):
     """Inverse of M = D + c P P^T restricted to the contact set (Sherman-Morrison).
 
     ``diagonal`` is D, the diagonal of the half-space operator (m/Pa; larger on partly
@@ -54,32 +53,36 @@ def diagonal_preconditioner(diagonal, spring=0.0, pillar=None, n_pillars=0):
     per unit cell pressure (m/Pa); P the cell-to-pillar incidence.  For soft pillars (c n >> D,
     n cells per top) the uniform mode of each pillar is many orders stiffer than the
     half-space modes; M carries that mode so the conjugate gradients do not see it.
+    ``backend`` is the array backend of the vectors (:mod:`contact._xp`; default numpy).
     """
-    inv_d = 1.0 / np.asarray(diagonal, dtype=float)
+    be = NUMPY if backend is None else backend
+    xp = be.xp
+    inv_d = 1.0 / be.asarray(diagonal, dtype=xp.float64)
     if spring <= 0.0 or pillar is None:
-        return lambda r, active: r * inv_d * active
+        return lambda r, active: xp.where(active, r * inv_d, 0.0)
 
     def apply(r, active):
-        z = r * inv_d * active
-        weight = np.bincount(pillar, weights=inv_d * active, minlength=n_pillars)
-        sums = np.bincount(pillar, weights=z, minlength=n_pillars)
+        z = xp.where(active, r * inv_d, 0.0)
+        weight = be.segment_sum(pillar, xp.where(active, inv_d, 0.0), n_pillars)
+        sums = be.segment_sum(pillar, z, n_pillars)
         coef = sums / (1.0 / spring + weight)
-        return (z - coef[pillar] * inv_d) * active
+        return xp.where(active, z - xp.take(coef, pillar) * inv_d, 0.0)
 
     return apply
 
 
 def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, precondition=None,
-                   inverse_diagonal=None, weights=None, callback=None) -> ContactSolution:
+                   inverse_diagonal=None, weights=None, callback=None,
+                   backend=None) -> ContactSolution:
     """Polonsky-Keer constrained conjugate gradients, displacement-controlled.
 
     Parameters
     ----------
     apply : callable
         q (Pa) -> A q (m); A symmetric positive definite.
-    b : ndarray
+    b : array
         Undeformed gap minus indentation (m).
-    q0 : ndarray
+    q0 : array
         Initial pressures (Pa), >= 0.
     scale : float
         Length (m) that normalises the residual (the indentation zeta).
@@ -89,71 +92,73 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
         Give up after this many iterations (``converged = False``, never silently).
     precondition : callable, optional
         (r, active) -> z, SPD on the active set and zero outside it.
-    inverse_diagonal : ndarray, optional
+    inverse_diagonal : array, optional
         1 / diag(A) (Pa/m): scales the steepest-descent re-entry step of interpenetrating
         cells when a preconditioner is used (the step is then tau D^-1 gap, in Pa).
-    weights : ndarray, optional
+    weights : array, optional
         Positive weights: gap_i / w_i is a gap in the unit of ``scale`` (mortar rows).
     callback : callable, optional
         Called as callback(iteration, error) after each iteration (progress output).
+    backend : optional
+        Array backend of ``b``, ``q0`` and of what ``apply`` returns (:mod:`contact._xp`;
+        default numpy).  The iteration uses only the array API standard and the backend's
+        ``dot``, so the same code runs on numpy or cupy arrays.
     """
-    q = np.maximum(np.asarray(q0, dtype=float), 0.0)
+    be = NUMPY if backend is None else backend
+    xp = be.xp
+    dot = be.dot
+    q = xp.maximum(be.asarray(q0, dtype=xp.float64), 0.0)
     gap = apply(q) + b
-    n = q.size
-    t = np.zeros(n)
-    work = np.empty(n)
-    active = np.empty(n, dtype=bool)
-    outside = np.empty(n, dtype=bool)
+    n = q.shape[0]
+    t = xp.zeros_like(q)
     g_old = 1.0
     conj = False
     history = []
     since_refresh = 0
     restarts = 0
-    err = np.inf
+    err = float("inf")
     # Vectors outside the contact set are kept exactly zero, so plain dot products over all
     # cells equal the sums over the contact set (boolean gathers are slow on 1e6 cells).
     for it in range(1, max_iterations + 1):
-        np.greater(q, 0.0, out=active)
-        err = _residual(gap, active, work, weights) / scale
+        active = q > 0.0
+        err = _residual(xp, gap, active, weights, n) / scale
         history.append(err)
         if err <= tol:
             return ContactSolution(q, gap, True, it - 1, err, METHOD, "converged", history,
                                    restarts)
-        if not active.any():
+        if not bool(xp.any(active)):
             # Nothing in contact yet: move every interpenetrating cell by a steepest step.
-            np.less(gap, 0.0, out=active)
-        z = precondition(gap, active) if precondition is not None else gap * active
-        g_new = _dot(gap, z)
+            active = gap < 0.0
+        z = precondition(gap, active) if precondition is not None else \
+            xp.where(active, gap, 0.0)
+        g_new = dot(gap, z)
         if conj and g_old > 0:
             t *= g_new / g_old
             t += z
-            t *= active
+            t = xp.where(active, t, 0.0)
         else:
             t = z
-        if conj and _dot(gap, t) <= 0.0:
+        if conj and dot(gap, t) <= 0.0:
             t = z  # the projected conjugate direction no longer descends: restart
         g_old = g_new
         w = apply(t)
-        denom = _dot(w, t)
+        denom = dot(w, t)
         if not denom > 0:
             return ContactSolution(q, gap, False, it, err, METHOD,
                                    f"non-positive curvature {denom:g}: operator not SPD",
                                    history, restarts)
-        tau = _dot(gap, t) / denom
-        np.multiply(t, -tau, out=work)
-        q_new = work + q
-        any_clipped = bool(q_new.min(initial=0.0) < 0.0)
+        tau = dot(gap, t) / denom
+        q_new = q - tau * t
+        any_clipped = n > 0 and bool(xp.min(q_new) < 0.0)
         if any_clipped:
-            np.maximum(q_new, 0.0, out=q_new)
+            q_new = xp.maximum(q_new, 0.0)
         # PK step 7: cells out of contact that interpenetrate (by the gap before the step)
         # re-enter with a steepest-descent step (preconditioned: tau D^-1 gap).
-        np.less(gap, 0.0, out=outside)
-        outside &= ~active
-        any_overlap = bool(outside.any())
+        outside = (gap < 0.0) & ~active
+        any_overlap = bool(xp.any(outside))
         if any_overlap:
-            idx = np.flatnonzero(outside)
-            step = gap[idx] if inverse_diagonal is None else gap[idx] * inverse_diagonal[idx]
-            q_new[idx] -= tau * step
+            step = gap if inverse_diagonal is None else gap * inverse_diagonal
+            q_new = xp.where(outside, q_new - tau * step, q_new)
         # Polonsky and Keer restart the conjugacy whenever a cell re-enters the contact.  On
         # lattices of pillars, cells at the partial contacts of the outermost pillars re-enter
         # again and again and the restarted iteration creeps (272 iterations, 120 restarts at
@@ -164,17 +169,15 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
         restarts += any_overlap
         since_refresh += 1
         if any_clipped or any_overlap or since_refresh >= REFRESH_EVERY:
-            gap = apply(q_new)
-            gap += b
+            gap = apply(q_new) + b
             since_refresh = 0
         else:
-            np.multiply(w, tau, out=work)
-            gap -= work  # exact when no cell was clipped and none entered
+            gap -= w * tau  # exact when no cell was clipped and none entered
         q = q_new
         if callback is not None:
             callback(it, err)
     gap = apply(q) + b
-    err = _residual(gap, q > 0.0, np.empty(n), weights) / scale
+    err = _residual(xp, gap, q > 0.0, weights, n) / scale
     history.append(err)
     converged = err <= tol
     return ContactSolution(q, gap, converged, max_iterations, err, METHOD,
@@ -183,19 +186,12 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
                            f"> {tol:g})", history, restarts)
 
 
-def _dot(a, b) -> float:
-    # einsum, not BLAS ddot: a threaded ddot wakes OpenBLAS threads that then spin against
-    # the FFT worker threads (measured 0.04 to 8 ms for 2e5 cells, against a steady 0.1 ms).
-    return float(np.einsum("i,i->", a, b))
-
-
-def _residual(gap, active, work, weights=None) -> float:
+def _residual(xp, gap, active, weights, n) -> float:
     """Max-norm min-map residual (m): |gap| on the contact set, interpenetration elsewhere
-    (:func:`contact.min_map_residual`, with work arrays: this runs every iteration)."""
-    if gap.size == 0:
+    (:func:`contact.min_map_residual`, in one reduction: this runs every iteration)."""
+    if n == 0:
         return 0.0
     if weights is not None:
         gap = gap / weights
-    np.abs(gap, out=work)
-    work *= active
-    return float(max(work.max(), -gap.min(), 0.0))
+    # On the contact set |gap| >= -gap, so this is max(|gap| on the set, -gap anywhere).
+    return max(float(xp.max(xp.where(active, xp.abs(gap), -gap))), 0.0)
