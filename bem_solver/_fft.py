@@ -61,6 +61,12 @@ HISTORY_MAX = 2000
 # give the fine solve a good start; the fine tolerance decides the accuracy).
 WARM_START_MIN_CELLS = 8
 WARM_START_TOL = 1e-4
+# Fewest cells across the Hertz-like contact 2 sqrt(R zeta) on the centre pillar top for an
+# answer: the flat (Hertz) scene is the same problem, and there 5 cells across is the
+# coarsest grid whose contact stays clear of the candidate disk (F_T within 2 %).  At
+# zeta = 1e-12 um and N = 32 the contact is 1/1400 of a cell: its one cell reported a
+# contact radius 1400 times the overlap radius and F_T 1800 times Hertz's.
+MIN_CELLS_ACROSS_CONTACT = 5
 
 
 def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAULT_TOLERANCE,
@@ -163,11 +169,12 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     timings["solve"] = time.perf_counter() - lap
     message = outcome.message
     converged = outcome.converged
-    if converged and grid.flat:
-        edge = _flat_edge_contact(grid, outcome.pressure)
-        if edge:
+    if converged:
+        coarse_message = _flat_edge_contact(grid, outcome.pressure) if grid.flat else \
+            _unresolved_contact(scene, grid, cells_per_diameter)
+        if coarse_message:
             converged = False
-            message = edge
+            message = coarse_message
     wall = time.perf_counter() - start
     result = _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, message,
                      wall)
@@ -259,6 +266,19 @@ def _flat_edge_contact(grid: CellGrid, q: np.ndarray) -> str:
         return ("contact reaches the edge of the candidate disk "
                 f"({grid.candidate_radius:g} m): the discretisation is too coarse")
     return ""
+
+
+def _unresolved_contact(scene: Scene, grid: CellGrid, cells_per_diameter: int) -> str:
+    """Why the contact on the centre pillar is too small for the cells, or ''."""
+    across = 2.0 * math.sqrt(scene.lens.radius_m * scene.indentation_m)
+    cells = across / grid.cell_size
+    if cells >= MIN_CELLS_ACROSS_CONTACT:
+        return ""
+    needed = math.ceil(cells_per_diameter * MIN_CELLS_ACROSS_CONTACT / cells)
+    return (f"the contact on the centre pillar, about 2 sqrt(R zeta) = {across:.3g} m across, "
+            f"spans {cells:.2g} cells of side {grid.cell_size:.3g} m (at least "
+            f"{MIN_CELLS_ACROSS_CONTACT} needed): the discretisation is too coarse; use "
+            f"cells_per_diameter >= {needed}")
 
 
 def _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, message, wall):

@@ -6,17 +6,29 @@ complementarity problem of displacement-controlled frictionless contact
     gap = A q + b,   q >= 0,   gap >= 0,   q_i gap_i = 0  for every cell i,
 
 with b = g - zeta the undeformed gap minus the indentation (m) and q the cell pressures (Pa).
-This is the minimisation of 1/2 q.A q + b.q over q >= 0.  Conjugate directions live on the
-current contact set {q > 0}; a cell that interpenetrates outside it re-enters with a
-steepest-descent step (Polonsky and Keer 1999, steps 4-8; the load-controlled mean-gap shift
-of their step 3 is dropped because the indentation is given).  Unlike their method the
-conjugacy is kept across re-entries and restarted only when the projected direction stops
-descending (measured below, at the restart test).
+This is the minimisation of 1/2 q.A q + b.q over q >= 0 (Polonsky and Keer 1999, without the
+load-controlled mean-gap shift of their step 3, since the indentation is given).
 
-The conjugate directions may be preconditioned by an operator ``precondition(r, active)``
-that is SPD on the contact set: :func:`diagonal_preconditioner` scales by the diagonal (which
-varies on partly covered edge cells) and carries the Hooke term of soft pillars, whose uniform
-mode is up to 1e4 times stiffer than the half-space modes at E_p / E_l = 1e-4.
+Free set.  The conjugate directions live on the *free set*: the contact set {q > 0} and the
+cells out of contact that interpenetrate (gap < 0).  An interpenetrating cell thus enters the
+contact through the same preconditioned direction and the same exact line search as the
+cells in contact, and a step that drives pressures negative is truncated at zero (Vollebregt's
+bound-constrained CG).  Polonsky and Keer instead give entering cells a separate
+steepest-descent step tau D^-1 gap, each as if it were alone: on pillars much softer than the
+substrate, where a pillar's cells share a Hooke compliance up to 1e3 times a cell's own, a
+ring of cells entering together so overloads the pillar (x 170 its force in one step, measured)
+that the iteration never recovers (3,800 iterations on paper-fig3-sparse with Phi = 0.1,
+E_s = 10 E_p; issue 9).  Through the preconditioner the entering cells see the Hooke term.
+
+Conjugacy.  beta is Polak-Ribiere's, floored at zero (PR+): it restarts itself when the free
+set changes what the previous direction meant, where Fletcher-Reeves' beta kept stale
+directions after large changes of the contact set.  The direction is also restarted when it
+no longer descends.
+
+The directions may be preconditioned by an operator ``precondition(r, free)`` that is SPD on
+the free set: :func:`diagonal_preconditioner` scales by the diagonal (which varies on partly
+covered edge cells) and carries the Hooke term of soft pillars, whose uniform mode is up to
+1e4 times more compliant than the half-space modes at E_p / E_l = 1e-4.
 
 Stopping: the min-map residual of the complementarity problem,
 
@@ -31,7 +43,8 @@ References
    based on the multi-level multi-summation and conjugate gradient techniques", Wear 231
    (1999) 206-219.
 .. [2] E. A. H. Vollebregt, "The bound-constrained conjugate gradient method for non-negative
-   matrices", J. Optim. Theory Appl. 162 (2014) 931-953 (preconditioned variant).
+   matrices", J. Optim. Theory Appl. 162 (2014) 931-953 (truncation, Polak-Ribiere
+   continuation, preconditioned variant).
 """
 
 from __future__ import annotations
@@ -46,12 +59,12 @@ METHOD = "constrained-cg"
 
 
 def diagonal_preconditioner(diagonal, spring=0.0, pillar=None, n_pillars=0, backend=None):
-    """Inverse of M = D + c P P^T restricted to the contact set (Sherman-Morrison).
+    """Inverse of M = D + c P P^T restricted to the free set (Sherman-Morrison).
 
     ``diagonal`` is D, the diagonal of the half-space operator (m/Pa; larger on partly
     covered cells, whose force acts on a smaller square); ``spring`` c the Hooke compliance
     per unit cell pressure (m/Pa); P the cell-to-pillar incidence.  For soft pillars (c n >> D,
-    n cells per top) the uniform mode of each pillar is many orders stiffer than the
+    n cells per top) the uniform mode of each pillar is many orders more compliant than the
     half-space modes; M carries that mode so the conjugate gradients do not see it.
     ``backend`` is the array backend of the vectors (:mod:`contact._xp`; default numpy).
     """
@@ -59,14 +72,14 @@ def diagonal_preconditioner(diagonal, spring=0.0, pillar=None, n_pillars=0, back
     xp = be.xp
     inv_d = 1.0 / be.asarray(diagonal, dtype=xp.float64)
     if spring <= 0.0 or pillar is None:
-        return lambda r, active: xp.where(active, r * inv_d, 0.0)
+        return lambda r, free: xp.where(free, r * inv_d, 0.0)
 
-    def apply(r, active):
-        z = xp.where(active, r * inv_d, 0.0)
-        weight = be.segment_sum(pillar, xp.where(active, inv_d, 0.0), n_pillars)
+    def apply(r, free):
+        z = xp.where(free, r * inv_d, 0.0)
+        weight = be.segment_sum(pillar, xp.where(free, inv_d, 0.0), n_pillars)
         sums = be.segment_sum(pillar, z, n_pillars)
         coef = sums / (1.0 / spring + weight)
-        return xp.where(active, z - xp.take(coef, pillar) * inv_d, 0.0)
+        return xp.where(free, z - xp.take(coef, pillar) * inv_d, 0.0)
 
     return apply
 
@@ -74,7 +87,7 @@ def diagonal_preconditioner(diagonal, spring=0.0, pillar=None, n_pillars=0, back
 def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, precondition=None,
                    inverse_diagonal=None, weights=None, callback=None,
                    backend=None) -> ContactSolution:
-    """Polonsky-Keer constrained conjugate gradients, displacement-controlled.
+    """Constrained conjugate gradients on the free set, displacement-controlled.
 
     Parameters
     ----------
@@ -91,10 +104,9 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
     max_iterations : int
         Give up after this many iterations (``converged = False``, never silently).
     precondition : callable, optional
-        (r, active) -> z, SPD on the active set and zero outside it.
+        (r, free) -> z, SPD on the free set and zero outside it.
     inverse_diagonal : array, optional
-        1 / diag(A) (Pa/m): scales the steepest-descent re-entry step of interpenetrating
-        cells when a preconditioner is used (the step is then tau D^-1 gap, in Pa).
+        1 / diag(A) (Pa/m): the (Jacobi) preconditioner when ``precondition`` is not given.
     weights : array, optional
         Positive weights: gap_i / w_i is a gap in the unit of ``scale`` (mortar rows).
     callback : callable, optional
@@ -103,76 +115,67 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
         Array backend of ``b``, ``q0`` and of what ``apply`` returns (:mod:`contact._xp`;
         default numpy).  The iteration uses only the array API standard and the backend's
         ``dot``, so the same code runs on numpy or cupy arrays.
+
+    Returns
+    -------
+    ContactSolution
+        ``reentries`` counts the iterations in which cells entered the contact set.
     """
     be = NUMPY if backend is None else backend
     xp = be.xp
     dot = be.dot
+    if precondition is None:
+        scaling = 1.0 if inverse_diagonal is None else inverse_diagonal
+        precondition = lambda r, free: xp.where(free, r * scaling, 0.0)  # noqa: E731
     q = xp.maximum(be.asarray(q0, dtype=xp.float64), 0.0)
     gap = apply(q) + b
     n = q.shape[0]
-    t = xp.zeros_like(q)
+    t = z_old = xp.zeros_like(q)
     g_old = 1.0
     conj = False
     history = []
     since_refresh = 0
-    restarts = 0
+    entries = 0
     err = float("inf")
-    # Vectors outside the contact set are kept exactly zero, so plain dot products over all
-    # cells equal the sums over the contact set (boolean gathers are slow on 1e6 cells).
+    # Vectors outside the free set are kept exactly zero, so plain dot products over all
+    # cells equal the sums over the free set (boolean gathers are slow on 1e6 cells).
     for it in range(1, max_iterations + 1):
         active = q > 0.0
         err = _residual(xp, gap, active, weights, n) / scale
         history.append(err)
         if err <= tol:
             return ContactSolution(q, gap, True, it - 1, err, METHOD, "converged", history,
-                                   restarts)
-        if not bool(xp.any(active)):
-            # Nothing in contact yet: move every interpenetrating cell by a steepest step.
-            active = gap < 0.0
-        z = precondition(gap, active) if precondition is not None else \
-            xp.where(active, gap, 0.0)
+                                   entries)
+        free = active | (gap < 0.0)
+        z = precondition(gap, free)
         g_new = dot(gap, z)
         if conj and g_old > 0:
-            t *= g_new / g_old
-            t += z
-            t = xp.where(active, t, 0.0)
+            beta = max((g_new - dot(z_old, gap)) / g_old, 0.0)
+            t = xp.where(free, z + beta * t, 0.0)
         else:
             t = z
         if conj and dot(gap, t) <= 0.0:
             t = z  # the projected conjugate direction no longer descends: restart
-        g_old = g_new
+        z_old, g_old = z, g_new
         w = apply(t)
         denom = dot(w, t)
         if not denom > 0:
             return ContactSolution(q, gap, False, it, err, METHOD,
                                    f"non-positive curvature {denom:g}: operator not SPD",
-                                   history, restarts)
+                                   history, entries)
         tau = dot(gap, t) / denom
         q_new = q - tau * t
         any_clipped = n > 0 and bool(xp.min(q_new) < 0.0)
         if any_clipped:
             q_new = xp.maximum(q_new, 0.0)
-        # PK step 7: cells out of contact that interpenetrate (by the gap before the step)
-        # re-enter with a steepest-descent step (preconditioned: tau D^-1 gap).
-        outside = (gap < 0.0) & ~active
-        any_overlap = bool(xp.any(outside))
-        if any_overlap:
-            step = gap if inverse_diagonal is None else gap * inverse_diagonal
-            q_new = xp.where(outside, q_new - tau * step, q_new)
-        # Polonsky and Keer restart the conjugacy whenever a cell re-enters the contact.  On
-        # lattices of pillars, cells at the partial contacts of the outermost pillars re-enter
-        # again and again and the restarted iteration creeps (272 iterations, 120 restarts at
-        # N = 58 on paper-fig3-dense with rigid pillars).  Keeping the conjugate direction,
-        # projected on the new contact set, and restarting only when it is no longer a descent
-        # direction took 156.
+        entries += bool(xp.any((q_new > 0.0) & ~active))
         conj = True
-        restarts += any_overlap
         since_refresh += 1
-        if any_clipped or any_overlap or since_refresh >= REFRESH_EVERY:
+        if any_clipped or since_refresh >= REFRESH_EVERY:
             gap = apply(q_new) + b
             since_refresh = 0
         else:
-            gap -= w * tau  # exact when no cell was clipped and none entered
+            gap -= w * tau  # exact: the step was taken whole along t
         q = q_new
         if callback is not None:
             callback(it, err)
@@ -183,7 +186,7 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
     return ContactSolution(q, gap, converged, max_iterations, err, METHOD,
                            "converged" if converged else
                            f"no convergence in {max_iterations} iterations (residual {err:.3g} "
-                           f"> {tol:g})", history, restarts)
+                           f"> {tol:g})", history, entries)
 
 
 def _residual(xp, gap, active, weights, n) -> float:
