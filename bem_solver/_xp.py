@@ -28,9 +28,9 @@ GPU_BYTES_PER_FFT_POINT = 64
 class NumpyDevice(NumpyArrays):
     """numpy + scipy.fft (threaded) + scipy.sparse on the CPU."""
 
-    def __init__(self, workers: int = 2):
+    def __init__(self, workers: int = 2, max_fft_points: int = MAX_FFT_POINTS):
         self.workers = workers
-        self.max_fft_points = MAX_FFT_POINTS  # ~1 GB of work arrays
+        self.max_fft_points = max_fft_points  # default ~1 GB of work arrays
 
     def rfft2(self, a):
         import scipy.fft as sfft

@@ -218,3 +218,21 @@ def test_gpu_gives_the_cpu_answer(case):
     assert gpu.total_force_N == pytest.approx(cpu.total_force_N, rel=RTOL_SOLVER)
     assert gpu.centre_pressure_Pa == pytest.approx(cpu.centre_pressure_Pa, rel=RTOL_SOLVER)
     assert gpu.diagnostics["max_interpenetration_m"] <= 1e-8 * scene.indentation_m
+
+
+def test_bench_gpu_runs_and_says_what_is_pending(tmp_path):
+    """The GPU benchmark (validation/bench_gpu.py) on one tiny level: a table and a JSON file;
+    without a GPU the GPU column is reported pending, with the reason."""
+    import json
+
+    from validation import bench_gpu
+
+    assert bench_gpu.main(["--out", str(tmp_path), "--levels", "8", "--repeats", "1",
+                           "--pillars", "rigid"]) == 0
+    doc = json.loads((tmp_path / "bench_gpu.json").read_text())
+    (row,) = doc["rows"]
+    assert row["cpu"]["converged"] and row["cpu"]["kernel_table_s"] > 0
+    if doc["meta"]["gpu_pending"]:
+        assert "gpu" not in row and "GPU column pending" in doc["table"]
+    else:
+        assert abs(row["force_rel_diff"]) <= RTOL_SOLVER
