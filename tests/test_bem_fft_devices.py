@@ -20,11 +20,12 @@ from bem_solver._fft_grid import build_grid
 from bem_solver._fft_operator import CompliancePlan, near_field_correction
 from bem_solver._xp import NumpyDevice, select_backend
 
-# With the same FFT library, dot and sparse products both paths evaluate the same floating-point expressions: their
-# differences are round-off, ~1e-15 relative, amplified by the constrained CG at most by its
-# conditioning (~1e2); 1e-12 leaves a margin of 10.  One operator application through the
-# standard's FFT (numpy.fft instead of scipy.fft) differs by round-off too.  (A whole solve
-# with another FFT or summation order drifts further: ~1e-11 after 80 clipped CG iterations.)
+# With the same FFT library, dot and sparse products both paths evaluate the same
+# floating-point expressions: their differences are round-off, ~1e-15 relative, amplified by
+# the constrained CG at most by its conditioning (~1e2); 1e-12 leaves a margin of 10.  One
+# operator application through the standard's FFT (numpy.fft, not scipy.fft) differs by
+# round-off too.  (A whole solve with another FFT or summation order drifts further: ~1e-11
+# after 80 clipped CG iterations.)
 RTOL_ROUNDOFF = 1e-12
 # A GPU's FFT rounds differently; the constrained CG may then take another path to the same
 # tolerance (1e-8 zeta in the gap), so forces agree to the solver tolerance times the
@@ -61,10 +62,10 @@ class StrictSparse:
 
 class StrictDevice:
     """array_api_strict arrays.  Only the backend primitives that the standard lacks (segment
-    sums and scatters) pass through numpy, inside this class.  FFTs and dot products: the
-    standard's (``xps.fft``, ``xps.vecdot``, a segment-sum sparse product), or with
-    ``numpy_primitives=True`` the numpy backend's own (scipy.fft, einsum, scipy.sparse), so that a whole solve differs from the numpy path only
-    by what the generic code does."""
+    sums and scatters) pass through numpy, inside this class.  FFTs, dot and sparse products:
+    the standard's (``xps.fft``, ``xps.vecdot``, a segment-sum product), or with
+    ``numpy_primitives=True`` the numpy backend's own (scipy.fft, einsum, scipy.sparse), so
+    that a whole solve differs from the numpy path only by what the generic code does."""
 
     name = "array_api_strict"
     device = "cpu"
