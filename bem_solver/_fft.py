@@ -161,9 +161,7 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
         max_iterations = int(20 * math.sqrt(grid.n_cells)) + 500
     lap = time.perf_counter()
     outcome = constrained_cg(plan, b, q0, scale=zeta, tol=tol, max_iterations=max_iterations,
-                             precondition=precondition,
-                             inverse_diagonal=1.0 / plan.diagonal, callback=progress,
-                             backend=be)
+                             precondition=precondition, callback=progress, backend=be)
     outcome.pressure = be.to_numpy(outcome.pressure)
     outcome.gap = be.to_numpy(outcome.gap)
     timings["solve"] = time.perf_counter() - lap
