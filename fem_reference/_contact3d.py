@@ -175,18 +175,19 @@ def _rigid_rows(system, points, pillar_names, b2, face, owner):
                          shape=(points.shape[1], system.T.shape[1]))
 
 
-def preconditioner(weights, pillar_of_vertex, springs):
+def preconditioner(weights, pillar_of_vertex, springs, compliance):
     """Approximate inverse of the condensed operator on the contact set.
 
-    Diagonal: a P1 hat of area ~3 w_j on a half-space has a self-compliance that scales as
-    w_j^2 / sqrt(w_j) (Boussinesq), so diag ~ w_j^1.5 (the constant does not matter to the
-    conjugate gradients).  ``springs`` per pillar (or None) add the uniform mode of soft
-    pillars, c_k (W_k W_k^T), by Sherman-Morrison, as in the FFT BEM: at E_p / E_l = 1e-3
-    it is orders of magnitude more compliant than the local modes.
+    Diagonal: the hat function psi_j (integral w_j) acts like a uniform pressure on a disk
+    of area w_j, whose mean deflection is 16 gamma rho / (3 pi) (Johnson 1985, sec. 3.2), so
+    diag_j ~ (16 / 3 pi) gamma w_j sqrt(w_j / pi), with gamma the local compliance
+    (1 - nu^2) / E of the two faces.  The absolute scale matters: ``springs`` per pillar (or
+    None) add the uniform mode of soft pillars, c_k (W_k W_k^T), by Sherman-Morrison, as in
+    the FFT BEM (at E_p / E_l = 1e-3 it is far more compliant than the local modes).
     Returns (precondition(r, active), inverse_diagonal).
     """
     w = np.asarray(weights, dtype=float)
-    d = w ** 1.5
+    d = 16.0 / (3.0 * math.pi) * compliance * w * np.sqrt(w / math.pi)
     inv_d = 1.0 / d
     if springs is None or pillar_of_vertex.min() < 0:
         return (lambda r, active: r * inv_d * active), inv_d

@@ -78,9 +78,9 @@ class WedgeGeometry:
     sector_angle: float = math.pi / 6.0
     bodies: tuple = BODIES
     mesh_size: float = 1.0
-    elements_across_contact: float = 5.0
-    edge_ratio: float = 0.15
-    growth: float = 0.3
+    elements_across_contact: float = 4.0
+    edge_ratio: float = 0.25
+    growth: float = 0.35
 
     def __post_init__(self):
         def positive(name, value):
