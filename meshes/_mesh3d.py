@@ -104,10 +104,7 @@ class WedgeMesh:
         tol = MATCH_RTOL * self.geometry.focus_radius_m
         for lens, lower in self.contact_pairs():
             a, b = self.face_nodes(lens), self.face_nodes(lower)
-            pa, pb = self.points[:, a], self.points[:, b]
-            pa = pa[:, np.lexsort(pa[::-1])]
-            pb = pb[:, np.lexsort(pb[::-1])]
-            if pa.shape != pb.shape or np.max(np.abs(pa - pb)) > tol:
+            if len(a) != len(b) or _unmatched(self.points[:, a], self.points[:, b]) > tol:
                 raise MeshError(f"contact faces {lens!r} ({len(a)} nodes) and {lower!r} "
                                 f"({len(b)} nodes) do not match node for node")
 
@@ -151,6 +148,14 @@ class WedgeMesh:
         return meshio.Mesh(self.points.T, [("tetra", self.tets.T)],
                            cell_data={"gmsh:physical": [tag], "gmsh:geometrical": [tag]},
                            field_data=field_data)
+
+
+def _unmatched(pa: np.ndarray, pb: np.ndarray) -> float:
+    """Largest distance from a point of either set to the nearest point of the other."""
+    from scipy.spatial import cKDTree
+
+    return max(float(cKDTree(pb.T).query(pa.T)[0].max()),
+               float(cKDTree(pa.T).query(pb.T)[0].max()))
 
 
 def _keys(tri: np.ndarray, n) -> np.ndarray:

@@ -29,6 +29,8 @@ RTOL_HERTZ_FORCE = 1e-2      # mesh_size 1 (measured +2.2e-3)
 RTOL_HERTZ_CENTRE = 1.5e-2   # measured +3.8e-3
 RTOL_HERTZ_RADIUS = 3e-2     # one P2 element across the edge: measured -8e-3
 RTOL_AXISYM_COARSE = 2e-2    # single pillar at mesh_size 2 (measured 6.2e-3 and 5.4e-3)
+RTOL_SYMMETRY = 1.5e-2       # two independent meshes at mesh_size 2 (measured <= 8.2e-3)
+RTOL_EQUIVALENT = 6e-3       # D6-equivalent pillars in one sector (measured 2.8e-3)
 
 
 def assert_verified(result):
@@ -171,3 +173,111 @@ def test_rigid_lens_on_rigid_pillars_is_refused():
                                          "substrate.E_Pa=1.6e6", "substrate.nu=0.5"])
     with pytest.raises(ScopeError, match="rigid"):
         solve_fem3d(scene)
+
+
+# --- symmetry -------------------------------------------------------------------------------
+SMALL_LATTICE = ["pillars.surface_fraction=0.05", "load.indentation_um=0.1",
+                 "substrate.E_Pa=1.6e6"]  # centre pillar and ring 1 within reach
+
+
+def test_wedge_against_quadrant():
+    """The pi/6 wedge (skew mirror plane) and the quadrant (two axis-aligned mirror planes,
+    3x the volume, independent meshes) give the same per-pillar forces; in the quadrant the
+    D6-equivalent pillars (1, 0) (halved by a plane) and (1, 1) (whole) are solved
+    independently and must agree.  Tolerance: the discretisation error at mesh_size 2
+    (0.6 % on the single pillar against fem-axisym); measured differences: pillar forces
+    +0.55..0.82 %, F_T +0.68 % (the quadrant mesh is finer near the axis), (1, 1) against
+    (1, 0) in the quadrant +0.28 %.  A wrong skew roller moves forces by many per cent."""
+    scene = load_scene("paper-fig3-sparse", SMALL_LATTICE)
+    wedge = solve_fem3d(scene, 2.0)
+    quad = solve_fem3d(scene, 2.0, sector_angle=math.pi / 2)
+    for res in (wedge, quad):
+        assert_verified(res)
+    fw = {(p.n, p.m): p.force_N for p in wedge.pillar_forces}
+    fq = {(p.n, p.m): p.force_N for p in quad.pillar_forces}
+    assert set(fw) == set(fq) and len(fw) == 7
+    for key, f in fw.items():
+        assert fq[key] == pytest.approx(f, rel=RTOL_SYMMETRY), key
+    assert fq[(1, 1)] == pytest.approx(fq[(1, 0)], rel=RTOL_EQUIVALENT)
+    assert quad.total_force_N == pytest.approx(wedge.total_force_N, rel=RTOL_SYMMETRY)
+
+
+# --- slow: convergence and cross-checks ------------------------------------------------------
+def observed_order(sizes, errors):
+    """Slope of log|error| against log(mesh size), least squares."""
+    return np.polyfit(np.log(sizes), np.log(np.abs(errors)), 1)[0]
+
+
+@pytest.mark.slow
+def test_hertz_converges_at_a_rate():
+    """Four levels, ratio sqrt(2): measured force errors +0.70, +0.41, +0.18, +0.045 %
+    (fitted order 2.6; truncation 4e-5 at L = 1e4 a), centre pressure +2.2 .. +0.15 %."""
+    scene = load_scene("hertz", ["load.indentation_um=0.005"])
+    ref = analytic.hertz(scene)
+    sizes = [2.0, 1.41, 1.0, 0.71]
+    results = [solve_fem3d(scene, s) for s in sizes]
+    for res in results:
+        assert_verified(res)
+    force = [r.total_force_N / ref.force - 1 for r in results]
+    centre = [r.centre_pressure_Pa / ref.centre_pressure - 1 for r in results]
+    assert 1.8 < observed_order(sizes, force) < 3.5, force
+    assert all(f > 0 for f in force)  # a conforming mesh is stiff
+    assert abs(force[-1]) < 1e-3 and abs(centre[-1]) < 4e-3
+
+
+@pytest.mark.slow
+def test_single_pillar_agrees_with_axisymmetric_within_gcis():
+    """F_T and sigma0 of fem-3d (mesh_size 2, 1.41, 1) and fem-axisym (2, 1, 0.5) agree
+    within the sum of their GCIs (Roache; validation.verification)."""
+    from validation.verification import gci_three
+
+    scene = load_scene("single-pillar")
+    s3 = [1.0, 1.41, 2.0]
+    r3 = [solve_fem3d(scene, s) for s in s3]
+    sa = [0.5, 1.0, 2.0]
+    ra = [solve_axisymmetric(scene, s) for s in sa]
+    for get in (lambda r: r.total_force_N, lambda r: r.centre_pressure_Pa):
+        g3 = gci_three(s3, [get(r) for r in r3])
+        ga = gci_three(sa, [get(r) for r in ra])
+        band = g3.fallback_uncertainty + ga.fallback_uncertainty
+        assert abs(get(r3[0]) - get(ra[0])) <= band, (g3, ga)
+        assert band < 0.02 * abs(get(ra[0]))  # the check has teeth: bands below 2 %
+
+
+@pytest.mark.slow
+def test_rigid_pillars_against_dense_bem():
+    """Rigid pillars on a rigid substrate: the elastic lens alone, a half-space in the BEM
+    and a large graded block in the FEM, so the two models solve the same equations and
+    their Richardson estimates of F_T must agree within the two GCIs (plus the FEM block's
+    truncation estimate)."""
+    from bem_solver import solve_dense
+    from validation.verification import gci_three
+
+    scene = load_scene("paper-fig3-sparse", [*SMALL_LATTICE[:2], "pillars.rigid=true",
+                                             "substrate.rigid=true"])
+    P = [29, 21, 15]
+    bem = [solve_dense(scene, p) for p in P]
+    s3 = [1.0, 1.41, 2.0]
+    fem = [solve_fem3d(scene, s) for s in s3]
+    for res in fem:
+        assert_verified(res)
+    gb = gci_three([1.0 / p for p in P], [r.total_force_N for r in bem])
+    gf = gci_three(s3, [r.total_force_N for r in fem])
+    fb = gb.f_exact if gb.f_exact is not None else bem[0].total_force_N
+    ff = gf.f_exact if gf.f_exact is not None else fem[0].total_force_N
+    band = (gb.fallback_uncertainty + gf.fallback_uncertainty
+            + fem[0].diagnostics["truncation_estimate"] * ff)
+    assert abs(ff - fb) <= band, (gb, gf)
+    assert fem[0].pillars_in_contact == bem[0].pillars_in_contact == 7
+
+
+@pytest.mark.slow
+def test_unloaded_pillars_change_little():
+    """Meshing the pillars out to twice the reach of the undeformed lens (unloaded ones)
+    changes F_T by less than the discretisation error (measured ...)."""
+    scene = load_scene("paper-fig3-sparse", SMALL_LATTICE)
+    base = solve_fem3d(scene, 2.0)
+    wide = solve_fem3d(scene, 2.0, reach_factor=3.0)
+    assert len(wide.diagnostics["pillars_meshed"]) > len(base.diagnostics["pillars_meshed"])
+    assert wide.pillars_in_contact == base.pillars_in_contact
+    assert wide.total_force_N == pytest.approx(base.total_force_N, rel=2e-3)

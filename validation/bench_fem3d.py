@@ -1,0 +1,123 @@
+"""Benchmark of the 3D FEM reference (fem-3d): unknowns, time by phase, contact iterations and
+peak memory over a mesh_size ladder, with the error of F_T against the Richardson estimate.
+
+    python -m validation.bench_fem3d --out DIR [--levels 2,1.41,1] [--dense 2.83,2]
+
+The ladder runs on Phi = 0.2, zeta = 0.3 um, E_p = E_s = E_l (``paper-fig3-sparse`` with
+``pillars.surface_fraction=0.2`` and ``substrate.E_Pa=1.6e6``).  Targets on the 2-core
+machine: F_T within 2 % of the Richardson estimate in under 5 minutes and 12 GiB.  With
+``--dense`` the densest paper scene (``paper-fig3-dense``, Phi = 0.82) runs at the given
+levels; its error is the two-grid GCI with the order observed on the ladder.  Each level runs
+in a fresh process, so its peak RSS is its own.  Prints a table and writes
+``bench_fem3d.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import multiprocessing
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+LADDER_SCENE = ("paper-fig3-sparse", ["pillars.surface_fraction=0.2", "substrate.E_Pa=1.6e6"])
+DENSE_SCENE = ("paper-fig3-dense", [])
+TARGET_RTOL, TARGET_TIME_S, TARGET_RSS_GIB = 0.02, 300.0, 12.0
+DENSE_RTOL, DENSE_TIME_S = 0.05, 900.0
+
+
+def _run_level(preset: str, overrides: list, mesh_size: float) -> dict:
+    """One solve in this (fresh) process; the figures of the benchmark table."""
+    from fem_reference import solve_fem3d
+    from scenes import load_scene
+
+    t0 = time.perf_counter()
+    res = solve_fem3d(load_scene(preset, overrides), mesh_size)
+    d = res.diagnostics
+    return {"mesh_size": mesh_size, "dofs": res.discretisation["dofs"],
+            "elements": res.discretisation["elements"],
+            "contact_unknowns": d["contact_vertices"], "pillars_meshed": len(d["pillars_meshed"]),
+            "pillars_in_contact": res.pillars_in_contact, "F_T_N": res.total_force_N,
+            "sigma0_Pa": res.centre_pressure_Pa, "cg_iterations": d["cg_iterations"],
+            "time_s": d["time_s"], "wall_s": time.perf_counter() - t0,
+            "peak_rss_GiB": d["peak_rss_GiB"], "converged": res.converged,
+            "linear_residual": d["linear_residual"], "contact_residual": d["contact_residual"],
+            "factor_nonzeros": d["factor_nonzeros"]}
+
+
+def run_level(preset: str, overrides: list, mesh_size: float) -> dict:
+    ctx = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=1, mp_context=ctx) as pool:
+        return pool.submit(_run_level, preset, overrides, mesh_size).result()
+
+
+def _table(rows: list, reference: float | None) -> str:
+    head = (f"{'mesh_size':>9} {'dofs':>8} {'contact':>7} {'mesh':>6} {'assem':>6} "
+            f"{'factor':>7} {'contact':>8} {'iters':>5} {'total':>7} {'RSS GiB':>7} "
+            f"{'F_T (uN)':>10} {'err':>8}")
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        t = r["time_s"]
+        err = "" if reference is None else f"{(r['F_T_N'] / reference - 1) * 100:+.2f}%"
+        lines.append(f"{r['mesh_size']:>9.3g} {r['dofs']:>8d} {r['contact_unknowns']:>7d} "
+                     f"{t['mesh']:>6.1f} {t['assemble']:>6.1f} {t['factorise']:>7.1f} "
+                     f"{t['contact']:>8.1f} {r['cg_iterations']:>5d} {r['wall_s']:>7.1f} "
+                     f"{r['peak_rss_GiB']:>7.2f} {r['F_T_N'] * 1e6:>10.5f} {err:>8}")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    from validation.verification import gci_three, gci_two
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", required=True, type=Path)
+    ap.add_argument("--levels", default="2,1.41,1",
+                    help="mesh_size ladder, coarse to fine (default 2,1.41,1)")
+    ap.add_argument("--dense", default="",
+                    help="mesh sizes for paper-fig3-dense, coarse to fine (e.g. 2.83,2)")
+    args = ap.parse_args(argv)
+    levels = [float(s) for s in args.levels.split(",") if s]
+    out = {"machine_note": "2-core machine shared with other jobs: timings are contended",
+           "scene": {"preset": LADDER_SCENE[0], "overrides": LADDER_SCENE[1]}, "ladder": []}
+    for ms in levels:
+        row = run_level(*LADDER_SCENE, ms)
+        out["ladder"].append(row)
+        print(f"mesh_size {ms:g}: {row['dofs']} dofs, {row['wall_s']:.1f} s, "
+              f"F_T = {row['F_T_N']:.6g} N", flush=True)
+    rows = out["ladder"]
+    reference = order = None
+    if len(rows) >= 3:
+        fine = rows[-3:][::-1]
+        g = gci_three([r["mesh_size"] for r in fine], [r["F_T_N"] for r in fine])
+        out["richardson"] = g.to_dict() if hasattr(g, "to_dict") else vars(g)
+        reference, order = g.f_exact, g.order
+    print(_table(rows, reference))
+    if reference is not None:
+        ok = [r for r in rows if abs(r["F_T_N"] / reference - 1) <= TARGET_RTOL
+              and r["wall_s"] <= TARGET_TIME_S and r["peak_rss_GiB"] <= TARGET_RSS_GIB]
+        out["target_met_by"] = [r["mesh_size"] for r in ok]
+        print(f"Richardson F_T = {reference:.6g} N (order {order:.2f}); 2 % / 5 min / 12 GiB "
+              f"met by mesh_size {out['target_met_by'] or 'none'}")
+    dense_levels = [float(s) for s in args.dense.split(",") if s]
+    if dense_levels:
+        out["dense"] = [run_level(*DENSE_SCENE, ms) for ms in dense_levels]
+        print("paper-fig3-dense")
+        print(_table(out["dense"], None))
+        if len(out["dense"]) >= 2 and order:
+            a, b = out["dense"][-1], out["dense"][-2]
+            g2 = gci_two([a["mesh_size"], b["mesh_size"]], [a["F_T_N"], b["F_T_N"]], order)
+            out["dense_gci"] = g2.to_dict() if hasattr(g2, "to_dict") else vars(g2)
+            print(f"dense: F_T = {a['F_T_N']:.6g} N, two-grid GCI with the ladder's order "
+                  f"{order:.2f}: {g2.gci_fine * 100:.2f} %, {a['wall_s']:.0f} s, "
+                  f"{a['peak_rss_GiB']:.2f} GiB")
+    from scenes import write_atomic
+
+    path = write_atomic(args.out / "bench_fem3d.json", json.dumps(out, indent=2))
+    print(f"wrote {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
