@@ -32,7 +32,8 @@ import scipy.sparse as sp
 from skfem import Basis, ElementTetP1, ElementTetP2, ElementVector
 
 from ._system import SolveError
-from .forms.solid3d import divergence_coupling, mixed_coefficients, pressure_mass, shear_stiffness
+from .forms.solid3d import (derivative_coupling, gradient_product, mixed_coefficients,
+                           pressure_mass)
 
 # Quadrature: P2 gradients are P1, their products P2: degree 2 is exact on straight tets.
 INTORDER = 2
@@ -116,10 +117,13 @@ class SectorSystem:
 
     def solve(self, rhs: np.ndarray, refine: int = 2) -> tuple[np.ndarray, float]:
         """Solve K x = rhs (columns allowed) with iterative refinement; returns x and the
-        relative scaled residual max_j ||S (K x_j - b_j)|| / ||S b_j||."""
+        relative scaled residual max_j ||S (K x_j - b_j)|| / ||S b_j|| (NaN, not computed,
+        with ``refine=0``: one back-substitution and nothing else)."""
         rhs = np.asarray(rhs, dtype=float)
         b = self.scale[:, None] * rhs.reshape(rhs.shape[0], -1)
         y = self.factor.solve(b)
+        if refine == 0:  # inside the contact iterations: the caller checks at the end
+            return (self.scale[:, None] * y).reshape(rhs.shape), float("nan")
         rel = _relative(b - self._Ks @ y, b)
         for _ in range(refine):
             if rel < 1e-12:
@@ -232,7 +236,7 @@ def assemble_sector(mesh, materials: dict, *, sector_angle: float, clamp_pillar_
         move rigidly), centres in mesh units.
     """
     ub = Basis(mesh, ElementVector(ElementTetP2()), intorder=INTORDER)
-    sb = Basis(mesh, ElementTetP2(), intorder=INTORDER)  # scalar: node positions and sets
+    sb = Basis(mesh, ElementTetP2(), intorder=INTORDER)  # scalar: pieces, positions and sets
     nu_dofs = ub.N
     blocks_A, blocks_B, blocks_C, pressures = [], [], [], []
     offset = nu_dofs
@@ -241,11 +245,12 @@ def assemble_sector(mesh, materials: dict, *, sector_angle: float, clamp_pillar_
             progress(f"assembling {body}")
         elements = mesh.subdomains[body]
         mu, beta, c = mixed_coefficients(E, nu)
-        ub_b = ub.with_elements(elements)
-        blocks_A.append(shear_stiffness.assemble(ub_b, mu=mu))
+        sb_b = sb.with_elements(elements)
         pb = Basis(mesh, ElementTetP1(), elements=elements, intorder=INTORDER)
         dofs = np.unique(pb.element_dofs)
-        B = divergence_coupling.assemble(ub_b, pb).tocsr()[dofs]
+        A_b, B = vector_blocks(sb_b, pb, mu)
+        blocks_A.append(A_b)
+        B = B[dofs]
         M = pressure_mass.assemble(pb).tocsr()[dofs][:, dofs]
         blocks_B.append(beta * B)
         blocks_C.append(-c * M)
@@ -274,6 +279,37 @@ def assemble_sector(mesh, materials: dict, *, sector_angle: float, clamp_pillar_
         raise SolveError("a displacement unknown has no stiffness (a body is not held)")
     scale[is_u] = 1.0 / np.sqrt(diag[is_u])
     return SectorSystem(mesh, ub, sb, pressures, Kr, T.tocsr(), scale, rigid)
+
+
+def vector_blocks(sb, pb, mu: float):
+    """A (shear stiffness) and B (divergence coupling) of vector P2 from scalar pieces.
+
+    Vector dof 3 s + c is component c of scalar node s (skfem's ElementVector layout).
+    Equal to assembling :func:`forms.solid3d.shear_stiffness` and ``divergence_coupling``
+    on the vector basis (tested), about 5x faster: 10 x 10 local matrices, not 30 x 30.
+    """
+    n = sb.N
+    K = [[None] * 3 for _ in range(3)]
+    for p in range(3):
+        for q in range(p, 3):
+            K[p][q] = gradient_product(p, q).assemble(sb, mu=mu).tocsr()
+            K[q][p] = K[p][q].T.tocsr()
+    lap = K[0][0] + K[1][1] + K[2][2]
+    rows, cols, vals = [], [], []
+    for a in range(3):      # trial component
+        for b in range(3):  # test component
+            blk = (K[a][b] + lap if a == b else K[a][b]).tocoo()
+            rows.append(3 * blk.row + b)
+            cols.append(3 * blk.col + a)
+            vals.append(blk.data)
+    A = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                      shape=(3 * n, 3 * n))
+    Bs = [derivative_coupling(a).assemble(sb, pb).tocoo() for a in range(3)]
+    B = sp.csr_matrix((np.concatenate([blk.data for blk in Bs]),
+                       (np.concatenate([blk.row for blk in Bs]),
+                        np.concatenate([3 * blk.col + a for a, blk in enumerate(Bs)]))),
+                      shape=(pb.N, 3 * n))
+    return A, B
 
 
 def _reduced_of(T) -> np.ndarray:

@@ -281,3 +281,22 @@ def test_unloaded_pillars_change_little():
     assert len(wide.diagnostics["pillars_meshed"]) > len(base.diagnostics["pillars_meshed"])
     assert wide.pillars_in_contact == base.pillars_in_contact
     assert wide.total_force_N == pytest.approx(base.total_force_N, rel=2e-3)
+
+
+def test_scalar_piece_assembly_equals_the_vector_forms():
+    """The assembler's interleaved scalar pieces equal the vector P2 forms of forms.solid3d."""
+    from skfem import Basis, ElementTetP1, ElementTetP2, ElementVector, MeshTet
+
+    from fem_reference._system3d import vector_blocks
+    from fem_reference.forms.solid3d import divergence_coupling, shear_stiffness
+
+    mesh = MeshTet().refined(2)
+    mesh = mesh.with_subdomains({"half": np.arange(mesh.t.shape[1] // 2)})
+    el = mesh.subdomains["half"]
+    pb = Basis(mesh, ElementTetP1(), elements=el, intorder=2)
+    A, B = vector_blocks(Basis(mesh, ElementTetP2(), elements=el, intorder=2), pb, 0.7)
+    ub = Basis(mesh, ElementVector(ElementTetP2()), elements=el, intorder=2)
+    A_ref = shear_stiffness.assemble(ub, mu=0.7)
+    B_ref = divergence_coupling.assemble(ub, pb)
+    assert abs(A - A_ref).max() < 1e-14 * abs(A_ref).max()
+    assert abs(B - B_ref).max() < 1e-14 * abs(B_ref).max()

@@ -24,8 +24,8 @@ from skfem.helpers import ddot, div, sym_grad
 
 from .axisymmetric import mixed_coefficients
 
-__all__ = ["divergence_coupling", "mixed_coefficients", "pressure_mass", "shear_stiffness",
-           "stress", "von_mises"]
+__all__ = ["derivative_coupling", "divergence_coupling", "gradient_product",
+           "mixed_coefficients", "pressure_mass", "shear_stiffness", "stress", "von_mises"]
 
 
 @BilinearForm
@@ -44,6 +44,28 @@ def divergence_coupling(u, q, w):
 def pressure_mass(p, q, w):
     """C: integral of p q; the pressure block is -(1/lambda) C."""
     return p * q
+
+
+# The same operators from scalar P2 pieces (10 x 10 local matrices instead of 30 x 30; the
+# assembler interleaves them, see fem_reference._system3d.vector_blocks):
+#   A[(t, b), (s, a)] = mu (delta_ab sum_c K_cc + K_ab)[t, s],  K_pq[t, s] = (d_q phi_s, d_p phi_t)
+#   B[q, (s, a)] = (psi_q, d_a phi_s).
+def gradient_product(p: int, q: int):
+    """K_pq: integral of mu d_q(trial) d_p(test), scalar P2."""
+    @BilinearForm
+    def form(u, v, w):
+        return w.mu * u.grad[q] * v.grad[p]
+
+    return form
+
+
+def derivative_coupling(a: int):
+    """B_a: integral of psi d_a(trial), trial scalar P2, test scalar P1."""
+    @BilinearForm
+    def form(u, q, w):
+        return q * u.grad[a]
+
+    return form
 
 
 def stress(u, p, mu):
