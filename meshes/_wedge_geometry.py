@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 from ._geometry import BODIES, MeshError
 
+SQRT3 = math.sqrt(3.0)
+
 # Sector angles whose two bounding planes are both mirror planes of the hexagonal lattice.
 SECTORS = (math.pi / 6.0, math.pi / 3.0, math.pi / 2.0)
 
@@ -151,31 +153,48 @@ class WedgeGeometry:
                        h_e + g * math.hypot(rho - 1.0, z))
             return self.mesh_size * min(size, cap)
         H = self.pillar_height_m / self.focus_radius_m
-        size = cap
-        for cx, cy in self._centres_near(x, y):
-            rho = math.hypot(x - cx, y - cy)
-            size = min(size, h_c + g * math.hypot(max(rho - 1.0, 0.0), z),
-                       h_e + g * math.hypot(rho - 1.0, z),
-                       h_e + g * math.hypot(rho - 1.0, z + H))
+        cx, cy = self._nearest_centre(x, y)
+        # Only the nearest pillar matters: pillars do not overlap, so the nearest centre is
+        # also nearest to every top, rim and base feature (and each size grows with distance).
+        rho = math.hypot(x - cx, y - cy)
+        size = min(cap, h_c + g * math.hypot(max(rho - 1.0, 0.0), z),
+                   h_e + g * math.hypot(rho - 1.0, min(abs(z), abs(z + H))))
         return self.mesh_size * size
 
-    def _centres_near(self, x: float, y: float):
-        """Pillar centres (focus units) that can set the size at (x, y): all of them when few,
-        else those within a few pitches (the grading makes farther features irrelevant)."""
-        centres = self._centres
-        if len(centres) <= 8:
-            return centres
-        best = min((cx - x) ** 2 + (cy - y) ** 2 for cx, cy in centres)
-        reach = (math.sqrt(best) + 2.5) ** 2
-        return [(cx, cy) for cx, cy in centres if (cx - x) ** 2 + (cy - y) ** 2 <= reach]
+    def _nearest_centre(self, x: float, y: float):
+        """Centre (focus units) of the meshed pillar nearest to (x, y): the lattice point
+        found by rounding the lattice coordinates, checked with its eight index
+        neighbours, or a scan of all pillars when none of those is meshed."""
+        table, e = self._lattice
+        if e > 0.0:
+            m0 = round(2.0 * y / (SQRT3 * e))
+            n0 = round((2.0 * x / e + m0) / 2.0)
+            best, where = math.inf, None
+            for dn in (-1, 0, 1):
+                for dm in (-1, 0, 1):
+                    c = table.get((n0 + dn, m0 + dm))
+                    if c is not None:
+                        d2 = (c[0] - x) ** 2 + (c[1] - y) ** 2
+                        if d2 < best:
+                            best, where = d2, c
+            if where is not None:
+                return where
+        return min(table.values(), key=lambda c: (c[0] - x) ** 2 + (c[1] - y) ** 2)
 
     @property
-    def _centres(self):
-        cached = self.__dict__.get("_centres_cache")
+    def _lattice(self):
+        """({(n, m): centre in focus units}, pitch in focus units) of the meshed pillars."""
+        cached = self.__dict__.get("_lattice_cache")
         if cached is None:
             f = self.focus_radius_m
-            cached = [(p.x_m / f, p.y_m / f) for p in self.pillars]
-            object.__setattr__(self, "_centres_cache", cached)
+            table = {(p.n, p.m): (p.x_m / f, p.y_m / f) for p in self.pillars}
+            ring = [p for p in self.pillars if (p.n, p.m) != (0, 0)]
+            e = 0.0
+            if ring:  # |c| = e sqrt(n^2 - n m + m^2)
+                p = ring[0]
+                e = math.hypot(p.x_m, p.y_m) / f / math.sqrt(p.n**2 - p.n * p.m + p.m**2)
+            cached = (table, e)
+            object.__setattr__(self, "_lattice_cache", cached)
         return cached
 
 
