@@ -146,14 +146,14 @@ def contact_faces(mesh, system, *, lens_meshed: bool, lower: str) -> ContactFace
     else:
         G = sp.csr_matrix((n_pts, system.T.shape[1]))
     if lower == "rigid-pillar":
-        G = G + _rigid_rows(system, points, pillar_names, b2, face, owner)
+        G = G + _rigid_rows(system, points, pillar_names, b2, owner)
     if G.nnz == 0:
         raise SolveError("no elastic body carries the contact faces")
     return ContactFaces(points, b1.doflocs, D, weights, G.tocsr(), pillar_of_vertex,
                         pillar_names)
 
 
-def _rigid_rows(system, points, pillar_names, b2, face, owner):
+def _rigid_rows(system, points, pillar_names, b2, owner):
     """-u_z of the rigid pillar under each contact point (reduced columns of its motions)."""
     # Owner of each P2 point: the pillar of any triangle that holds it.
     point_owner = np.full(points.shape[1], -1)

@@ -28,7 +28,8 @@ import numpy as np
 
 from contact import constrained_cg
 from meshes import WedgeGeometry, build_wedge_mesh, sector_pillars
-from scenes import ContactResult, PillarForce, Scene, ScopeError, analytic
+from meshes import SECTORS
+from scenes import ContactResult, InputError, PillarForce, Scene, ScopeError, analytic
 from scenes.lattice import lattice_indices
 
 from ._contact import contact_radius
@@ -101,6 +102,7 @@ def solve_fem3d(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None, progress
         tolerance comes back with ``converged = False`` and the reason in
         ``diagnostics["message"]``.
     """
+    _check_options(mesh_size, sector_angle, block_factor, reach_factor, tol)
     say = progress or (lambda text: None)
     clock = {"start": time.perf_counter()}
     setup = _setup(scene, mesh_size, sector_angle, block_factor, reach_factor, grading or {})
@@ -259,9 +261,6 @@ def _setup(scene: Scene, mesh_size, sector_angle, block_factor, reach_factor, gr
         if lens.rigid and pillar.rigid:
             raise ScopeError("lens.rigid and pillars.rigid are both true: a rigid lens on "
                              "rigid pillars has no contact pressure distribution to compute")
-        if not reach_factor >= 1.0:
-            raise ScopeError(f"reach_factor = {reach_factor!r}: must be >= 1 (pillars within "
-                             "the undeformed reach of the lens would be left out)")
         ell = 0.5 * p.diameter_m
         reach = _reach(scene.lens.radius_m, reach_factor * scene.indentation_m)
         pillars = sector_pillars(p.pitch_m, p.diameter_m, reach, sector_angle)
@@ -287,6 +286,23 @@ def _setup(scene: Scene, mesh_size, sector_angle, block_factor, reach_factor, gr
                         if b in geo.bodies}
     out.update(geometry=geo, ell=ell, E_ref=E_ref)
     return out
+
+
+def _check_options(mesh_size, sector_angle, block_factor, reach_factor, tol) -> None:
+    def number(name, value, low, high, why=""):
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool) and \
+            math.isfinite(value) and low <= value <= high
+        if not ok:
+            raise InputError(f"{name} = {value!r}: allowed range is [{low:g}, {high:g}]{why}")
+
+    number("mesh_size", mesh_size, 0.05, 4.0)
+    number("block_factor", block_factor, 100.0, 1e7)
+    number("reach_factor", reach_factor, 1.0, 10.0,
+           " (below 1, pillars within the undeformed reach of the lens would be left out)")
+    number("tol", tol, 1e-14, 1e-2)
+    if not any(math.isclose(sector_angle, s, rel_tol=1e-12) for s in SECTORS):
+        raise InputError(f"sector_angle = {sector_angle!r}: allowed values are pi/6, pi/3 "
+                         "and pi/2 (both planes must be mirror planes of the lattice)")
 
 
 def _reach(R: float, gap: float) -> float:
