@@ -2,6 +2,7 @@
 peak memory over a mesh_size ladder, with the error of F_T against the Richardson estimate.
 
     python -m validation.bench_fem3d --out DIR [--levels 2,1.41,1] [--dense 2.83,2]
+                                     [--compare-solvers 2.83]
 
 The ladder runs on Phi = 0.2, zeta = 0.3 um, E_p = E_s = E_l (``paper-fig3-sparse`` with
 ``pillars.surface_fraction=0.2`` and ``substrate.E_Pa=1.6e6``).  Targets on the 2-core
@@ -48,6 +49,42 @@ def _run_level(preset: str, overrides: list, mesh_size: float) -> dict:
             "factor_nonzeros": d["factor_nonzeros"]}
 
 
+def _compare_solvers(preset: str, overrides: list, mesh_size: float) -> dict:
+    """Factorisation and one solve of the same reduced system by PARDISO and SuperLU."""
+    import math
+
+    import numpy as np
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import splu
+
+    from fem_reference._pardiso import Pardiso
+    from fem_reference._solid3d import _setup
+    from fem_reference._system3d import assemble_sector
+    from meshes import build_wedge_mesh
+    from scenes import load_scene
+
+    setup = _setup(load_scene(preset, overrides), mesh_size, math.pi / 6, 1e4, 1.0, {})
+    mesh = build_wedge_mesh(setup["geometry"]).to_skfem().scaled([1.0 / setup["ell"]] * 3)
+    system = assemble_sector(mesh, setup["materials"], sector_angle=math.pi / 6,
+                             clamp_pillar_base=False, rigid_pillars=[])
+    S = sp.diags(system.scale)
+    Ks = (S @ system.K @ S).tocsc()
+    b = np.random.default_rng(1).standard_normal(Ks.shape[0])
+    out = {"mesh_size": mesh_size, "unknowns": int(Ks.shape[0])}
+    for name, factor in (("pardiso", lambda: Pardiso(Ks.tocsr())),
+                         ("superlu", lambda: splu(Ks, permc_spec="COLAMD",
+                                                  diag_pivot_thresh=0.1))):
+        t0 = time.perf_counter()
+        f = factor()
+        t1 = time.perf_counter()
+        x = f.solve(b)
+        t2 = time.perf_counter()
+        out[name] = {"factorise_s": t1 - t0, "solve_s": t2 - t1,
+                     "residual": float(np.linalg.norm(Ks @ x - b) / np.linalg.norm(b))}
+        del f
+    return out
+
+
 def run_level(preset: str, overrides: list, mesh_size: float) -> dict:
     ctx = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(max_workers=1, mp_context=ctx) as pool:
@@ -76,6 +113,8 @@ def main(argv=None) -> int:
     ap.add_argument("--out", required=True, type=Path)
     ap.add_argument("--levels", default="2,1.41,1",
                     help="mesh_size ladder, coarse to fine (default 2,1.41,1)")
+    ap.add_argument("--compare-solvers", type=float, default=None, metavar="MESH_SIZE",
+                    help="also time PARDISO against SuperLU on the ladder scene at this level")
     ap.add_argument("--dense", default="",
                     help="mesh sizes for paper-fig3-dense, coarse to fine (e.g. 2.83,2)")
     args = ap.parse_args(argv)
@@ -124,6 +163,15 @@ def main(argv=None) -> int:
             print(f"dense: F_T = {a['F_T_N']:.6g} N at mesh_size {a['mesh_size']:g}, GCI "
                   f"{band * 100:.2f} % ({g.status}, order {g.order}), Richardson "
                   f"{g.f_exact}, {a['wall_s']:.0f} s, {a['peak_rss_GiB']:.2f} GiB")
+    if args.compare_solvers:
+        ctx = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(max_workers=1, mp_context=ctx) as pool:
+            cmp = pool.submit(_compare_solvers, *LADDER_SCENE, args.compare_solvers).result()
+        out["solvers"] = cmp
+        for name in ("pardiso", "superlu"):
+            c = cmp[name]
+            print(f"{name:8s} {cmp['unknowns']} unknowns: factorise {c['factorise_s']:.1f} s, "
+                  f"solve {c['solve_s']:.2f} s, residual {c['residual']:.1e}")
     from scenes import write_atomic
 
     path = write_atomic(args.out / "bench_fem3d.json", json.dumps(out, indent=2))
