@@ -214,6 +214,21 @@ SMALL_LATTICE = ["pillars.surface_fraction=0.05", "load.indentation_um=0.1",
                  "substrate.E_Pa=1.6e6"]  # centre pillar and ring 1 within reach
 
 
+def same_forces_in_wedge_and_quadrant(scene, mesh_size):
+    """Solve on the pi/6 wedge and on the quadrant; assert the same 7 pillars carry the same
+    forces within RTOL_SYMMETRY; return both results and the quadrant's forces by (n, m)."""
+    wedge = solve_fem3d(scene, mesh_size)
+    quad = solve_fem3d(scene, mesh_size, sector_angle=math.pi / 2)
+    for res in (wedge, quad):
+        assert_verified(res)
+    fw = {(p.n, p.m): p.force_N for p in wedge.pillar_forces}
+    fq = {(p.n, p.m): p.force_N for p in quad.pillar_forces}
+    assert set(fw) == set(fq) and len(fw) == 7
+    for key, f in fw.items():
+        assert fq[key] == pytest.approx(f, rel=RTOL_SYMMETRY), key
+    return wedge, quad, fq
+
+
 def test_wedge_against_quadrant():
     """The pi/6 wedge (skew mirror plane) and the quadrant (two axis-aligned mirror planes,
     3x the volume, independent meshes) give the same per-pillar forces; in the quadrant the
@@ -223,18 +238,9 @@ def test_wedge_against_quadrant():
     +0.55..0.82 %, F_T +0.68 % (the quadrant mesh is finer near the axis), (1, 1) against
     (1, 0) in the quadrant +0.28 %.  A wrong skew roller moves forces by many per cent."""
     scene = load_scene("paper-fig3-sparse", SMALL_LATTICE)
-    wedge = solve_fem3d(scene, 2.0)
-    quad = solve_fem3d(scene, 2.0, sector_angle=math.pi / 2)
-    for res in (wedge, quad):
-        assert_verified(res)
-    fw = {(p.n, p.m): p.force_N for p in wedge.pillar_forces}
-    fq = {(p.n, p.m): p.force_N for p in quad.pillar_forces}
-    assert set(fw) == set(fq) and len(fw) == 7
-    for key, f in fw.items():
-        assert fq[key] == pytest.approx(f, rel=RTOL_SYMMETRY), key
+    wedge, quad, fq = same_forces_in_wedge_and_quadrant(scene, 2.0)
     assert fq[(1, 1)] == pytest.approx(fq[(1, 0)], rel=RTOL_EQUIVALENT)
     assert quad.total_force_N == pytest.approx(wedge.total_force_N, rel=RTOL_SYMMETRY)
-
 
 
 def test_rigid_pillars_tilt_the_same_in_wedge_and_quadrant():
@@ -246,15 +252,7 @@ def test_rigid_pillars_tilt_the_same_in_wedge_and_quadrant():
     mesh near the axis), so RTOL_SYMMETRY at mesh_size 2."""
     scene = load_scene("paper-fig3-sparse", [*SMALL_LATTICE[:2], "pillars.rigid=true",
                                              "substrate.E_Pa=1.6e6", "substrate.nu=0.5"])
-    wedge = solve_fem3d(scene, 2.0)
-    quad = solve_fem3d(scene, 2.0, sector_angle=math.pi / 2)
-    for res in (wedge, quad):
-        assert_verified(res)
-    fw = {(p.n, p.m): p.force_N for p in wedge.pillar_forces}
-    fq = {(p.n, p.m): p.force_N for p in quad.pillar_forces}
-    assert set(fw) == set(fq) and len(fw) == 7
-    for key, f in fw.items():
-        assert fq[key] == pytest.approx(f, rel=RTOL_SYMMETRY), key
+    same_forces_in_wedge_and_quadrant(scene, 2.0)
 
 
 # --- slow: convergence and cross-checks ------------------------------------------------------
