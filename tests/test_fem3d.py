@@ -191,7 +191,8 @@ def test_hertz_on_a_rigid_substrate():
 def test_rigid_pillar_on_elastic_substrate_is_two_springs_in_series():
     """A rigid pillar bonded to an elastic substrate moves as one rigid body (its rigid
     motion unknowns, reduced to t_z by the two mirrors): with nu = 0.5 a bonded rigid punch
-    acts like a frictionless one, so F = d zeta / (gamma_l + gamma_s) exactly.  Tolerance: mesh_size 2 discretisation (fem-axisym: 1e-4 at its finest)."""
+    acts like a frictionless one, so F = d zeta / (gamma_l + gamma_s) exactly.  Tolerance:
+    the mesh_size 2 discretisation (fem-axisym reaches 1e-4 at its finest)."""
     scene = load_scene("single-pillar", ["pillars.rigid=true", "lens.radius_mm=1e5",
                                          "pillars.surface_fraction=1e-7",
                                          "substrate.E_Pa=6.4e6", "substrate.nu=0.5"])

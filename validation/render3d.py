@@ -110,7 +110,8 @@ def _render(vtu: str, png: str) -> str:
     plotter.camera.zoom(1.2)
     s = meta["scene"]
     title = (f"fem-3d, {s.get('name', '')}: {len(unfold(grid, alpha))} images of the "
-             f"{math.degrees(alpha):.0f} deg sector; lens (far half) lifted by {2 * h * 1e6:.3g} um")
+             f"{math.degrees(alpha):.0f} deg sector; lens (far half) lifted by "
+             f"{2 * h * 1e6:.3g} um")
     plotter.add_text(title, font_size=10)
     plotter.screenshot(png)
     plotter.close()
