@@ -9,8 +9,11 @@ g(r) = R - sqrt(R^2 - r^2) between the lens bottom and a pillar top at the same 
 lens top moves down by zeta (a roller), the substrate bottom is a roller, the cylindrical
 sides are free.  The pillars meshed are those whose top the undeformed lens could reach,
 g(|c| - d/2) <= reach_factor * zeta (exact with reach_factor = 1: elastic deflections only
-open the gap, so the others carry no load; the stiffness they add to the substrate was
-measured, see the tests).  Taylor-Hood P2/P1 tetrahedra, rigid bodies imposed, not meshed.
+open the gap, so the others carry no load; meshing the unloaded pillars out to 3 zeta of
+reach changed F_T by -0.07 % on a 7-pillar scene at mesh_size 2).  The blocks are 1e4 focus
+radii wide: truncation ~ F gamma / (pi L zeta), 6e-5 for one pillar (measured 0.8 x the
+estimate at L = 1e2); the graded far field itself moves F_T by <= 0.08 % from L = 1e3 to
+1e5.  Taylor-Hood P2/P1 tetrahedra, rigid bodies imposed, not meshed.
 
 Solution.  One PARDISO factorisation of the reduced saddle-point matrix; the contact problem
 on the P1 mortar multiplier is solved by constrained conjugate gradients with the condensed

@@ -281,21 +281,35 @@ def test_hertz_converges_at_a_rate():
 
 @pytest.mark.slow
 def test_single_pillar_agrees_with_axisymmetric_within_gcis():
-    """F_T and sigma0 of fem-3d (mesh_size 2, 1.41, 1) and fem-axisym (2, 1, 0.5) agree
-    within the sum of their GCIs (Roache; validation.verification)."""
-    from validation.verification import gci_three
-
+    """F_T and sigma0 of fem-3d (mesh_size 1.41, 1, 0.71) and fem-axisym (2, 1, 0.5) agree
+    within the sum of their GCIs (Roache; validation.verification), each GCI with the
+    observed order capped at the formal order 2 (Roache's advice: an observed order above
+    the formal one, here 4.4 for the 3D sigma0, a single vertex value at the wedge apex,
+    makes the GCI over-optimistic).  Measured against fem-axisym at 0.5: F_T +0.38, +0.22,
+    +0.11 %; sigma0 +0.38, +0.03, -0.04 %."""
     scene = load_scene("single-pillar")
-    s3 = [1.0, 1.41, 2.0]
+    s3 = [0.71, 1.0, 1.41]
     r3 = [solve_fem3d(scene, s) for s in s3]
     sa = [0.5, 1.0, 2.0]
     ra = [solve_axisymmetric(scene, s) for s in sa]
     for get in (lambda r: r.total_force_N, lambda r: r.centre_pressure_Pa):
-        g3 = gci_three(s3, [get(r) for r in r3])
-        ga = gci_three(sa, [get(r) for r in ra])
-        band = g3.fallback_uncertainty + ga.fallback_uncertainty
-        assert abs(get(r3[0]) - get(ra[0])) <= band, (g3, ga)
-        assert band < 0.02 * abs(get(ra[0]))  # the check has teeth: bands below 2 %
+        band = (capped_gci(s3, [get(r) for r in r3]) + capped_gci(sa, [get(r) for r in ra]))
+        assert abs(get(r3[0]) - get(ra[0])) <= band
+        assert band < 0.01 * abs(get(ra[0]))  # the check has teeth: bands below 1 %
+
+
+FORMAL_ORDER = 2.0
+
+
+def capped_gci(h, f) -> float:
+    """Uncertainty (unit of f) of the finest of three solutions: the GCI with the observed
+    order capped at FORMAL_ORDER, or the conservative fallback when no order is observed."""
+    from validation.verification import FS_THREE_GRIDS, gci_three, gci_two
+
+    g = gci_three(h, f)
+    if g.order is None:
+        return g.fallback_uncertainty
+    return gci_two(h[:2], f[:2], min(g.order, FORMAL_ORDER), fs=FS_THREE_GRIDS).uncertainty
 
 
 @pytest.mark.slow
@@ -328,7 +342,8 @@ def test_rigid_pillars_against_dense_bem():
 @pytest.mark.slow
 def test_unloaded_pillars_change_little():
     """Meshing the pillars out to twice the reach of the undeformed lens (unloaded ones)
-    changes F_T by less than the discretisation error (measured ...)."""
+    changes F_T by less than the discretisation error (measured -0.069 % at mesh_size 2 with
+    reach_factor 3: 4 pillars of the wedge meshed instead of 2, the same 7 in contact)."""
     scene = load_scene("paper-fig3-sparse", SMALL_LATTICE)
     base = solve_fem3d(scene, 2.0)
     wide = solve_fem3d(scene, 2.0, reach_factor=3.0)
@@ -358,18 +373,20 @@ def test_scalar_piece_assembly_equals_the_vector_forms():
 
 @pytest.mark.slow
 def test_block_truncation_is_measured():
-    """F(L) = F_inf + c / L over L = 1e2, 1e3 (focus radii) extrapolates to the default
-    block's answer, and the a-priori estimate F (gamma_l + gamma_s) / (pi L zeta) bounds the
-    truncation measured at L = 1e2 (the axisymmetric model measured 0.8 x the estimate)."""
+    """Rigid punch on the lens (only the lens meshed): the block of L = 1e2 focus radii is
+    softer than the default L = 1e4 by about the a-priori estimate F gamma / (pi L zeta)
+    (measured 0.80 x it at mesh_size 1.41, as in the axisymmetric model); from 1e3 to 1e5
+    the force moves by <= 0.08 % (the far-field grading, not the truncation: measured
+    +0.14, +0.18, +0.22 % against the closed form)."""
     scene = load_scene("single-pillar", ["pillars.rigid=true", "lens.radius_mm=1e5",
                                          "pillars.surface_fraction=1e-7"])
-    f2, f3, f4 = (solve_fem3d(scene, 2.0, block_factor=b) for b in (1e2, 1e3, 1e4))
-    f_inf = (10 * f3.total_force_N - f2.total_force_N) / 9
-    assert f4.total_force_N == pytest.approx(f_inf, rel=2e-4)
-    measured = f2.total_force_N / f_inf - 1
-    assert 0.3 * f2.diagnostics["truncation_estimate"] < measured
-    assert measured < 1.2 * f2.diagnostics["truncation_estimate"]
-    assert f4.diagnostics["truncation_estimate"] < 1e-4
+    exact = analytic.rigid_punch(scene).force
+    f = {b: solve_fem3d(scene, 1.41, block_factor=b) for b in (1e2, 1e3, 1e4, 1e5)}
+    measured = f[1e2].total_force_N / f[1e4].total_force_N - 1
+    estimate = f[1e2].diagnostics["truncation_estimate"]
+    assert 0.5 * estimate < measured < 1.2 * estimate
+    big = [f[b].total_force_N / exact - 1 for b in (1e3, 1e4, 1e5)]
+    assert max(big) - min(big) < 1.5e-3 and max(abs(e) for e in big) < 5e-3
 
 
 @pytest.mark.slow
