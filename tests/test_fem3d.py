@@ -116,6 +116,16 @@ def test_single_pillar_against_axisymmetric_coarse():
         assert prof["pressure_Pa"][0] == res.centre_pressure_Pa
 
 
+def test_rigid_lens_against_axisymmetric():
+    """A rigid lens (not meshed: the contact faces are the pillar top's alone) on an elastic
+    pillar and substrate, against fem-axisym."""
+    scene = load_scene("single-pillar", ["lens.rigid=true"])
+    ax = solve_axisymmetric(scene)
+    res = solve_fem3d(scene, 2.0)
+    assert_verified(res)
+    assert res.total_force_N == pytest.approx(ax.total_force_N, rel=RTOL_AXISYM_COARSE)
+
+
 def test_incompressible_limit_is_continuous():
     """nu = 0.5 (exact, no 1/lambda) against 0.4999: the compliance changes by
     d gamma / gamma = 2 nu dnu / (1 - nu^2) = 1.3e-4; a locking element would be ~30 % stiff."""
@@ -244,6 +254,7 @@ def test_wedge_against_quadrant():
     assert quad.total_force_N == pytest.approx(wedge.total_force_N, rel=RTOL_SYMMETRY)
 
 
+@pytest.mark.slow
 def test_rigid_pillars_tilt_the_same_in_wedge_and_quadrant():
     """Rigid pillars bonded to an elastic substrate move with their rigid motions (6 off the
     mirror planes, 3 on one, 1 at the centre): the off-centre pillars tilt.  The wedge and
