@@ -141,6 +141,8 @@ def test_incompressible_limit_is_continuous():
 
 
 def test_stiffness_extremes_and_monotone_force():
+    """E_p / E_l = 1e-3 and 1e6 (E_s = E_p) converge, are finite, agree with fem-axisym
+    (measured +0.63 % and +0.81 % at mesh_size 2), and F_T rises with E_p."""
     forces = {}
     for ratio in (1e-3, 1.0, 1e6):
         scene = load_scene("single-pillar", [f"pillars.E_Pa={ratio * 1.6e6}"])
@@ -148,10 +150,10 @@ def test_stiffness_extremes_and_monotone_force():
         assert_verified(res)
         assert all(math.isfinite(v) for v in res.pillar_top_profile["pressure_Pa"])
         forces[ratio] = res.total_force_N
+        if ratio != 1.0:
+            ax = solve_axisymmetric(scene)
+            assert res.total_force_N == pytest.approx(ax.total_force_N, rel=RTOL_AXISYM_COARSE)
     assert forces[1e-3] < forces[1.0] < forces[1e6]
-    # soft end: the pillar alone deforms, F ~ E_p (spring model within its 0.2 % here)
-    spring = analytic.spring_model(load_scene("single-pillar", ["pillars.E_Pa=1600"])).force
-    assert forces[1e-3] == pytest.approx(spring, rel=0.05)
 
 
 # --- result, files, refusals --------------------------------------------------------------
