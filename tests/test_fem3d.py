@@ -215,6 +215,11 @@ def test_rigid_pillar_on_elastic_substrate_is_two_springs_in_series():
     assert res.total_force_N == pytest.approx(d * zeta / (gl + gs), rel=RTOL_AXISYM_COARSE)
 
 
+def test_close_packing_is_refused():
+    with pytest.raises(ScopeError, match="surface_fraction"):
+        solve_fem3d(load_scene("paper-fig3-dense", ["pillars.surface_fraction=0.9068"]))
+
+
 def test_rigid_lens_on_rigid_pillars_is_refused():
     scene = load_scene("single-pillar", ["lens.rigid=true", "pillars.rigid=true",
                                          "substrate.E_Pa=1.6e6", "substrate.nu=0.5"])
