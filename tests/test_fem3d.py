@@ -106,6 +106,9 @@ def test_single_pillar_against_axisymmetric_coarse():
     assert res.centre_pressure_Pa == pytest.approx(ax.centre_pressure_Pa,
                                                    rel=RTOL_AXISYM_COARSE)
     assert res.pillars_in_contact == 1
+    history = res.fields["residual_history"]
+    assert len(history) == res.iterations + 1 and history[-1] < RTOL_SOLVER
+    assert history[len(history) // 2] < 1e-3 * history[0]  # falls steadily, no stagnation
     (p,) = res.pillar_forces
     assert (p.n, p.m) == (0, 0) and p.force_N == pytest.approx(res.total_force_N, rel=1e-12)
     # both profiles run from the axis to the rim and agree at the axis
