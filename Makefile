@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: demo study-gecit test test-slow bench-bem bench-fft bench-gpu bench-engine clean
+.PHONY: demo study-gecit test test-slow bench-bem bench-fft bench-gpu bench-fem3d bench-engine clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -47,6 +47,11 @@ bench-fft: $(STAMP)
 # one it runs the CPU column on small levels and says the GPU column is pending).
 bench-gpu: $(STAMP)
 	$(PY) -m validation.bench.gpu --out $(OUT)/bench-gpu
+
+# 3D FEM: unknowns, time by phase, iterations and peak memory over a mesh_size ladder on
+# Phi = 0.2 and on the densest paper scene (about 12 minutes).
+bench-fem3d: $(STAMP)
+	$(PY) -m validation.bench.fem3d --out $(OUT)/bench-fem3d --levels 2.83,2,1.41 --dense 2.83,2,1.41
 
 bench-engine: $(STAMP)
 	$(PY) -m validation.bench.engine --out $(OUT)/bench-engine
