@@ -8,7 +8,8 @@ substrate block, or a flat substrate.  Groups are named (``lens``, ``pillar``,
 ``axis``, ``far_lens``, ``far_substrate``, ...) and code uses the names, never numeric tags.
 """
 
-from ._geometry import BODIES, AxisymmetricGeometry, MeshError, flat_geometry, pillar_geometry
+from ._geometry import (BODIES, AxisymmetricGeometry, GeometryError, MeshError, flat_geometry,
+                        pillar_geometry)
 from ._gmsh import build_axisymmetric_mesh
 from ._mesh import MIN_QUALITY, AxisymmetricMesh
 
@@ -17,6 +18,7 @@ __all__ = [
     "MIN_QUALITY",
     "AxisymmetricGeometry",
     "AxisymmetricMesh",
+    "GeometryError",
     "MeshError",
     "build_axisymmetric_mesh",
     "flat_geometry",
