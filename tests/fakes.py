@@ -17,7 +17,7 @@ C_FEM, C_BEM = 0.02, 0.5
 def edge_exponent_of(scene) -> float:
     """The fake FEM's edge exponent: 1/2 for a rigid pillar, falling to 0 for a soft one."""
     ratio = scene.pillars.material.E_Pa / scene.lens.material.E_Pa
-    return 0.5 * ratio / (1.0 + ratio)
+    return 0.5 if math.isinf(ratio) else 0.5 * ratio / (1.0 + ratio)
 
 
 def _profile(scene, n: int = 60):

@@ -187,3 +187,18 @@ def test_real_compare(scene, tmp_path):
         # centre pressure by -37 %; bound the force at 2 %, 4x the measured gap
         assert abs(rows["F_T"]["relative_difference"]) < 0.02
     assert (out / "summary.md").exists()
+
+
+def test_render_has_a_length_scale_and_a_readable_colour_bar(fakes, tmp_path):
+    from fakes import fake_fem
+    from validation.render import nice_length, readable, render_stress
+
+    assert [nice_length(s) for s in (10.0, 3.0, 0.7, 45.0)] == [2.0, 1.0, 0.2, 10.0]
+    assert readable("von_mises_Pa") == "von Mises stress"
+    fake_fem(load_scene("single-pillar"), 1.0, vtu_path=tmp_path / "f.vtu")
+    ok, message = render_stress(tmp_path / "f.vtu", tmp_path / "f.png", 1e-5,
+                                stamp="NOT CONVERGED")
+    if not ok:  # no OpenGL here: the child process says so, the caller carries on
+        assert message.startswith(("render failed", "render timed out"))
+        pytest.skip(message)
+    assert (tmp_path / "f.png").read_bytes()[:4] == b"\x89PNG" and "von_mises_Pa" in message

@@ -142,3 +142,25 @@ def test_unreadable_cache_entry_is_recomputed(fakes, tmp_path):
     out = Engine("serial").run_one(case, tmp_path)
     assert not out.cached and fakes == [("fem", 1.0)] and out.result.converged
     assert Engine("serial").run_one(case, tmp_path).cached
+
+
+def test_convergence_figure_of_a_level_that_missed_is_stamped(fakes, tmp_path, monkeypatch):
+    import sys
+
+    from fakes import fake_bem
+    from validation import plots
+
+    def stuck_at_23(scene, elements_per_diameter=11, **options):
+        result = fake_bem(scene, elements_per_diameter, **options)
+        result.converged = elements_per_diameter != 23
+        result.diagnostics["message"] = "stuck"
+        return result
+
+    monkeypatch.setattr(sys.modules["xval_fakes"], "fake_bem", stuck_at_23)
+    figures = []
+    monkeypatch.setattr(plots, "_save", lambda fig, path: figures.append(fig))
+    assert main(["converge", "--scene", "hertz", "--out", str(tmp_path), "--executor",
+                 "serial"]) == 1
+    texts = [t.get_text() for t in figures[0].texts]
+    assert "NOT CONVERGED" in texts and any("elements_per_diameter=23: stuck" in t
+                                            for t in texts)

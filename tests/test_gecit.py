@@ -159,3 +159,20 @@ def test_failed_case_is_a_row_not_a_crash(fakes, tmp_path, monkeypatch):
     rows = json.loads((out / "gecit.json").read_text())["rows"]
     assert rows[0]["status"] == "failed: SuperLU could not factorise"
     assert rows[1]["status"] == "ok"
+
+
+def test_gecit_figure_draws_the_bands_it_computes(tmp_path, monkeypatch):
+    from validation import plots
+
+    rows = [{"ratio": r, "aspect": 0.5, "err_F_T": -0.01 * r, "U_BEM_F_T": 0.002,
+             "err_sigma0": 0.1, "U_BEM_sigma0": 0.004, "edge_exponent": 0.3, "plateau": 1.0,
+             "outer_load_fraction": 0.2, "status": "ok"} for r in (0.1, 1.0, 10.0)]
+    figures = []
+    monkeypatch.setattr(plots, "_save", lambda fig, path: figures.append(fig))
+    plots.plot_gecit(rows, tmp_path / "g.png", "E_s = E_p (the paper's convention)")
+    fig = figures[0]
+    bars = [c for c in fig.axes[0].containers if hasattr(c, "has_yerr") and c.has_yerr]
+    assert len(bars) == 1
+    segments = bars[0].lines[2][0].get_segments()  # one vertical bar per point, +-U in %
+    assert [s[1][1] - s[0][1] for s in segments] == pytest.approx([0.4] * 3)
+    assert "$E_s = E_p$" in fig._suptitle.get_text()

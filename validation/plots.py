@@ -9,6 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from matplotlib.ticker import NullFormatter
 
 from .ladders import QUANTITIES
 from .report import KPA, pyplot, save_figure, stamp_not_converged
@@ -16,8 +17,15 @@ from .report import KPA, pyplot, save_figure, stamp_not_converged
 _MARKERS = "osd^v<>p"
 # Quantities in mathtext, for labels.
 _SYMBOL = {"F_T": "$F_T$", "sigma0": r"$\sigma_0$", "a": "$a$", "A": "$A$"}
+_TITLE = {"F_T": "total force $F_T$", "sigma0": r"centre pressure $\sigma_0$",
+          "a": "contact radius $a$", "A": "real contact area $A$"}
 # The short name of each ladder option, for labels of points: P = 11, N = 32, S = 0.5.
 _OPTION_LETTER = {"elements_per_diameter": "P", "cells_per_diameter": "N", "mesh_size": "S"}
+
+
+def _math(text: str) -> str:
+    """Moduli in mathtext: E_s = E_p -> $E_s = E_p$."""
+    return text.replace("E_s = E_p", "$E_s = E_p$")
 
 
 def _save(fig, path) -> Path:
@@ -71,8 +79,8 @@ def plot_convergence(data: dict, path: Path) -> Path:
     option = data["ladder"]["option"]
     ax.set_xlabel(f"relative cell size h ({data['ladder']['h_meaning']})")
     ax.set_ylabel("relative error")
-    ax.set_title(f"{data['model']} on {data['scene'].get('name', '?')}: "
-                 f"{_OPTION_LETTER.get(option, option)} = {values}", fontsize=10)
+    ax.set_title(f"{data['model']} on {data['scene'].get('name', '?')}: {option} = {values}",
+                 fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     stamp_not_converged(fig, _unconverged_levels(data))
     return _save(fig, path)
@@ -161,7 +169,7 @@ def plot_gecit(rows: list[dict], path: Path, convention: str = "") -> Path:
         if ax.get_legend_handles_labels()[0]:
             ax.legend(fontsize=8)
     fig.suptitle("Hooke-spring BEM against the elastic-pillar FEM (single pillar)"
-                 + (f"\n{convention}" if convention else "")
+                 + (f"\n{_math(convention)}" if convention else "")
                  + "; error bars: the BEM's GCI band", fontsize=10)
     stamp_not_converged(fig, [f"E_p/E_l={r['ratio']:g} h/d={r['aspect']:g}" for r in rows
                               if r["status"] == "not converged"])
@@ -192,7 +200,7 @@ def plot_gecit_profiles(profiles: list[dict], path: Path, convention: str = "") 
     if axes[0, 0].get_legend_handles_labels()[0]:
         axes[0, 0].legend(fontsize=7, loc="upper left")
     fig.suptitle("Pressure across the pillar top, elastic pillar (FEM)"
-                 + (f"; {convention}" if convention else ""), fontsize=10)
+                 + (f"\n{_math(convention)}" if convention else ""), fontsize=10)
     return _save(fig, path)
 
 
@@ -251,13 +259,17 @@ def plot_tradeoff(doc: dict, path: Path) -> Path:
                     ha="center", transform=ax.transAxes)
             ax.set_xscale("log")
         ax.set(xlabel="wall time (s)", ylabel=f"relative error of {_SYMBOL[q.key]}")
-        ax.set_title(q.label, fontsize=10)
+        ax.set_title(_TITLE[q.key], fontsize=10)
         ax.grid(True, which="both", alpha=0.3)
-    refs = "; ".join(
-        f"{group}: " + ", ".join(f"{_SYMBOL[k]} {ref[k]['model']}" for k in ref)
-        for group, ref in doc["references"].items())
-    fig.suptitle(f"speed against accuracy on {doc['scene'].get('name', '?')} "
-                 f"(references: {refs})", fontsize=9)
+        for axis in (ax.xaxis, ax.yaxis):  # decades only: minor labels crowd a short axis
+            axis.set_minor_formatter(NullFormatter())
+    fig.suptitle(f"speed against accuracy on {doc['scene'].get('name', '?')}: each error "
+                 "against the Richardson reference of its own physics", fontsize=11)
+    refs = ["references: " + "; ".join(
+        f"{group} " + ", ".join(f"{_SYMBOL[k]} by {ref[k]['model']}" for k in ref)
+        for group, ref in doc["references"].items())]
+    fig.text(0.5, 0.022, refs[0], ha="center", fontsize=8, color="0.3")
+    fig.tight_layout(rect=(0, 0.04, 1, 1))  # the bottom edge: references, NOT CONVERGED note
     stamp_not_converged(fig, [f"{r['model']} {rung_label(r['option'], r['level'])}"
                               for r in doc["rows"] if not r["converged"]])
-    return _save(fig, path)
+    return save_figure(fig, path, 120, layout=False)

@@ -38,20 +38,22 @@ def pyplot():
     return plt
 
 
-def figure_png(fig, dpi: int = 120) -> bytes:
-    """Lay out ``fig``, close it and return its PNG bytes (write them with write_atomic)."""
+def figure_png(fig, dpi: int = 120, layout: bool = True) -> bytes:
+    """Lay out ``fig`` (unless ``layout`` is False: the caller did), close it and return its
+    PNG bytes (write them with write_atomic)."""
     import matplotlib.pyplot as plt
 
-    fig.tight_layout()
+    if layout:
+        fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi)
     plt.close(fig)
     return buf.getvalue()
 
 
-def save_figure(fig, path, dpi: int = 120) -> Path:
-    """Write ``fig`` as a PNG atomically and close it."""
-    return write_atomic(path, figure_png(fig, dpi))
+def save_figure(fig, path, dpi: int = 120, layout: bool = True) -> Path:
+    """Write ``fig`` as a PNG atomically and close it (see :func:`figure_png`)."""
+    return write_atomic(path, figure_png(fig, dpi, layout))
 
 
 def stamp_not_converged(fig, what: list[str]) -> None:
@@ -108,7 +110,12 @@ def not_converged_note(result: ContactResult) -> list[str]:
 
 
 def pressure_figure(result: ContactResult) -> bytes:
-    """PNG bytes of a solve's pressure.
+    """PNG bytes of :func:`pressure_plot`."""
+    return figure_png(pressure_plot(result))
+
+
+def pressure_plot(result: ContactResult):
+    """The matplotlib figure of a solve's pressure.
 
     With an element map (the BEM models): the map of the computed elements (left; a regular
     grid is drawn as an image) and sigma(r) of every element with the Hertz, spring-model and
@@ -127,16 +134,18 @@ def pressure_figure(result: ContactResult) -> bytes:
         fig, ax_prof = plt.subplots(figsize=(6.8, 4.8))
         _top_profile(ax_prof, result, scene)
     stamp_not_converged(fig, not_converged_note(result))
-    return figure_png(fig)
+    return fig
 
 
 def _colour_limit(p: np.ndarray) -> tuple[float, bool]:
-    """(upper colour limit in Pa, whether peaks above it are cut): the 99th percentile of the
-    loaded elements, so that a few singular edge values do not turn the map dark."""
+    """(upper colour limit in Pa, whether peaks above it are cut): the 95th percentile of the
+    loaded elements, at most 4 times their median, so that the edge peaks of the pillar tops
+    (5 to 15 % of the elements, 10 to 40 times the bulk on Fig. 3's scenes) do not turn the
+    map dark."""
     loaded = p[p > 0]
     if loaded.size == 0:
         return 1.0, False
-    top = float(np.percentile(loaded, 99))
+    top = min(float(np.percentile(loaded, 95)), 4.0 * float(np.median(loaded)))
     return (top, True) if p.max() > 1.05 * top else (float(p.max()), False)
 
 
@@ -168,7 +177,7 @@ def _pressure_map(fig, ax, result: ContactResult, scene) -> None:
         image, extent = grid
         shown = ax.imshow(image * KPA, origin="lower", extent=extent, cmap="viridis",
                           vmin=0.0, vmax=vmax * KPA, interpolation="nearest")
-        what = f"all {p.size} cells"
+        what = f"all {p.size} grid cells"
     else:
         corners = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * 0.5
         polys = []
@@ -180,15 +189,17 @@ def _pressure_map(fig, ax, result: ContactResult, scene) -> None:
         shown = PolyCollection(polys, array=p * KPA, cmap="viridis", edgecolors="none")
         shown.set_clim(0.0, vmax * KPA)
         ax.add_collection(shown)
-        what = "one element per symmetry orbit"
+        what = f"{p.size} elements, one per symmetry orbit"
     fig.colorbar(shown, ax=ax, label="pressure (kPa)", extend="max" if cut else "neither")
     rmax = max(np.hypot(x, y).max() * UM * 1.05, 1.0)
     if scene.pillars is not None:  # the lattice's primitive cell, 0 <= theta <= pi/6
         for ang in (0.0, math.pi / 6):
             ax.plot([0, rmax * math.cos(ang)], [0, rmax * math.sin(ang)], "r-.", lw=0.8)
-        what += "; primitive cell dash-dotted"
+        what += "\nprimitive cell dash-dotted, contact radius dotted"
+    else:
+        what += "\ncontact radius dotted"
     if result.contact_radius_m > 0:
-        t = np.linspace(0, math.pi / 2, 100)
+        t = np.linspace(0, 2 * math.pi if grid is not None else math.pi / 2, 200)
         a = result.contact_radius_m * UM
         ax.plot(a * np.cos(t), a * np.sin(t), "r:", lw=1)
     lo = -0.1 * rmax if grid is None else min(extent[0], extent[2])
@@ -197,7 +208,7 @@ def _pressure_map(fig, ax, result: ContactResult, scene) -> None:
     ax.set_aspect("equal")
     ax.set_xlabel("x (µm)")
     ax.set_ylabel("y (µm)")
-    ax.set_title(f"{result.model}: {what}; contact radius dotted"
+    ax.set_title(f"{result.model}: {what}"
                  + (f"\ncolour capped at {vmax * KPA:.3g} kPa (peaks {p.max() * KPA:.3g} kPa)"
                     if cut else ""), fontsize=9)
 
@@ -228,7 +239,8 @@ def _element_profile(ax, result: ContactResult, scene) -> None:
     from scenes import analytic
 
     r_end = max(analytic.hertz(scene).contact_radius, result.contact_radius_m) * 1.05
-    top = _closed_form_curves(ax, result, scene, r_end) * 6 * KPA
+    # Room for the pillar-top edge peaks, or just above the Hertz dome on a flat substrate.
+    top = _closed_form_curves(ax, result, scene, r_end) * (6 if scene.pillars else 1.3) * KPA
     if p.size <= SCATTER_MAX:
         ax.plot(r, p, ".", ms=3, color="0.3", label=f"{result.model} elements", zorder=1)
     else:  # hundreds of thousands of cells: their density, in grey
@@ -264,12 +276,12 @@ def _top_profile(ax, result: ContactResult, scene) -> None:
         hz = analytic.hertz(scene)
         edge, where = 1.3 * hz.contact_radius, "contact"
         rh = np.linspace(0, hz.contact_radius, 300)
-        ax.plot(rh * UM, hz.pressure(rh) * KPA, "b-", lw=1.2, label="Hertz")
-    ax.plot(r * UM, p * KPA, "-", color="0.15", lw=1.6, label=f"{result.model}")
+        ax.plot(rh * UM, hz.pressure(rh) * KPA, "b--", lw=1.2, label="Hertz", zorder=3)
+    ax.plot(r * UM, p * KPA, "-", color="0.15", lw=2.0, label=f"{result.model}")
     inner = (r <= 0.8 * edge) & np.isfinite(p)
     top = max(float(p[inner].max()) if inner.any() else 0.0, result.centre_pressure_Pa)
     if top > 0:  # a singular edge runs off the top, by design; the caption gives its peak
-        ax.set_ylim(0, 2.0 * top * KPA)
+        ax.set_ylim(0, (2.0 if scene.pillars else 1.2) * top * KPA)
     ax.set_xlim(0, 1.05 * edge * UM)
     ax.set_xlabel("r (µm)")
     ax.set_ylabel("contact pressure (kPa)")

@@ -10,14 +10,19 @@
   for a ladder (:func:`add_levels_argument`).  An option that no chosen model takes is
   refused (:func:`refuse_inapplicable`): the registry :data:`validation.models.MODELS` says
   which options a model takes, so a model registered later joins without a change here;
+- model options with a few values: ``--cells``, ``--contact``, ``--device``
+  (:func:`add_choice_arguments`); the values of every model option are those of
+  :data:`validation.options.MODEL_OPTIONS`;
 - output: ``--out DIR`` and ``--json`` (:func:`add_output_arguments`, :func:`check_out`,
   :func:`print_json`);
 - engine: ``--executor``, ``--workers``, ``--scheduler``, ``--fresh``
-  (:func:`add_engine_arguments`).
+  (:func:`add_engine_arguments`);
+- outcomes: :func:`not_converged` (exit 1 and its line), :func:`study_status` (a study of many
+  cases), :func:`failure_status`; an old spelling: :class:`Renamed`.
 
 Numbers are parsed strictly (:func:`integer`, :func:`number`): ``5.5`` is not an integer,
 ``1_0``, ``nan`` and ``inf`` are not numbers.  Every refusal is one line that names the option
-as the user wrote it, the value and the allowed range, with exit status 2.
+as the user wrote it, the value and the allowed range, with exit status 2 (:class:`Parser`).
 """
 
 from __future__ import annotations

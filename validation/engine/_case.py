@@ -259,7 +259,7 @@ def compute_case(spec: dict) -> dict:
         if spec.get("vtu") and accepts_vtu(spec["model"]):
             first_kwargs["vtu_path"] = Path(tmp) / "fields.vtu"
         # Lines inside a long first run (on the worker's stderr); the timing repeats are quiet.
-        with SolveProgress(spec.get("tag") or spec["model"]) as progress:
+        with SolveProgress(spec.get("tag") or spec["model"], every_s=10.0) as progress:
             if accepts_progress(spec["model"]):
                 first_kwargs["progress"] = progress
             result, wall, memory = _measured_run(solver, scene, first_kwargs)

@@ -91,7 +91,7 @@ class SolveProgress:
         self.label, self.stream = label, stream or sys.stderr
         self.every_s, self.after_s = every_s, after_s
         self._t0 = time.perf_counter()
-        self._state, self._changed, self._last = "started", False, -math.inf
+        self._state, self._changed, self._last = "running", False, -math.inf
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._beat, daemon=True, name="solve-progress")

@@ -5,11 +5,12 @@ Both models run on the same number of refinements (``levels``, 3 by default): th
 mesh_size 2 (``FEM_COARSEST``; 2, 1, 0.5), the BEM from 11 elements per diameter (11, 23,
 47).  Each model's uncertainty on each quantity is its GCI band U = GCI_fine |f1| (Roache,
 Fs = 1.25), or, for a sequence without an observed order, the spread of the levels (marked);
-the two bands add in quadrature.  A difference between the finest BEM and FEM values larger than the combined band
-is marked: it is a model difference, not noise of the discretisations.
+the two bands add in quadrature.  A difference between the finest BEM and FEM values larger
+than the combined band is marked: it is a model difference, not noise of the
+discretisations.
 
-Outputs: report.json, summary.md, profiles.png and profiles.csv, the finest FEM VTU and a
-pyvista render of its stress field revolved about the axis.
+Outputs (:data:`OUTPUTS`): summary.md, profiles.png and profiles.csv, the finest FEM VTU and a
+pyvista render of its stress field revolved about the axis, and report.json, written last.
 """
 
 from __future__ import annotations
