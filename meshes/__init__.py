@@ -11,7 +11,8 @@ The 3D builder meshes a sector 0 <= theta <= alpha of the lattice centred on pil
 reach, substrate block, with per-pillar groups (``contact_pillar_{n}_{m}``, ...).
 """
 
-from ._geometry import BODIES, AxisymmetricGeometry, MeshError, flat_geometry, pillar_geometry
+from ._geometry import (BODIES, AxisymmetricGeometry, GeometryError, MeshError, flat_geometry,
+                        pillar_geometry)
 from ._gmsh import build_axisymmetric_mesh
 from ._mesh import MIN_QUALITY, AxisymmetricMesh
 from ._mesh3d import MIN_QUALITY_3D, WedgeMesh
@@ -28,6 +29,7 @@ __all__ = [
     "WedgeMesh",
     "AxisymmetricGeometry",
     "AxisymmetricMesh",
+    "GeometryError",
     "MeshError",
     "build_axisymmetric_mesh",
     "build_wedge_mesh",

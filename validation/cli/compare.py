@@ -7,27 +7,32 @@ from pathlib import Path
 
 from scenes import load_scene
 
-from ..studies.compare import FEM_COARSEST
-from ._args import add_engine_arguments, add_scene_arguments, engine_from_args
+from ..studies.compare import BEM, FEM, FEM_COARSEST, OUTPUTS
+from ._args import (Renamed, add_engine_arguments, add_levels_argument, add_output_arguments,
+                    add_refinement_arguments, add_scene_arguments, check_out,
+                    engine_from_args, not_converged, print_json, refuse_inapplicable)
 
 
 def add_parser(sub) -> None:
     """Register ``compare`` on the CLI's subparsers."""
-    p = sub.add_parser("compare", help="BEM (Hooke pillar) against FEM (elastic pillar) with "
-                                       "the FEM's GCI uncertainty")
+    p = sub.add_parser(
+        "compare", help="BEM (Hooke pillar) against FEM (elastic pillar), each with its GCI "
+                        "uncertainty",
+        description="Solve one scene with the dense BEM (Hooke-spring pillars) and the "
+                    "axisymmetric FEM (elastic pillar), each on --levels refinements, and set "
+                    "every difference beside the two models' numerical uncertainty (GCI).  "
+                    "Writes report.json, summary.md, profiles.png/.csv, the finest FEM fields "
+                    "(VTU) and a 3D render of its stress.")
     add_scene_arguments(p)
-    p.add_argument("--out", type=Path, default=None,
-                   help="report folder (default out/compare/<scene>)")
-    p.add_argument("--fem-levels", type=int, default=3, metavar="N",
-                   help="FEM refinements for the GCI (default 3)")
-    p.add_argument("--fem-coarsest", type=float, default=FEM_COARSEST, metavar="MESH_SIZE",
-                   help=f"FEM mesh_size of the coarsest level, halved per level (default "
-                        f"{FEM_COARSEST:g})")
-    p.add_argument("--bem-levels", type=int, default=3, metavar="N",
-                   help="BEM refinements (default 3, for its own GCI; 1: no BEM uncertainty)")
-    p.add_argument("--elements-per-diameter", type=int, default=None, metavar="P",
-                   help="BEM elements per diameter on its coarsest level (default 11)")
+    add_refinement_arguments(p, ladder=True, families=("elements_per_diameter", "mesh_size"),
+                             defaults={"elements_per_diameter": 11, "mesh_size": FEM_COARSEST})
+    add_levels_argument(p, 3, 2, 8, "refinement levels of each model (3 or more give an "
+                                    "observed order and a GCI)")
+    add_output_arguments(p, "report folder (default out/compare/<scene>)")
     p.add_argument("--no-render", action="store_true", help="skip the pyvista render")
+    for old, new in (("--fem-levels", "--levels"), ("--bem-levels", "--levels"),
+                     ("--fem-coarsest", "--mesh-size")):
+        p.add_argument(old, action=Renamed, successor=new)
     add_engine_arguments(p)
     p.set_defaults(func=run)
 
@@ -35,19 +40,28 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     """Run both models, write the report folder, print the table; exit 1 if a run did not
     converge."""
-    from ..studies.compare import compare_study
+    from ..studies.compare import check_options, compare_study, table_text, title
 
+    refuse_inapplicable(args, [BEM, FEM])
+    check_options(args.levels, args.mesh_size, args.elements_per_diameter)
     scene = load_scene(args.scene, args.overrides)
-    out = args.out or Path("out") / "compare" / scene.name
+    out = check_out(args.out or Path("out") / "compare" / scene.name)
     with engine_from_args(args, "compare") as engine:
-        report = compare_study(scene, out, engine=engine, fem_levels=args.fem_levels,
-                               fem_coarsest=args.fem_coarsest, bem_levels=args.bem_levels,
+        report = compare_study(scene, out, engine=engine, levels=args.levels,
+                               mesh_size=args.mesh_size,
                                elements_per_diameter=args.elements_per_diameter,
                                render=not args.no_render)
-    print(report["title"])
-    print(report["table"])
-    print(f"render: {report['render']}")
-    print(f"report: {out}/ (report.json, summary.md, profiles.png, profiles.csv"
-          + (", fem_finest.vtu" if report["vtu"] else "")
-          + (", fem_stress_3d.png" if (out / "fem_stress_3d.png").exists() else "") + ")")
-    return 0 if report["converged"] else 1
+    if args.json:
+        print_json(report)
+    else:
+        ref = report["closed_form"]["name"]
+        r_label = "d/2" if report["scene"].get("pillars") else "a_Hertz"
+        print(title(scene))
+        print(table_text(report["rows"], ref, r_label))
+        print(f"render: {report['render']}")
+        written = [name for name in OUTPUTS if (out / name).exists()]
+        print(f"report: {out}/ ({', '.join(written)})")
+    if report["converged"]:
+        return 0
+    return not_converged("compare", report["not_converged"])
+
