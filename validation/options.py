@@ -50,7 +50,7 @@ MODEL_OPTIONS: dict[str, OptionSpec] = {
              "2 sqrt(R zeta))"),
     "mesh_size": OptionSpec(
         float, 0.02, 4.0, family=True, metavar="S",
-        help="fem-axisym: mesh refinement factor, 0.5 halves every element"),
+        help="fem-axisym, fem-3d: mesh refinement factor, 0.5 halves every element"),
     "cells": OptionSpec(
         str, choices=("covered", "centre"),
         help="bem: 'covered' adds edge cells weighted by their covered area (smooth "

@@ -26,8 +26,14 @@ def render_stress(vtu_path: Path, png_path: Path, roi_m: float, *, stamp: str = 
     the region around the axis and the contact that is shown; ``stamp`` (e.g. "NOT
     CONVERGED") is written in red on the picture.
     """
-    cmd = [sys.executable, "-m", "validation.render", str(vtu_path), str(png_path),
-           repr(float(roi_m)), stamp]
+    return render_in_child("validation.render", [str(vtu_path), str(png_path),
+                                                repr(float(roi_m)), stamp], png_path, timeout_s)
+
+
+def render_in_child(module: str, argv: list[str], png_path, timeout_s: float) -> tuple[bool, str]:
+    """``python -m module *argv`` in a child process that writes ``png_path``: (success, its
+    last line or why it failed).  A VTK abort costs the picture, never the caller."""
+    cmd = [sys.executable, "-m", module, *argv]
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s)
     except subprocess.TimeoutExpired:

@@ -7,15 +7,14 @@ substrate are shown coloured by the von Mises stress (kPa); the lens, which woul
 them, is shown only over the far half of the disk and lifted by a pillar height, so the
 stressed pillar tops and the lens bottom are both in view.  A ruler gives the length scale.
 
-Runs in a child process (``python -m validation.render3d VTU PNG``), like the axisymmetric
-render of :mod:`validation.plots_xval`: VTK's off-screen context stays out of the caller.
+Runs in a child process (``python -m validation.render3d VTU PNG [STAMP]``), like the axisymmetric
+render of :mod:`validation.render`: VTK's off-screen context stays out of the caller.
 """
 
 from __future__ import annotations
 
 import json
 import math
-import subprocess
 import sys
 from pathlib import Path
 
@@ -24,18 +23,14 @@ import numpy as np
 BODY_LENS, BODY_PILLAR, BODY_SUBSTRATE = 0, 1, 2
 
 
-def render_sector(vtu_path, png_path, *, timeout_s: float = 300.0) -> tuple[bool, str]:
-    """Render ``vtu_path`` (with its JSON sidecar) to ``png_path``; returns (ok, message)."""
-    cmd = [sys.executable, "-m", "validation.render3d", str(vtu_path), str(png_path)]
-    try:
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s)
-    except subprocess.TimeoutExpired:
-        return False, f"render timed out after {timeout_s:.0f} s"
-    if proc.returncode == 0 and Path(png_path).exists():
-        lines = proc.stdout.strip().splitlines()
-        return True, lines[-1] if lines else "rendered"
-    tail = (proc.stderr or proc.stdout).strip().splitlines()[-3:]
-    return False, f"render failed (exit {proc.returncode}): {' | '.join(tail)}"
+def render_sector(vtu_path, png_path, *, stamp: str = "",
+                  timeout_s: float = 300.0) -> tuple[bool, str]:
+    """Render ``vtu_path`` (with its JSON sidecar) to ``png_path`` in a child process;
+    returns (ok, message).  ``stamp`` (e.g. "NOT CONVERGED") is written in red on it."""
+    from .render import render_in_child
+
+    return render_in_child("validation.render3d", [str(vtu_path), str(png_path), stamp],
+                           png_path, timeout_s)
 
 
 def region_of_interest(meta: dict) -> tuple[float, float, float]:
@@ -63,7 +58,7 @@ def unfold(mesh, alpha: float) -> list:
     return images
 
 
-def _render(vtu: str, png: str) -> str:
+def _render(vtu: str, png: str, stamp: str = "") -> str:
     import pyvista as pv
 
     pv.OFF_SCREEN = True
@@ -105,7 +100,7 @@ def _render(vtu: str, png: str) -> str:
             shown += 1
     ruler = 10 ** math.floor(math.log10(roi))
     plotter.add_ruler((-roi, -1.1 * roi, z0), (-roi + ruler, -1.1 * roi, z0),
-                      title=f"{ruler * 1e6:.3g} um", show_labels=False, font_size_factor=0.8)
+                      title=f"{ruler * 1e6:.3g} µm", show_labels=False, font_size_factor=0.8)
     plotter.view_vector((0.35, -1.0, 0.75), viewup=(0.0, 0.0, 1.0))
     plotter.camera.zoom(1.2)
     s = meta["scene"]
@@ -113,19 +108,21 @@ def _render(vtu: str, png: str) -> str:
              f"{math.degrees(alpha):.0f} deg sector; lens (far half) lifted by "
              f"{2 * h * 1e6:.3g} um")
     plotter.add_text(title, font_size=10)
+    if stamp:
+        plotter.add_text(stamp, position="upper_right", font_size=20, color="red")
     plotter.screenshot(png)
     plotter.close()
     return f"rendered von Mises stress (kPa), {shown} surfaces, to {png}"
 
 
-if __name__ == "__main__":  # python -m validation.render3d VTU PNG
-    if len(sys.argv) == 3:
+if __name__ == "__main__":  # python -m validation.render3d VTU PNG [STAMP]
+    if len(sys.argv) in (3, 4):
         import shutil
 
         if shutil.which("Xvfb"):
             import pyvista
 
             pyvista.start_xvfb()
-        print(_render(sys.argv[1], sys.argv[2]))
+        print(_render(sys.argv[1], sys.argv[2], sys.argv[3] if len(sys.argv) == 4 else ""))
     else:
-        sys.exit("usage: python -m validation.render3d VTU PNG")
+        sys.exit("usage: python -m validation.render3d VTU PNG [STAMP]")

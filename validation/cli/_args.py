@@ -183,7 +183,8 @@ def add_refinement_arguments(parser, ladder: bool, families=None,
             flag(name), dest=name, type=option_type(name), default=None,
             metavar=spec.metavar,
             help=f"{spec.help}; {what}allowed {spec.allowed()}"
-                 + (f" (default {default:g})" if default is not None else ""))
+                 + ("" if default is None else
+                    f" (default {default if isinstance(default, str) else f'{default:g}'})"))
 
 
 def add_choice_arguments(parser, names) -> None:

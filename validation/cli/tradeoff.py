@@ -14,10 +14,18 @@ from ._args import (add_engine_arguments, add_models_argument, add_output_argume
                     refuse_inapplicable)
 
 
+# Joins only when named: its rungs take minutes each (validation/bench/fem3d.py).
+EXPENSIVE = ("fem-3d",)
+
+
 def _models_with_ladders() -> list[str]:
     from ..models import MODELS
 
     return [m for m in LADDERS if m in MODELS]
+
+
+def _default_models() -> list[str]:
+    return [m for m in _models_with_ladders() if m not in EXPENSIVE]
 
 
 def add_parser(sub) -> None:
@@ -31,7 +39,8 @@ def add_parser(sub) -> None:
                     "marked, points labelled by their resolution).")
     add_scene_arguments(p)
     add_models_argument(p, _models_with_ladders(),
-                        f"default: every model with a ladder, {','.join(_models_with_ladders())}")
+                        f"default: {','.join(_default_models())}; "
+                        f"{', '.join(EXPENSIVE)} joins when named (minutes per rung)")
     add_refinement_arguments(p, ladder=True)
     p.add_argument("--levels", type=integer(1, 12), default=None, metavar="N",
                    help="rungs per model, from the coarsest (default: the ladder's rungs; "
@@ -54,7 +63,7 @@ def run(args) -> int:
     from ..studies.tradeoff import OUTPUTS, check_options, pareto_table, tradeoff, write_outputs
     from ..report import clear_outputs
 
-    names = args.models or _models_with_ladders()
+    names = args.models or _default_models()
     refuse_inapplicable(args, names)
     coarsest = {k: getattr(args, k) for k in (LADDERS[m].option for m in names)
                 if getattr(args, k, None) is not None}

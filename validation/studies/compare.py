@@ -31,7 +31,8 @@ from ..profiles import profile_at
 from ..verification import study
 from .converge import check_ladder, level_cases, study_levels
 
-FEM, BEM = "fem-axisym", "bem"
+FEM, FEM_3D, BEM = "fem-axisym", "fem-3d", "bem"
+FEM_MODELS = (FEM, FEM_3D)
 # Display units: (scale factor from SI, unit label).
 DISPLAY = {"F_T": (1e6, "uN"), "sigma0": (1e-3, "kPa"), "a": (1e6, "um"), "A": (1e12, "um^2"),
            "profile": (1e-3, "kPa")}
@@ -41,10 +42,20 @@ PROFILE_POINTS = (0.25, 0.5, 0.75, 0.9)
 # FEM levels 2, 1, 0.5 by default: measured on single-pillar (hertz), mesh_size 2 / 1 / 0.5 /
 # 0.25 took 0.5 / 1.1 / 8-20 / 290 s (0.6 / 6 / 122 s for 0.5 / 0.25), while F_T moved by
 # 1e-4 relative from 1 to 0.5: the 0.25 level would cost minutes for a band already < 0.1 %.
-FEM_COARSEST = 2.0
+# fem-3d: 2.83, 2, 1.41 (its ladder's sqrt(2) steps): about a minute on a 7-pillar scene and
+# 4-5 minutes on the paper's densest one (validation/bench/fem3d.py).
+FEM_COARSEST = {FEM: 2.0, FEM_3D: 2.0 * 2.0**0.5}
 # The report folder's files, report.json last: its presence means a whole report.
 OUTPUTS = ("summary.md", "profiles.png", "profiles.csv", "fem_finest.vtu", "fem_finest.json",
            "fem_stress_3d.png", "report.json")
+
+
+def fem_model_for(scene: Scene) -> str:
+    """The cheapest FEM that represents ``scene``: the axisymmetric model on a flat scene or
+    one pillar alone (Phi below the spring-model threshold Phi_S), fem-3d otherwise."""
+    if scene.is_flat or scene.pillars.surface_fraction < analytic.single_pillar_threshold(scene):
+        return FEM
+    return FEM_3D
 
 
 def reference_radius(scene: Scene) -> tuple[float, str]:
@@ -55,8 +66,11 @@ def reference_radius(scene: Scene) -> tuple[float, str]:
 
 
 def closed_form(scene: Scene) -> tuple[str, dict]:
-    """Hertz values on a flat scene; the spring model (one Hooke pillar) otherwise."""
+    """Hertz values on a flat scene; the spring model (one Hooke pillar) for one pillar alone;
+    none on a lattice scene with several pillars in contact."""
     r_ref, _ = reference_radius(scene)
+    if fem_model_for(scene) == FEM_3D:
+        return "none", {}
     r = np.array(PROFILE_POINTS) * r_ref
     if scene.is_flat:
         h = analytic.hertz(scene)
@@ -174,7 +188,9 @@ def _profile_curves(scene: Scene, bem_res, fem_data: dict, r_ref: float) -> list
         curves.append({"label": f"FEM mesh_size={lv['value']:g}" + (" (finest)" if finest else ""),
                        "style": "-" if finest else ":", **res.pillar_top_profile})
     r = np.linspace(0.0, 0.999 * r_ref, 400)
-    if scene.is_flat:
+    if fem_data["model"] == FEM_3D:
+        pass  # several pillars share the load: no single-pillar closed form applies
+    elif scene.is_flat:
         curves.append({"label": "Hertz", "style": "k--", "r_m": r,
                        "pressure_Pa": analytic.hertz(scene).pressure(r)})
     else:
@@ -189,7 +205,7 @@ def summary_markdown(scene: Scene, rows: list[dict], ref_name: str, r_label: str
                      meta: dict) -> str:
     """summary.md: what ran, the table, and which differences exceed the uncertainty."""
     lines = [f"# {title(scene)}", "",
-             f"- FEM: {meta['levels']} levels of mesh_size "
+             f"- FEM ({meta['fem_model']}): {meta['levels']} levels of mesh_size "
              f"{', '.join(f'{v:g}' for v in meta['fem_sizes'])}; finest VTU: "
              f"`{meta['vtu'] or 'not written'}`",
              f"- BEM: {meta['levels']} levels of elements_per_diameter "
@@ -213,38 +229,41 @@ def summary_markdown(scene: Scene, rows: list[dict], ref_name: str, r_label: str
 def profiles_csv(bem_res, fem_res) -> str:
     """The pillar-top profiles of the finest BEM and FEM runs: model, r_m, pressure_Pa."""
     lines = ["model,r_m,pressure_Pa"]
-    for label, res in (("bem", bem_res), ("fem-axisym", fem_res)):
+    for label, res in ((bem_res.model, bem_res), (fem_res.model, fem_res)):
         prof = res.pillar_top_profile
         lines += [f"{label},{r!r},{p!r}" for r, p in zip(prof["r_m"], prof["pressure_Pa"])]
     return "\n".join(lines) + "\n"
 
 
 def check_options(levels: int = 3, mesh_size: float | None = None,
-                  elements_per_diameter: int | None = None) -> None:
+                  elements_per_diameter: int | None = None, fem_model: str = FEM) -> None:
     """Refuse, before any solve, ladders whose levels a model would refuse (one line)."""
-    check_ladder(FEM, levels, FEM_COARSEST if mesh_size is None else mesh_size)
+    check_ladder(fem_model, levels, FEM_COARSEST[fem_model] if mesh_size is None else mesh_size)
     check_ladder(BEM, levels, elements_per_diameter)
 
 
 def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None, levels: int = 3,
                   mesh_size: float | None = None, elements_per_diameter: int | None = None,
-                  render: bool = True) -> dict:
+                  render: bool = True, fem_model: str | None = None) -> dict:
     """Run both models on ``levels`` refinements each (one batch on the engine, cached in
     ``out/cases``), write the report folder and return the report dict (``rows``,
     ``converged``, ``not_converged``, ``render``, ...).
 
-    ``mesh_size`` is the FEM's coarsest level (default :data:`FEM_COARSEST`),
+    ``fem_model`` is fem-axisym or fem-3d (default :func:`fem_model_for`: the axisymmetric
+    model where it applies); ``mesh_size`` is its coarsest level (default
+    :data:`FEM_COARSEST`),
     ``elements_per_diameter`` the BEM's (default its ladder's).  The files of an earlier
     report in ``out`` are removed first and ``report.json`` is written last, so the folder
     never mixes two runs."""
     from ..report import clear_outputs
 
     t0 = time.perf_counter()
-    check_options(levels, mesh_size, elements_per_diameter)
-    fem_coarsest = FEM_COARSEST if mesh_size is None else mesh_size
+    fem = fem_model or fem_model_for(scene)
+    check_options(levels, mesh_size, elements_per_diameter, fem)
+    fem_coarsest = FEM_COARSEST[fem] if mesh_size is None else mesh_size
     cache = out / "cases"
     r_ref, r_label = reference_radius(scene)
-    fem_cases = level_cases(FEM, scene, levels, coarsest=fem_coarsest, tag="fem",
+    fem_cases = level_cases(fem, scene, levels, coarsest=fem_coarsest, tag="fem",
                             vtu_finest=True)
     bem_cases = level_cases(BEM, scene, levels, coarsest=elements_per_diameter, tag="bem")
     clear_outputs(out, OUTPUTS)
@@ -255,7 +274,7 @@ def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None, leve
     finally:
         if own:
             engine.close()
-    fem_data = study_levels(FEM, scene, outcomes[:len(fem_cases)])
+    fem_data = study_levels(fem, scene, outcomes[:len(fem_cases)])
     fem_res = fem_data["results"][-1]
     fem_studies = dict(fem_data["studies"]) | _profile_studies(fem_data, r_ref)
     bem_data = study_levels(BEM, scene, outcomes[len(fem_cases):])
@@ -279,6 +298,12 @@ def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None, leve
         render_msg = "skipped (--no-render)"
     elif not vtu:
         render_msg = "not possible: the FEM model wrote no VTU"
+    elif fem == FEM_3D:
+        from ..render3d import render_sector
+
+        ok, msg = render_sector(Path(vtu), out / "fem_stress_3d.png",
+                                stamp="" if fem_res.converged else "NOT CONVERGED")
+        render_msg = msg if ok else f"not rendered on this machine: {msg}"
     else:
         from ..render import render_stress
 
@@ -290,7 +315,7 @@ def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None, leve
     plot_profiles(_profile_curves(scene, bem_res, fem_data, r_ref), r_ref, out / "profiles.png",
                   f"pressure across the {'contact' if scene.is_flat else 'pillar top'}: "
                   f"{scene.name}", r_label, not_converged=unconverged)
-    meta = {"levels": levels,
+    meta = {"levels": levels, "fem_model": fem,
             "fem_sizes": [lv["value"] for lv in fem_data["levels"]],
             "bem_sizes": [lv["value"] for lv in bem_data["levels"]],
             "bem_discretisation": bem_res.discretisation, "vtu": vtu, "render": render_msg,
@@ -310,7 +335,8 @@ def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None, leve
     return report
 
 
-def title(scene) -> str:
+def title(scene, fem_model: str | None = None) -> str:
     if scene.is_flat:
         return f"BEM vs FEM on {scene.name} (flat substrate: both solve the Hertz problem)"
-    return f"BEM (Hooke pillar) vs FEM (elastic pillar) on {scene.name}"
+    fem = fem_model or fem_model_for(scene)
+    return f"BEM (Hooke pillars) vs {fem} (elastic pillars) on {scene.name}"
