@@ -5,8 +5,8 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: demo study-gecit test test-slow bench-bem bench-fft bench-engine clean calibrate \
-	validate-planner extremes
+.PHONY: demo study-gecit test test-slow bench-bem bench-fft bench-gpu bench-fem3d bench-engine clean \
+	calibrate validate-planner extremes
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -44,6 +44,16 @@ bench-fft: $(STAMP)
 
 # Study engine: a sweep killed (kill -9) mid-way and resumed loses and repeats nothing; the
 # same sweep on a Dask scheduler + two worker processes (127.0.0.1) gives the pool's table.
+# FFT BEM on the GPU against the CPU path in one run (needs the [gpu] extra and a GPU; without
+# one it runs the CPU column on small levels and says the GPU column is pending).
+bench-gpu: $(STAMP)
+	$(PY) -m validation.bench.gpu --out $(OUT)/bench-gpu
+
+# 3D FEM: unknowns, time by phase, iterations and peak memory over a mesh_size ladder on
+# Phi = 0.2 and on the densest paper scene (about 12 minutes).
+bench-fem3d: $(STAMP)
+	$(PY) -m validation.bench.fem3d --out $(OUT)/bench-fem3d --levels 2.83,2,1.41 --dense 2.83,2,1.41
+
 bench-engine: $(STAMP)
 	$(PY) -m validation.bench.engine --out $(OUT)/bench-engine
 

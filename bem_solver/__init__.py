@@ -3,7 +3,7 @@
 Units: SI (m, Pa, N).  ``solve_dense`` is the paper's superposition method with an exact
 complementarity solver (:mod:`bem_solver._dense`); ``solve_fft`` the matrix-free model on a
 regular grid with FFT-applied kernel and constrained conjugate gradients
-(:mod:`bem_solver._fft`).
+(:mod:`bem_solver._fft`), on the CPU or a CUDA GPU (``available_devices()``).
 """
 
 from ._cells import cell_pattern
@@ -13,8 +13,10 @@ from ._discretise import discretise, overlap_radius
 from ._fft import solve_fft
 from ._love import love_rectangle, love_square
 from ._operator import expansion, full_operator, reduced_operator
+from ._xp import available_devices
 
 __all__ = [
+    "available_devices",
     "cell_pattern",
     "discretise",
     "disk_rectangle_area",

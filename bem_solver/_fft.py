@@ -18,6 +18,13 @@ the collocation points of edge cells stick out of the pillar and the error of F_
 ~0.13/N to 0.2/N and smooth within each parity of N (the centre pillar is centred on a cell
 for every N, so odd and even N cut its edge differently: keep one parity in a ladder).
 
+Devices.  The model is written once against an array namespace (:mod:`bem_solver._xp`):
+``device="cpu"`` (default) runs it with numpy and scipy.fft, ``device="gpu"`` with cupy and
+cuFFT on a CUDA GPU (optional extra ``[gpu]``), ``device="auto"`` takes the GPU when cupy
+finds one.  The grid geometry is built on the host; the kernel table, its spectrum, the
+near-field correction, the preconditioner, the constrained CG and the nested warm start run on
+the device, in float64; results come back to the host once.
+
 Units: SI (m, Pa, N) in and out.
 
 References
@@ -42,6 +49,7 @@ from scenes import ContactResult, PillarForce, Scene
 from ._dense import _smooth_edge_radius
 from ._fft_grid import CellGrid, build_grid
 from ._fft_operator import CompliancePlan, near_field_correction
+from ._xp import select_backend
 
 __all__ = ["solve_fft"]
 
@@ -53,12 +61,18 @@ HISTORY_MAX = 2000
 # give the fine solve a good start; the fine tolerance decides the accuracy).
 WARM_START_MIN_CELLS = 8
 WARM_START_TOL = 1e-4
+# Fewest cells across the Hertz-like contact 2 sqrt(R zeta) on the centre pillar top for an
+# answer: the flat (Hertz) scene is the same problem, and there 5 cells across is the
+# coarsest grid whose contact stays clear of the candidate disk (F_T within 2 %).  At
+# zeta = 1e-12 um and N = 32 the contact is 1/1400 of a cell: its one cell reported a
+# contact radius 1400 times the overlap radius and F_T 1800 times Hertz's.
+MIN_CELLS_ACROSS_CONTACT = 5
 
 
 def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAULT_TOLERANCE,
               max_iterations: int | None = None, workers: int = 2,
               warm_start: bool = True, edge_correction: bool = True, progress=None,
-              _nested: bool = False) -> ContactResult:
+              device: str = "cpu", backend=None, _nested: bool = False) -> ContactResult:
     """Solve the lens-on-pillars contact with the FFT-accelerated BEM.
 
     Parameters
@@ -86,6 +100,12 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
         ContactMechanics solves on a masked grid; used by the side-by-side benchmark).
     progress : callable, optional
         ``progress(iteration, error)`` called every iteration.
+    device : {"cpu", "gpu", "auto"}
+        Where to solve: numpy on the CPU (default), cupy on a CUDA GPU (``InputError`` saying
+        what to install when none is usable), or the GPU when cupy finds one.
+    backend : optional
+        An array backend object (:mod:`bem_solver._xp`) used instead of ``device``: another
+        array library, or a strict one in the tests.
 
     Returns
     -------
@@ -99,60 +119,76 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     .. [1] I. A. Polonsky, L. M. Keer, Wear 231 (1999) 206-219.
     """
     start = time.perf_counter()
-    grid = build_grid(scene, cells_per_diameter)
+    be = select_backend(device, workers) if backend is None else backend
+    xp = be.xp
+    grid = build_grid(scene, cells_per_diameter, max_fft_points=be.max_fft_points)
     if not edge_correction:
         grid = _plain_grid(grid, scene)
     L = grid.cell_size
     spring = 0.0 if grid.flat else scene.pillar_spring_compliance
-    correction = near_field_correction(grid, scene.half_space_compliance) \
+    timings = {"grid": time.perf_counter() - start}
+    lap = time.perf_counter()
+    correction = near_field_correction(grid, scene.half_space_compliance, backend=be) \
         if edge_correction else None
     plan = CompliancePlan(grid.shape, grid.flat_index, L, scene.half_space_compliance,
                           pillar=grid.pillar, spring_compliance=spring, workers=workers,
-                          correction=correction)
-    precondition = diagonal_preconditioner(plan.diagonal, plan.spring, grid.pillar,
-                                           plan.n_pillars)
+                          correction=correction, backend=be)
+    be.synchronize()
+    timings["kernel_table"] = time.perf_counter() - lap
+    precondition = diagonal_preconditioner(plan.diagonal, plan.spring, plan.pillar,
+                                           plan.n_pillars, backend=be)
     zeta = scene.indentation_m
-    b = grid.gap0
+    b = be.asarray(grid.gap0, dtype=xp.float64)
     coarse = cells_per_diameter // 2
+    lap = time.perf_counter()
     if warm_start and coarse >= WARM_START_MIN_CELLS:
         # Nested iteration: the solution at half the resolution, interpolated, brings the
         # contact set nearly right, so the fine constrained CG restarts seldom.
         rough = solve_fft(scene, coarse, tol=max(tol, WARM_START_TOL), workers=workers,
-                          warm_start=True, edge_correction=edge_correction, _nested=True)
-        q0 = _interpolate(rough, grid, slivers=edge_correction)
+                          warm_start=True, edge_correction=edge_correction, backend=be,
+                          _nested=True)
+        q0 = _interpolate(rough, grid, be, slivers=edge_correction)
         levels = rough.diagnostics["warm_start_levels"] + [{
             "cells_per_diameter": coarse, "iterations": rough.iterations,
             "operator_applications": rough.diagnostics["operator_applications"],
             "cells": rough.discretisation["cells"]}]
     else:
-        q0 = _initial_pressure(plan, b)
+        q0 = _initial_pressure(plan, b, be)
         levels = []
+    be.synchronize()
+    timings["warm_start"] = time.perf_counter() - lap
     if max_iterations is None:
         max_iterations = int(20 * math.sqrt(grid.n_cells)) + 500
+    lap = time.perf_counter()
     outcome = constrained_cg(plan, b, q0, scale=zeta, tol=tol, max_iterations=max_iterations,
-                             precondition=precondition,
-                             inverse_diagonal=1.0 / plan.diagonal, callback=progress)
+                             precondition=precondition, callback=progress, backend=be)
+    outcome.pressure = be.to_numpy(outcome.pressure)
+    outcome.gap = be.to_numpy(outcome.gap)
+    timings["solve"] = time.perf_counter() - lap
     message = outcome.message
     converged = outcome.converged
-    if converged and grid.flat:
-        edge = _flat_edge_contact(grid, outcome.pressure)
-        if edge:
+    if converged:
+        coarse_message = _flat_edge_contact(grid, outcome.pressure) if grid.flat else \
+            _unresolved_contact(scene, grid, cells_per_diameter)
+        if coarse_message:
             converged = False
-            message = edge
+            message = coarse_message
     wall = time.perf_counter() - start
     result = _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, message,
                      wall)
     result.diagnostics["warm_start_levels"] = levels
+    result.diagnostics["device"] = be.device
+    result.diagnostics["timings_s"] = timings
     return result
 
 
-def _initial_pressure(plan: CompliancePlan, b: np.ndarray) -> np.ndarray:
+def _initial_pressure(plan: CompliancePlan, b, be):
     """Pressure proportional to the interpenetration, scaled by an exact line search."""
-    d = np.maximum(-b, 0.0)
-    curvature = float(np.einsum("i,i->", d, plan(d)))
+    d = be.xp.maximum(-b, 0.0)
+    curvature = be.dot(d, plan(d))
     if curvature <= 0:
         return d
-    return d * (float(np.einsum("i,i->", d, d)) / curvature)
+    return d * (be.dot(d, d) / curvature)
 
 
 def _plain_grid(grid: CellGrid, scene: Scene) -> CellGrid:
@@ -165,8 +201,9 @@ def _plain_grid(grid: CellGrid, scene: Scene) -> CellGrid:
     return replace(grid, colloc_x=grid.x, colloc_y=grid.y, gap0=gap0)
 
 
-def _interpolate(rough: ContactResult, grid: CellGrid, slivers: bool = True) -> np.ndarray:
-    """Coarse solution carried onto the cells of ``grid`` (smeared pressure, Pa).
+def _interpolate(rough: ContactResult, grid: CellGrid, be, slivers: bool = True):
+    """Coarse solution carried onto the cells of ``grid`` (smeared pressure, Pa), on the
+    device of ``be``.
 
     Mostly covered fine cells (phi >= 1/2) take the bilinear interpolation of the coarse
     smeared pressure.  Thin edge slivers take phi times the pressure of the mostly covered
@@ -174,27 +211,50 @@ def _interpolate(rough: ContactResult, grid: CellGrid, slivers: bool = True) -> 
     the least accurate one and, with the equivalent-square self-compliance ~ 1 / sqrt(phi), a
     wrong sliver pressure costs many constrained-CG iterations to undo.  Without the edge
     correction (``slivers=False``) every cell takes the plain bilinear interpolation."""
-    from scipy.ndimage import map_coordinates
-
+    xp = be.xp
     f = rough.fields
     Lc = f["cell_size_m"]
     solid = f["covered_fraction"] >= 0.5
     ix = np.rint(f["x_m"] / Lc).astype(int)
     iy = np.rint(f["y_m"] / Lc).astype(int)
     shape = (iy.max() - iy.min() + 1, ix.max() - ix.min() + 1)
-    pressure, weight = np.zeros(shape), np.zeros(shape)
-    pressure[iy - iy.min(), ix - ix.min()] = np.where(solid, f["pressure_Pa"], 0.0)
-    weight[iy - iy.min(), ix - ix.min()] = solid
-    smeared = np.zeros(shape)
-    smeared[iy - iy.min(), ix - ix.min()] = f["pressure_Pa"] * f["covered_fraction"]
-    coords = [grid.y / Lc - iy.min(), grid.x / Lc - ix.min()]
-    num = map_coordinates(pressure, coords, order=1, mode="constant", cval=0.0)
-    den = map_coordinates(weight, coords, order=1, mode="constant", cval=0.0)
-    sliver = np.where(den > 1e-3, num / np.maximum(den, 1e-3), 0.0) * grid.covered
-    bulk = map_coordinates(smeared, coords, order=1, mode="constant", cval=0.0)
+    # The coarse grids (a quarter of the fine cells) are laid out on the host.
+    pressure, weight, smeared = np.zeros(shape), np.zeros(shape), np.zeros(shape)
+    at = (iy - iy.min(), ix - ix.min())
+    pressure[at] = np.where(solid, f["pressure_Pa"], 0.0)
+    weight[at] = solid
+    smeared[at] = f["pressure_Pa"] * f["covered_fraction"]
+    cy = be.asarray(grid.y, dtype=xp.float64) / Lc - float(iy.min())
+    cx = be.asarray(grid.x, dtype=xp.float64) / Lc - float(ix.min())
+    bulk = _bilinear(xp, be.asarray(smeared), cy, cx)
     if not slivers:
-        return np.maximum(bulk, 0.0)
-    return np.maximum(np.where(grid.covered >= 0.5, bulk, sliver), 0.0)
+        return xp.maximum(bulk, 0.0)
+    num = _bilinear(xp, be.asarray(pressure), cy, cx)
+    den = _bilinear(xp, be.asarray(weight), cy, cx)
+    covered = be.asarray(grid.covered, dtype=xp.float64)
+    sliver = xp.where(den > 1e-3, num / xp.maximum(den, 1e-3), 0.0) * covered
+    return xp.maximum(xp.where(covered >= 0.5, bulk, sliver), 0.0)
+
+
+def _bilinear(xp, values, cy, cx):
+    """Bilinear interpolation of the 2-D array ``values`` at fractional (row, column)
+    coordinates; 0 outside [0, n - 1] on either axis (scipy.ndimage.map_coordinates with
+    order=1, mode='constant')."""
+    ny, nx = values.shape
+    inside = (cy >= 0.0) & (cy <= ny - 1) & (cx >= 0.0) & (cx <= nx - 1)
+    y0 = xp.clip(xp.floor(cy), 0.0, float(max(ny - 2, 0)))
+    x0 = xp.clip(xp.floor(cx), 0.0, float(max(nx - 2, 0)))
+    fy, fx = cy - y0, cx - x0
+    i0, j0 = xp.astype(y0, xp.int64), xp.astype(x0, xp.int64)
+    i1, j1 = xp.minimum(i0 + 1, ny - 1), xp.minimum(j0 + 1, nx - 1)
+    flat = xp.reshape(values, (-1,))
+
+    def at(i, j):
+        return xp.take(flat, i * nx + j)
+
+    value = (1.0 - fy) * ((1.0 - fx) * at(i0, j0) + fx * at(i0, j1)) \
+        + fy * ((1.0 - fx) * at(i1, j0) + fx * at(i1, j1))
+    return xp.where(inside, value, 0.0)
 
 
 def _flat_edge_contact(grid: CellGrid, q: np.ndarray) -> str:
@@ -204,6 +264,19 @@ def _flat_edge_contact(grid: CellGrid, q: np.ndarray) -> str:
         return ("contact reaches the edge of the candidate disk "
                 f"({grid.candidate_radius:g} m): the discretisation is too coarse")
     return ""
+
+
+def _unresolved_contact(scene: Scene, grid: CellGrid, cells_per_diameter: int) -> str:
+    """Why the contact on the centre pillar is too small for the cells, or ''."""
+    across = 2.0 * math.sqrt(scene.lens.radius_m * scene.indentation_m)
+    cells = across / grid.cell_size
+    if cells >= MIN_CELLS_ACROSS_CONTACT:
+        return ""
+    needed = math.ceil(cells_per_diameter * MIN_CELLS_ACROSS_CONTACT / cells)
+    return (f"the contact on the centre pillar, about 2 sqrt(R zeta) = {across:.3g} m across, "
+            f"spans {cells:.2g} cells of side {grid.cell_size:.3g} m (at least "
+            f"{MIN_CELLS_ACROSS_CONTACT} needed): the discretisation is too coarse; use "
+            f"cells_per_diameter >= {needed}")
 
 
 def _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, message, wall):

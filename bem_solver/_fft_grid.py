@@ -37,7 +37,8 @@ MIN_COVERED_FRACTION = 1e-3
 # two cells).  The contact radius of the discrete problem is a + O(L); the solver checks that
 # no contact reaches this artificial edge.
 FLAT_CANDIDATE_RATIO = 1.25
-# Largest padded FFT grid (points) accepted: 2 * 4096^2 doubles is ~1 GB of work arrays.
+# Largest padded FFT grid (points) accepted on the CPU: 2 * 4096^2 doubles is ~1 GB of work
+# arrays.  A GPU backend (bem_solver._xp) passes its own limit, from its free memory.
 MAX_FFT_POINTS = 4096 * 4096
 
 
@@ -108,9 +109,11 @@ def cell_size(scene: Scene, cells_per_diameter: int) -> float:
     return scene.pillars.diameter_m / cells_per_diameter
 
 
-def build_grid(scene: Scene, cells_per_diameter: int) -> CellGrid:
+def build_grid(scene: Scene, cells_per_diameter: int,
+               max_fft_points: int = MAX_FFT_POINTS) -> CellGrid:
     """Candidate cells of ``scene`` with ``cells_per_diameter`` cells across a pillar (or
-    across the Hertz contact diameter for a flat scene)."""
+    across the Hertz contact diameter for a flat scene); a grid whose padded FFT would exceed
+    ``max_fft_points`` points is refused (SceneError)."""
     R, zeta = scene.lens.radius_m, scene.indentation_m
     L = cell_size(scene, cells_per_diameter)
     # Radius where the undeformed gap equals zeta: r^2 = 2 R zeta - zeta^2.
@@ -120,7 +123,7 @@ def build_grid(scene: Scene, cells_per_diameter: int) -> CellGrid:
     r_cand = min(r_geo, FLAT_CANDIDATE_RATIO * math.sqrt(R * zeta) + 2.0 * L) if flat else r_geo
     half = int(math.ceil(r_cand / L)) + 1
     n_side = 2 * half + 1
-    if n_side**2 > 4 * MAX_FFT_POINTS:
+    if n_side**2 > 4 * max_fft_points:
         raise SceneError(
             f"cells_per_diameter = {cells_per_diameter}: the candidate disk would span "
             f"{n_side} x {n_side} cells; choose fewer cells per diameter")
@@ -142,11 +145,11 @@ def build_grid(scene: Scene, cells_per_diameter: int) -> CellGrid:
         colloc_x, colloc_y = _centroids(colloc_x, colloc_y, covered, pillar, pillar_xy, L,
                                         0.5 * scene.pillars.diameter_m)
     keep, shape = _crop(keep, n_side)  # (box index, x / L, y / L)
-    if (2 * shape[0]) * (2 * shape[1]) > MAX_FFT_POINTS:
+    if (2 * shape[0]) * (2 * shape[1]) > max_fft_points:
         raise SceneError(
             f"cells_per_diameter = {cells_per_diameter}: the grid would need {shape[0]} x "
             f"{shape[1]} cells (padded FFT {4 * shape[0] * shape[1]} points > "
-            f"{MAX_FFT_POINTS}); choose fewer cells per diameter")
+            f"{max_fft_points}); choose fewer cells per diameter")
     keep, x, y = keep[0], keep[1] * L, keep[2] * L
     gap0 = lens_gap(R, np.hypot(colloc_x, colloc_y)) - zeta
     centre = np.nonzero((np.abs(x) < 0.5 * L) & (np.abs(y) < 0.5 * L))[0]

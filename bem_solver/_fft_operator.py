@@ -11,6 +11,11 @@ compliance of a pillar (m/N).  The convolution is linear (free surface, not peri
 is zero-padded to at least 2 n - 1 points per axis, so no image of the kernel wraps onto the
 grid.  K is even in both axes, so its spectrum is real and is stored as one real array.
 
+Everything here is written against an array namespace and a device backend
+(:mod:`bem_solver._xp`): the kernel table, its spectrum, the near-field correction (a sparse
+matrix on the device) and the operator are built and applied on the CPU with numpy or on a GPU
+with cupy by the same code.
+
 References
 ----------
 .. [1] S. Liu, Q. Wang, G. Liu, "A versatile method of discrete convolution and FFT (DC-FFT)
@@ -23,10 +28,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import scipy.fft as sfft
-import scipy.sparse as sp
 
-from ._love import love_square
+from ._love import FAR_FIELD_RATIO, love_far, love_rectangle, love_square_everywhere
+from ._xp import NumpyDevice
 
 FFT_WORKERS = 2  # this machine has two cores; scipy.fft threads the 2D transforms
 # Half-width (in cells) of the stencil around a partly covered cell within which its grid
@@ -34,17 +38,30 @@ FFT_WORKERS = 2  # this machine has two cores; scipy.fft threads the 2D transfor
 # dipole of the O(L) centroid shift, ~ phi L^3 / r^2; tests/test_bem_fft.py shows the effect of
 # the width on the answer.
 NEAR_FIELD_CELLS = 3
+# Offsets (in cells) within which the kernel table takes Love's exact form.
+EXACT_CELLS = int(FAR_FIELD_RATIO) + 1
 
 
-def kernel_block(shape, cell_size: float, compliance: float) -> np.ndarray:
-    """K(i L, j L) for 0 <= i < ny, 0 <= j < nx in m/Pa (rows = y offsets)."""
+def kernel_block(shape, cell_size: float, compliance: float, xp=np):
+    """K(i L, j L) for 0 <= i < ny, 0 <= j < nx in m/Pa (rows = y offsets), built in the
+    array namespace ``xp`` (on the device): the far form everywhere, the exact form in the
+    corner of offsets within ``FAR_FIELD_RATIO`` cells."""
     ny, nx = shape
-    oy = np.arange(ny) * cell_size
-    ox = np.arange(nx) * cell_size
-    return compliance / math.pi * love_square(ox[None, :], oy[:, None], cell_size)
+    oy = xp.arange(ny, dtype=xp.float64) * cell_size
+    ox = xp.arange(nx, dtype=xp.float64) * cell_size
+    x, y = ox[None, :], oy[:, None]
+    s2 = cell_size * cell_size
+    block = love_far(x * x + y * y, s2, xp)
+    k, m = min(ny, EXACT_CELLS), min(nx, EXACT_CELLS)
+    cx, cy = x[:, :m], y[:k, :]
+    h = 0.5 * cell_size
+    near = cx * cx + cy * cy <= FAR_FIELD_RATIO**2 * s2
+    block[:k, :m] = xp.where(near, love_rectangle(cx, cy, h, h, xp), block[:k, :m])
+    return compliance / math.pi * block
 
 
-def near_field_correction(grid, compliance: float, width: int = NEAR_FIELD_CELLS):
+def near_field_correction(grid, compliance: float, width: int = NEAR_FIELD_CELLS,
+                          backend=None):
     """Sparse symmetric correction C (m/Pa) that turns the grid operator into the
     equivalent-square operator near partly covered cells.
 
@@ -56,45 +73,57 @@ def near_field_correction(grid, compliance: float, width: int = NEAR_FIELD_CELLS
         C_ij = 1/2 [A'_ij + A'_ji] - K(x_i - x_j),
         A'_ij = (gamma / pi) D(c_i - c_j; sqrt(phi_j) L) / phi_j,
 
-    symmetrised so that the constrained CG keeps a symmetric operator.  Returns ``None``
-    when every cell is fully covered.
+    symmetrised so that the constrained CG keeps a symmetric operator.  Built on the device of
+    ``backend`` (default: numpy on the CPU) as that device's sparse matrix; ``None`` when every
+    cell is fully covered.
     """
+    be = NumpyDevice() if backend is None else backend
+    xp = be.xp
     L = grid.cell_size
-    part = np.nonzero(grid.covered < 1.0 - 1e-12)[0]
-    if part.size == 0:
+    n = grid.n_cells
+    phi = be.asarray(grid.covered, dtype=xp.float64)
+    cell = xp.arange(n, dtype=xp.int64)
+    part = cell[phi < 1.0 - 1e-12]
+    if part.shape[0] == 0:
         return None
     ny, nx = grid.shape
-    lookup = np.full(ny * nx, -1, dtype=np.int64)
-    lookup[grid.flat_index] = np.arange(grid.n_cells)
-    iy, ix = np.divmod(grid.flat_index[part], nx)
-    offs = np.arange(-width, width + 1)
-    dy, dx = (a.ravel() for a in np.meshgrid(offs, offs, indexing="ij"))
+    flat = be.asarray(grid.flat_index, dtype=xp.int64)
+    lookup = be.put(xp.full(ny * nx, -1, dtype=xp.int64), flat, cell)
+    flat_part = xp.take(flat, part)
+    iy, ix = flat_part // nx, flat_part % nx
+    offs = xp.arange(-width, width + 1, dtype=xp.int64)
+    dy, dx = (xp.reshape(a, (-1,)) for a in xp.meshgrid(offs, offs, indexing="ij"))
     jy, jx = iy[:, None] + dy[None, :], ix[:, None] + dx[None, :]
     inside = (jy >= 0) & (jy < ny) & (jx >= 0) & (jx < nx)
-    j = np.where(inside, lookup[np.clip(jy, 0, ny - 1) * nx + np.clip(jx, 0, nx - 1)], -1)
-    i = np.broadcast_to(part[:, None], j.shape)
+    neighbour = xp.clip(jy, 0, ny - 1) * nx + xp.clip(jx, 0, nx - 1)
+    j = xp.reshape(xp.take(lookup, xp.reshape(neighbour, (-1,))), neighbour.shape)
+    j = xp.where(inside, j, -1)
+    i = xp.broadcast_to(part[:, None], j.shape)
     ok = j >= 0
     i, j = i[ok], j[ok]
     # Each unordered pair once: (partial, full) pairs, and (partial, partial) with i <= j.
-    full_j = grid.covered[j] >= 1.0 - 1e-12
+    full_j = xp.take(phi, j) >= 1.0 - 1e-12
     keep = full_j | (i <= j)
     i, j = i[keep], j[keep]
-    cx, cy, phi = grid.colloc_x, grid.colloc_y, grid.covered
-    side = np.sqrt(phi) * L
+    cx = be.asarray(grid.colloc_x, dtype=xp.float64)
+    cy = be.asarray(grid.colloc_y, dtype=xp.float64)
+    side = xp.sqrt(phi) * L
     k = compliance / math.pi
-    a_ij = k * love_square(cx[i] - cx[j], cy[i] - cy[j], side[j]) / phi[j]
-    a_ji = k * love_square(cx[j] - cx[i], cy[j] - cy[i], side[i]) / phi[i]
+    dxc = xp.take(cx, i) - xp.take(cx, j)
+    dyc = xp.take(cy, i) - xp.take(cy, j)
+    phi_i, phi_j = xp.take(phi, i), xp.take(phi, j)
+    a_ij = k * love_square_everywhere(dxc, dyc, xp.take(side, j), xp) / phi_j
+    a_ji = k * love_square_everywhere(-dxc, -dyc, xp.take(side, i), xp) / phi_i
     # Grid coefficients of the pairs: a (width + 1)^2 table of integer offsets.
-    table = kernel_block((width + 1, width + 1), L, compliance)
-    iy_i, ix_i = np.divmod(grid.flat_index[i], nx)
-    iy_j, ix_j = np.divmod(grid.flat_index[j], nx)
-    grid_ij = table[np.abs(iy_i - iy_j), np.abs(ix_i - ix_j)]
-    value = 0.5 * (a_ij + a_ji) - grid_ij
-    diag = i == j
-    rows = np.concatenate([i, j[~diag]])
-    cols = np.concatenate([j, i[~diag]])
-    vals = np.concatenate([value, value[~diag]])
-    return sp.csr_matrix((vals, (rows, cols)), shape=(grid.n_cells, grid.n_cells))
+    table = xp.reshape(kernel_block((width + 1, width + 1), L, compliance, xp), (-1,))
+    fi, fj = xp.take(flat, i), xp.take(flat, j)
+    offset = xp.abs(fi // nx - fj // nx) * (width + 1) + xp.abs(fi % nx - fj % nx)
+    value = 0.5 * (a_ij + a_ji) - xp.take(table, offset)
+    off = i != j
+    rows = xp.concat([i, j[off]])
+    cols = xp.concat([j, i[off]])
+    vals = xp.concat([value, value[off]])
+    return be.sparse(rows, cols, vals, n)
 
 
 class CompliancePlan:
@@ -115,86 +144,92 @@ class CompliancePlan:
     spring_compliance : float
         c_s = 4 h / (pi d^2 E_p) (m/N); 0 for rigid pillars or a flat scene.
     workers : int
-        Threads for scipy.fft.
-    correction : scipy.sparse matrix, optional
-        Near-field correction (m/Pa) from :func:`near_field_correction`.
+        Threads for scipy.fft (default backend only).
+    correction : sparse matrix, optional
+        Near-field correction (m/Pa) from :func:`near_field_correction`, on the same device.
+    backend : optional
+        Device backend (:mod:`bem_solver._xp`); default numpy and scipy.fft on the CPU.
+        Vectors given to and returned by the plan live on its device.
     """
 
     def __init__(self, shape, flat_index, cell_size, compliance, pillar=None,
-                 spring_compliance=0.0, workers=FFT_WORKERS, correction=None):
+                 spring_compliance=0.0, workers=FFT_WORKERS, correction=None, backend=None):
+        be = NumpyDevice(workers) if backend is None else backend
+        xp = be.xp
+        self.backend = be
         ny, nx = shape
         self.shape = (ny, nx)
         self.cell_size = float(cell_size)
         self.compliance = float(compliance)
         self.workers = workers
         # Linear convolution of n-point sequences needs >= 2n - 1 points.
-        self.fft_shape = (sfft.next_fast_len(2 * ny - 1, real=True),
-                          sfft.next_fast_len(2 * nx - 1, real=True))
+        self.fft_shape = (be.next_fast_len(2 * ny - 1), be.next_fast_len(2 * nx - 1))
         my, mx = self.fft_shape
-        block = kernel_block(shape, cell_size, compliance)
-        padded = np.zeros(self.fft_shape)
+        block = kernel_block(shape, cell_size, compliance, xp)
+        padded = xp.zeros(self.fft_shape, dtype=xp.float64)
         padded[:ny, :nx] = block
-        padded[my - ny + 1:, :nx] = block[1:][::-1]          # negative y offsets
-        padded[:, mx - nx + 1:] = padded[:, 1:nx][:, ::-1]  # negative x offsets
-        # Even kernel -> real spectrum (imaginary part is round-off).
-        self.kernel_spectrum = np.ascontiguousarray(
-            sfft.rfft2(padded, workers=workers).real)
+        padded[my - ny + 1:, :nx] = xp.flip(block[1:, :], axis=0)       # negative y offsets
+        padded[:, mx - nx + 1:] = xp.flip(padded[:, 1:nx], axis=1)      # negative x offsets
+        # Even kernel -> real spectrum (imaginary part is round-off); a compact copy.
+        self.kernel_spectrum = xp.asarray(xp.real(be.rfft2(padded)), copy=True)
+        del padded
         self.self_coefficient = float(block[0, 0])
-        iy, ix = np.divmod(np.asarray(flat_index), nx)
-        self.padded_index = iy * mx + ix
+        flat = be.asarray(np.asarray(flat_index), dtype=xp.int64)
+        self.padded_index = (flat // nx) * mx + flat % nx
         # Only the first ny rows of the padded input are non-zero and only the first ny rows
         # of the output are needed: the row transforms run on ny rows, the column transforms
         # zero-pad to my (a pruned 2D FFT, ~40 % cheaper than rfft2 on the padded array).
-        self._buffer = np.zeros((ny, mx))
+        self._buffer = xp.zeros(ny * mx, dtype=xp.float64)
         self.spring = float(spring_compliance) * self.cell_size**2  # m/Pa per unit q
-        self.pillar = None if pillar is None else np.asarray(pillar)
-        self.n_pillars = 0 if pillar is None or len(pillar) == 0 else int(pillar.max()) + 1
+        self.pillar = None if pillar is None else be.asarray(np.asarray(pillar), dtype=xp.int64)
+        self.n_pillars = 0 if pillar is None or len(pillar) == 0 else int(np.max(pillar)) + 1
         self.applications = 0
         self.correction = correction
-        diagonal = np.full(len(flat_index), self.self_coefficient)
+        diagonal = xp.full(flat.shape[0], self.self_coefficient, dtype=xp.float64)
         if correction is not None:
-            diagonal += correction.diagonal()
+            diagonal = diagonal + be.asarray(correction.diagonal())
         self.diagonal = diagonal
 
     @property
     def has_spring(self) -> bool:
         return self.spring > 0.0 and self.pillar is not None
 
-    def pillar_sums(self, q: np.ndarray) -> np.ndarray:
+    def pillar_sums(self, q):
         """Sum of q over the cells of each pillar (Pa); multiply by L^2 for forces."""
-        return np.bincount(self.pillar, weights=q, minlength=self.n_pillars)
+        return self.backend.segment_sum(self.pillar, q, self.n_pillars)
 
-    def half_space(self, q: np.ndarray) -> np.ndarray:
+    def half_space(self, q):
         """K q on the candidate cells (m)."""
-        buf = self._buffer
-        buf.flat[self.padded_index] = q  # the rest of the buffer stays zero
-        w = self.workers
+        be = self.backend
+        xp = be.xp
+        ny = self.shape[0]
         my, mx = self.fft_shape
-        spec = sfft.fft(sfft.rfft(buf, axis=1, workers=w), n=my, axis=0, workers=w,
-                        overwrite_x=True)
+        self._buffer = be.put(self._buffer, self.padded_index, q)  # the rest stays zero
+        spec = be.fft(be.rfft(xp.reshape(self._buffer, (ny, mx)), axis=1), n=my, axis=0)
         spec *= self.kernel_spectrum
-        rows = sfft.ifft(spec, axis=0, workers=w, overwrite_x=True)[:self.shape[0]]
-        out = sfft.irfft(rows, n=mx, axis=1, workers=w)
+        rows = be.ifft(spec, axis=0)[:ny, :]
+        out = be.irfft(rows, n=mx, axis=1)
         self.applications += 1
-        return out.ravel()[self.padded_index]
+        return xp.take(xp.reshape(out, (-1,)), self.padded_index)
 
-    def __call__(self, q: np.ndarray) -> np.ndarray:
+    def __call__(self, q):
         """Full compliance: half-space convolution plus per-pillar Hooke shortening (m)."""
         u = self.half_space(q)
         if self.correction is not None:
             u += self.correction @ q
         if self.has_spring:
-            u += self.spring * self.pillar_sums(q)[self.pillar]
+            u += self.spring * self.backend.xp.take(self.pillar_sums(q), self.pillar)
         return u
 
     def dense_matrix(self, x, y) -> np.ndarray:
-        """The same operator as a dense matrix (m/Pa), for tests on small grids."""
+        """The same operator as a dense numpy matrix (m/Pa), for tests on small grids."""
         # Offsets are exact multiples of L: evaluate the kernel block on integer offsets.
         i = np.rint(np.abs(y[:, None] - y[None, :]) / self.cell_size).astype(int)
         j = np.rint(np.abs(x[:, None] - x[None, :]) / self.cell_size).astype(int)
         mat = kernel_block(self.shape, self.cell_size, self.compliance)[i, j]
         if self.correction is not None:
-            mat = mat + self.correction.toarray()
+            mat = mat + self.backend.to_numpy(self.correction.toarray())
         if self.has_spring:
-            mat = mat + self.spring * (self.pillar[:, None] == self.pillar[None, :])
+            pillar = self.backend.to_numpy(self.pillar)
+            mat = mat + self.spring * (pillar[:, None] == pillar[None, :])
         return mat

@@ -29,24 +29,34 @@ FAR_FIELD_RATIO = 12.0
 FAR_FIELD_RTOL = 1e-6
 
 
-def _corner(u, v):
+def _corner(u, v, xp=np):
     # u asinh(v/|u|) + v asinh(u/|v|): odd in u and in v, so that d2G/dudv = 1/sqrt(u^2+v^2)
-    # in every quadrant; the removable zeros on the axes are set to 0.
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t1 = np.where(u == 0.0, 0.0, u * np.arcsinh(v / np.abs(u)))
-        t2 = np.where(v == 0.0, 0.0, v * np.arcsinh(u / np.abs(v)))
+    # in every quadrant; the removable zeros on the axes are set to 0 (divisors made 1 there,
+    # so no division by zero is evaluated on any array library).
+    u0, v0 = u == 0.0, v == 0.0
+    t1 = xp.where(u0, 0.0, u * xp.asinh(v / xp.where(u0, 1.0, xp.abs(u))))
+    t2 = xp.where(v0, 0.0, v * xp.asinh(u / xp.where(v0, 1.0, xp.abs(v))))
     return t1 + t2
 
 
-def love_rectangle(x, y, a, b):
+def love_rectangle(x, y, a, b, xp=np):
     """Exact D(x, y) for the rectangle |x'| <= a, |y'| <= b (m); arrays broadcast.
 
-    Multiply by gamma p / pi to get the displacement (m) under pressure p (Pa).
+    Multiply by gamma p / pi to get the displacement (m) under pressure p (Pa).  ``xp``: the
+    array namespace of the arguments (numpy, cupy, any array API library).
     """
-    x = np.abs(np.asarray(x, dtype=float))
-    y = np.abs(np.asarray(y, dtype=float))
-    return (_corner(x + a, y + b) - _corner(x + a, y - b)
-            - _corner(x - a, y + b) + _corner(x - a, y - b))
+    x = xp.abs(xp.asarray(x, dtype=xp.float64))
+    y = xp.abs(xp.asarray(y, dtype=xp.float64))
+    return (_corner(x + a, y + b, xp) - _corner(x + a, y - b, xp)
+            - _corner(x - a, y + b, xp) + _corner(x - a, y - b, xp))
+
+
+def love_far(r2, s2, xp=np):
+    """Two-term far form of D at squared distance ``r2`` from a square of squared side ``s2``
+    (m^2): A / r + A s^2 / (24 r^3), A = s^2.  Zero distances give 0 (divisor made 1), to be
+    replaced by the exact form."""
+    safe = xp.where(r2 > 0.0, r2, 1.0)
+    return xp.where(r2 > 0.0, s2 / xp.sqrt(safe) * (1.0 + s2 / (24.0 * safe)), 0.0)
 
 
 def love_square(x, y, side):
@@ -57,13 +67,22 @@ def love_square(x, y, side):
     r2 = x * x + y * y
     s2 = side * side
     # Far form everywhere (cheap), then the few near entries exactly.
-    with np.errstate(divide="ignore", invalid="ignore"):
-        out = s2 / np.sqrt(r2) * (1.0 + s2 / (24.0 * r2))
+    out = love_far(r2, s2)
     near = np.nonzero(r2 <= FAR_FIELD_RATIO**2 * s2)
     if near[0].size:
         h = 0.5 * side[near]
         out[near] = love_rectangle(x[near], y[near], h, h)
     return out
+
+
+def love_square_everywhere(x, y, side, xp=np):
+    """:func:`love_square` for small arrays on any array library: both forms are evaluated
+    everywhere and the exact one kept within FAR_FIELD_RATIO sides (no scatter)."""
+    r2 = x * x + y * y
+    s2 = side * side
+    h = 0.5 * side
+    return xp.where(r2 <= FAR_FIELD_RATIO**2 * s2, love_rectangle(x, y, h, h, xp),
+                    love_far(r2, s2, xp))
 
 
 def unit_force_influence(px, py, cx, cy, angle, side):

@@ -6,17 +6,29 @@ complementarity problem of displacement-controlled frictionless contact
     gap = A q + b,   q >= 0,   gap >= 0,   q_i gap_i = 0  for every cell i,
 
 with b = g - zeta the undeformed gap minus the indentation (m) and q the cell pressures (Pa).
-This is the minimisation of 1/2 q.A q + b.q over q >= 0.  Conjugate directions live on the
-current contact set {q > 0}; a cell that interpenetrates outside it re-enters with a
-steepest-descent step (Polonsky and Keer 1999, steps 4-8; the load-controlled mean-gap shift
-of their step 3 is dropped because the indentation is given).  Unlike their method the
-conjugacy is kept across re-entries and restarted only when the projected direction stops
-descending (measured below, at the restart test).
+This is the minimisation of 1/2 q.A q + b.q over q >= 0 (Polonsky and Keer 1999, without the
+load-controlled mean-gap shift of their step 3, since the indentation is given).
 
-The conjugate directions may be preconditioned by an operator ``precondition(r, active)``
-that is SPD on the contact set: :func:`diagonal_preconditioner` scales by the diagonal (which
-varies on partly covered edge cells) and carries the Hooke term of soft pillars, whose uniform
-mode is up to 1e4 times stiffer than the half-space modes at E_p / E_l = 1e-4.
+Free set.  The conjugate directions live on the *free set*: the contact set {q > 0} and the
+cells out of contact that interpenetrate (gap < 0).  An interpenetrating cell thus enters the
+contact through the same preconditioned direction and the same exact line search as the
+cells in contact, and a step that drives pressures negative is truncated at zero (Vollebregt's
+bound-constrained CG).  Polonsky and Keer instead give entering cells a separate
+steepest-descent step tau D^-1 gap, each as if it were alone: on pillars much softer than the
+substrate, where a pillar's cells share a Hooke compliance up to 1e3 times a cell's own, a
+ring of cells entering together so overloads the pillar (x 170 its force in one step, measured)
+that the iteration never recovers (3,800 iterations on paper-fig3-sparse with Phi = 0.1,
+E_s = 10 E_p; issue 9).  Through the preconditioner the entering cells see the Hooke term.
+
+Conjugacy.  beta is Polak-Ribiere's, floored at zero (PR+): it restarts itself when the free
+set changes what the previous direction meant, where Fletcher-Reeves' beta kept stale
+directions after large changes of the contact set.  The direction is also restarted when it
+no longer descends.
+
+The directions may be preconditioned by an operator ``precondition(r, free)`` that is SPD on
+the free set: :func:`diagonal_preconditioner` scales by the diagonal (which varies on partly
+covered edge cells) and carries the Hooke term of soft pillars, whose uniform mode is up to
+1e4 times more compliant than the half-space modes at E_p / E_l = 1e-4.
 
 Stopping: the min-map residual of the complementarity problem,
 
@@ -31,14 +43,14 @@ References
    based on the multi-level multi-summation and conjugate gradient techniques", Wear 231
    (1999) 206-219.
 .. [2] E. A. H. Vollebregt, "The bound-constrained conjugate gradient method for non-negative
-   matrices", J. Optim. Theory Appl. 162 (2014) 931-953 (preconditioned variant).
+   matrices", J. Optim. Theory Appl. 162 (2014) 931-953 (truncation, Polak-Ribiere
+   continuation, preconditioned variant).
 """
 
 from __future__ import annotations
 
-import numpy as np
-
 from ._solution import ContactSolution
+from ._xp import NUMPY
 
 # The gap is recomputed from q (one more operator application) after this many iterations
 # with an unchanged contact set, so the recursively updated gap cannot drift.
@@ -46,40 +58,44 @@ REFRESH_EVERY = 50
 METHOD = "constrained-cg"
 
 
-def diagonal_preconditioner(diagonal, spring=0.0, pillar=None, n_pillars=0):
-    """Inverse of M = D + c P P^T restricted to the contact set (Sherman-Morrison).
+def diagonal_preconditioner(diagonal, spring=0.0, pillar=None, n_pillars=0, backend=None):
+    """Inverse of M = D + c P P^T restricted to the free set (Sherman-Morrison).
 
     ``diagonal`` is D, the diagonal of the half-space operator (m/Pa; larger on partly
     covered cells, whose force acts on a smaller square); ``spring`` c the Hooke compliance
     per unit cell pressure (m/Pa); P the cell-to-pillar incidence.  For soft pillars (c n >> D,
-    n cells per top) the uniform mode of each pillar is many orders stiffer than the
+    n cells per top) the uniform mode of each pillar is many orders more compliant than the
     half-space modes; M carries that mode so the conjugate gradients do not see it.
+    ``backend`` is the array backend of the vectors (:mod:`contact._xp`; default numpy).
     """
-    inv_d = 1.0 / np.asarray(diagonal, dtype=float)
+    be = NUMPY if backend is None else backend
+    xp = be.xp
+    inv_d = 1.0 / be.asarray(diagonal, dtype=xp.float64)
     if spring <= 0.0 or pillar is None:
-        return lambda r, active: r * inv_d * active
+        return lambda r, free: xp.where(free, r * inv_d, 0.0)
 
-    def apply(r, active):
-        z = r * inv_d * active
-        weight = np.bincount(pillar, weights=inv_d * active, minlength=n_pillars)
-        sums = np.bincount(pillar, weights=z, minlength=n_pillars)
+    def apply(r, free):
+        z = xp.where(free, r * inv_d, 0.0)
+        weight = be.segment_sum(pillar, xp.where(free, inv_d, 0.0), n_pillars)
+        sums = be.segment_sum(pillar, z, n_pillars)
         coef = sums / (1.0 / spring + weight)
-        return (z - coef[pillar] * inv_d) * active
+        return xp.where(free, z - xp.take(coef, pillar) * inv_d, 0.0)
 
     return apply
 
 
 def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, precondition=None,
-                   inverse_diagonal=None, weights=None, callback=None) -> ContactSolution:
-    """Polonsky-Keer constrained conjugate gradients, displacement-controlled.
+                   inverse_diagonal=None, weights=None, callback=None,
+                   backend=None) -> ContactSolution:
+    """Constrained conjugate gradients on the free set, displacement-controlled.
 
     Parameters
     ----------
     apply : callable
         q (Pa) -> A q (m); A symmetric positive definite.
-    b : ndarray
+    b : array
         Undeformed gap minus indentation (m).
-    q0 : ndarray
+    q0 : array
         Initial pressures (Pa), >= 0.
     scale : float
         Length (m) that normalises the residual (the indentation zeta).
@@ -88,114 +104,97 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
     max_iterations : int
         Give up after this many iterations (``converged = False``, never silently).
     precondition : callable, optional
-        (r, active) -> z, SPD on the active set and zero outside it.
-    inverse_diagonal : ndarray, optional
-        1 / diag(A) (Pa/m): scales the steepest-descent re-entry step of interpenetrating
-        cells when a preconditioner is used (the step is then tau D^-1 gap, in Pa).
-    weights : ndarray, optional
+        (r, free) -> z, SPD on the free set and zero outside it.
+    inverse_diagonal : array, optional
+        1 / diag(A) (Pa/m): the (Jacobi) preconditioner when ``precondition`` is not given.
+    weights : array, optional
         Positive weights: gap_i / w_i is a gap in the unit of ``scale`` (mortar rows).
     callback : callable, optional
         Called as callback(iteration, error) after each iteration (progress output).
+    backend : optional
+        Array backend of ``b``, ``q0`` and of what ``apply`` returns (:mod:`contact._xp`;
+        default numpy).  The iteration uses only the array API standard and the backend's
+        ``dot``, so the same code runs on numpy or cupy arrays.
+
+    Returns
+    -------
+    ContactSolution
+        ``reentries`` counts the iterations in which cells entered the contact set.
     """
-    q = np.maximum(np.asarray(q0, dtype=float), 0.0)
+    be = NUMPY if backend is None else backend
+    xp = be.xp
+    dot = be.dot
+    if precondition is None:
+        scaling = 1.0 if inverse_diagonal is None else inverse_diagonal
+        precondition = lambda r, free: xp.where(free, r * scaling, 0.0)  # noqa: E731
+    q = xp.maximum(be.asarray(q0, dtype=xp.float64), 0.0)
     gap = apply(q) + b
-    n = q.size
-    t = np.zeros(n)
-    work = np.empty(n)
-    active = np.empty(n, dtype=bool)
-    outside = np.empty(n, dtype=bool)
+    n = q.shape[0]
+    t = z_old = xp.zeros_like(q)
     g_old = 1.0
     conj = False
     history = []
     since_refresh = 0
-    restarts = 0
-    err = np.inf
-    # Vectors outside the contact set are kept exactly zero, so plain dot products over all
-    # cells equal the sums over the contact set (boolean gathers are slow on 1e6 cells).
+    entries = 0
+    err = float("inf")
+    # Vectors outside the free set are kept exactly zero, so plain dot products over all
+    # cells equal the sums over the free set (boolean gathers are slow on 1e6 cells).
     for it in range(1, max_iterations + 1):
-        np.greater(q, 0.0, out=active)
-        err = _residual(gap, active, work, weights) / scale
+        active = q > 0.0
+        err = _residual(xp, gap, active, weights, n) / scale
         history.append(err)
         if err <= tol:
             return ContactSolution(q, gap, True, it - 1, err, METHOD, "converged", history,
-                                   restarts)
-        if not active.any():
-            # Nothing in contact yet: move every interpenetrating cell by a steepest step.
-            np.less(gap, 0.0, out=active)
-        z = precondition(gap, active) if precondition is not None else gap * active
-        g_new = _dot(gap, z)
+                                   entries)
+        free = active | (gap < 0.0)
+        z = precondition(gap, free)
+        g_new = dot(gap, z)
         if conj and g_old > 0:
-            t *= g_new / g_old
-            t += z
-            t *= active
+            beta = max((g_new - dot(z_old, gap)) / g_old, 0.0)
+            t = xp.where(free, z + beta * t, 0.0)
         else:
             t = z
-        if conj and _dot(gap, t) <= 0.0:
+        if conj and dot(gap, t) <= 0.0:
             t = z  # the projected conjugate direction no longer descends: restart
-        g_old = g_new
+        z_old, g_old = z, g_new
         w = apply(t)
-        denom = _dot(w, t)
+        denom = dot(w, t)
         if not denom > 0:
             return ContactSolution(q, gap, False, it, err, METHOD,
                                    f"non-positive curvature {denom:g}: operator not SPD",
-                                   history, restarts)
-        tau = _dot(gap, t) / denom
-        np.multiply(t, -tau, out=work)
-        q_new = work + q
-        any_clipped = bool(q_new.min(initial=0.0) < 0.0)
+                                   history, entries)
+        tau = dot(gap, t) / denom
+        q_new = q - tau * t
+        any_clipped = n > 0 and bool(xp.min(q_new) < 0.0)
         if any_clipped:
-            np.maximum(q_new, 0.0, out=q_new)
-        # PK step 7: cells out of contact that interpenetrate (by the gap before the step)
-        # re-enter with a steepest-descent step (preconditioned: tau D^-1 gap).
-        np.less(gap, 0.0, out=outside)
-        outside &= ~active
-        any_overlap = bool(outside.any())
-        if any_overlap:
-            idx = np.flatnonzero(outside)
-            step = gap[idx] if inverse_diagonal is None else gap[idx] * inverse_diagonal[idx]
-            q_new[idx] -= tau * step
-        # Polonsky and Keer restart the conjugacy whenever a cell re-enters the contact.  On
-        # lattices of pillars, cells at the partial contacts of the outermost pillars re-enter
-        # again and again and the restarted iteration creeps (272 iterations, 120 restarts at
-        # N = 58 on paper-fig3-dense with rigid pillars).  Keeping the conjugate direction,
-        # projected on the new contact set, and restarting only when it is no longer a descent
-        # direction took 156.
+            q_new = xp.maximum(q_new, 0.0)
+        entries += bool(xp.any((q_new > 0.0) & ~active))
         conj = True
-        restarts += any_overlap
         since_refresh += 1
-        if any_clipped or any_overlap or since_refresh >= REFRESH_EVERY:
-            gap = apply(q_new)
-            gap += b
+        if any_clipped or since_refresh >= REFRESH_EVERY:
+            gap = apply(q_new) + b
             since_refresh = 0
         else:
-            np.multiply(w, tau, out=work)
-            gap -= work  # exact when no cell was clipped and none entered
+            gap -= w * tau  # exact: the step was taken whole along t
         q = q_new
         if callback is not None:
             callback(it, err)
     gap = apply(q) + b
-    err = _residual(gap, q > 0.0, np.empty(n), weights) / scale
+    err = _residual(xp, gap, q > 0.0, weights, n) / scale
     history.append(err)
     converged = err <= tol
     return ContactSolution(q, gap, converged, max_iterations, err, METHOD,
                            "converged" if converged else
                            f"no convergence in {max_iterations} iterations (residual {err:.3g} "
-                           f"> {tol:g})", history, restarts)
+                           f"> {tol:g})", history, entries)
 
 
-def _dot(a, b) -> float:
-    # einsum, not BLAS ddot: a threaded ddot wakes OpenBLAS threads that then spin against
-    # the FFT worker threads (measured 0.04 to 8 ms for 2e5 cells, against a steady 0.1 ms).
-    return float(np.einsum("i,i->", a, b))
-
-
-def _residual(gap, active, work, weights=None) -> float:
+def _residual(xp, gap, active, weights, n) -> float:
     """Max-norm min-map residual (m): |gap| on the contact set, interpenetration elsewhere
-    (:func:`contact.min_map_residual`, with work arrays: this runs every iteration)."""
-    if gap.size == 0:
+    (:func:`contact.min_map_residual`, in one reduction: this runs every iteration)."""
+    if n == 0:
         return 0.0
     if weights is not None:
         gap = gap / weights
-    np.abs(gap, out=work)
-    work *= active
-    return float(max(work.max(), -gap.min(), 0.0))
+    # On the contact set |gap| >= -gap, so this is max(|gap| on the set, -gap anywhere).
+    return max(float(xp.max(xp.where(active, xp.abs(gap), -gap))), 0.0)

@@ -88,7 +88,7 @@ def _refuse_if_too_large(scene: Scene, mesh_size: float) -> None:
 
 
 def solve_axisymmetric(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None,
-                       block_factor: float = BLOCK_FACTOR) -> ContactResult:
+                       block_factor: float = BLOCK_FACTOR, progress=None) -> ContactResult:
     """Solve ``scene`` with the axisymmetric finite-element model.
 
     Parameters
@@ -104,6 +104,9 @@ def solve_axisymmetric(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None,
     block_factor : float
         Side of the lens and substrate blocks in units of the pillar radius d/2 (or of the
         Hertz radius); the truncation error is about 2 a / (pi L).
+    progress : callable, optional
+        ``progress(text)`` is called as each phase starts (meshing, assembling, factorising,
+        compliance, contact).
 
     Returns
     -------
@@ -133,22 +136,27 @@ def solve_axisymmetric(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None,
         misses a tolerance comes back with ``converged = False`` and the reason in
         ``diagnostics["message"]``.
     """
+    say = progress or (lambda text: None)
     clock = {"start": time.perf_counter()}
     setup = _setup(scene, mesh_size, block_factor)
     _refuse_if_too_large(scene, mesh_size)
+    say(f"meshing (mesh_size {mesh_size:g})")
     mesh = build_axisymmetric_mesh(setup["geometry"])
     clock["mesh"] = time.perf_counter()
     ell, E_ref = setup["ell"], setup["E_ref"]
     skmesh = mesh.to_skfem().scaled([1.0 / ell, 1.0 / ell])
+    say(f"assembling ({mesh.nelements} elements)")
     system = assemble(skmesh, setup["materials"], contact=setup["contact"],
                       rigid_pillar_on_substrate=setup["rigid_pillar_on_substrate"],
                       clamp_pillar_base=setup["clamp_pillar_base"])
     clock["assemble"] = time.perf_counter()
+    say(f"factorising ({system.n_reduced} unknowns)")
     system.factorise()
     clock["factorise"] = time.perf_counter()
     # One solve per contact vertex: the P1 multiplier's nodal-force patterns G^T D (half as
     # many right-hand sides as P2 points).  U[:, j] is the gap change at the P2 points.
     D = mortar_matrix(system.contact_r)
+    say(f"compliance ({D.shape[1]} contact points, one solve each)")
     X, residual_compliance = system.solve(system.G.T @ D)
     U = system.G @ X
     C = D.T @ U
@@ -160,6 +168,7 @@ def solve_axisymmetric(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None,
     r_m = system.contact_r * ell
     gap = analytic.lens_gap(R, r_m) / ell
     weight = D.sum(axis=0)  # integral of psi_j r dr: turns weighted gaps into mean gaps
+    say("contact")
     sol = solve_dense(C, D.T @ (gap - zeta / ell), scale=zeta / ell, weights=weight,
                       tol=RTOL_COMPLEMENTARITY)
     lam, rounds = sol.pressure, sol.iterations

@@ -6,19 +6,34 @@ function R - sqrt(R^2 - r^2) of the contact model), and below it a pillar bonded
 substrate block, or a flat substrate.  Groups are named (``lens``, ``pillar``,
 ``substrate``, ``contact_lens``, ``contact_pillar``, ``contact_substrate``, ``pillar_base``,
 ``axis``, ``far_lens``, ``far_substrate``, ...) and code uses the names, never numeric tags.
+The 3D builder meshes a sector 0 <= theta <= alpha of the lattice centred on pillar (0, 0)
+(alpha = pi/6, the D6 primitive wedge) with tetrahedra: lens block, the pillars the lens can
+reach, substrate block, with per-pillar groups (``contact_pillar_{n}_{m}``, ...).
 """
 
-from ._geometry import BODIES, AxisymmetricGeometry, MeshError, flat_geometry, pillar_geometry
+from ._geometry import (BODIES, AxisymmetricGeometry, GeometryError, MeshError, flat_geometry,
+                        pillar_geometry)
 from ._gmsh import build_axisymmetric_mesh
 from ._mesh import MIN_QUALITY, AxisymmetricMesh
+from ._mesh3d import MIN_QUALITY_3D, WedgeMesh
+from ._wedge_geometry import SECTORS, SectorPillar, WedgeGeometry, sector_pillars
+from ._wedge_gmsh import build_wedge_mesh
 
 __all__ = [
     "BODIES",
     "MIN_QUALITY",
+    "MIN_QUALITY_3D",
+    "SECTORS",
+    "SectorPillar",
+    "WedgeGeometry",
+    "WedgeMesh",
     "AxisymmetricGeometry",
     "AxisymmetricMesh",
+    "GeometryError",
     "MeshError",
     "build_axisymmetric_mesh",
+    "build_wedge_mesh",
     "flat_geometry",
     "pillar_geometry",
+    "sector_pillars",
 ]

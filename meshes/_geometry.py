@@ -11,12 +11,19 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from scenes import InputError, ToolError
+
 BODIES = ("lens", "pillar", "substrate")
 
 
-class MeshError(ValueError):
-    """A geometry that cannot be meshed, or a mesh that fails its checks; the message says
-    which parameter or which check."""
+class MeshError(ToolError):
+    """gmsh failed, or a mesh fails its checks: a failure of the tool underneath (exit 3);
+    the message says which check."""
+
+
+class GeometryError(MeshError, InputError):
+    """A geometry parameter outside its allowed range: bad input (exit 2), found before gmsh
+    runs; the message names the parameter."""
 
 
 @dataclass(frozen=True)
@@ -65,7 +72,7 @@ class AxisymmetricGeometry:
     def __post_init__(self):
         def positive(name, value):
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise MeshError(f"{name} = {value!r}: must be a finite number > 0")
+                raise GeometryError(f"{name} = {value!r}: must be a finite number > 0")
 
         positive("focus_radius_m", self.focus_radius_m)
         positive("block_size_m", self.block_size_m)
@@ -79,31 +86,31 @@ class AxisymmetricGeometry:
         bodies = tuple(self.bodies)
         unknown = [b for b in bodies if b not in BODIES]
         if unknown or not bodies:
-            raise MeshError(f"bodies = {bodies!r}: choose a non-empty subset of {BODIES}")
+            raise GeometryError(f"bodies = {bodies!r}: choose a non-empty subset of {BODIES}")
         object.__setattr__(self, "bodies", bodies)
         if self.pillar_height_m is None:
             if "pillar" in bodies:
-                raise MeshError("bodies include 'pillar' but pillar_height_m is None "
-                                "(the flat geometry has no pillar)")
+                raise GeometryError("bodies include 'pillar' but pillar_height_m is None "
+                                    "(the flat geometry has no pillar)")
         else:
             positive("pillar_height_m", self.pillar_height_m)
             if not math.isclose(self.contact_radius_m, self.focus_radius_m, rel_tol=1e-12):
-                raise MeshError(
+                raise GeometryError(
                     f"contact_radius_m = {self.contact_radius_m:g} m: with a pillar the "
                     f"contact segment is the pillar top, radius {self.focus_radius_m:g} m")
         # The blocks must hold the contact zone and the pillar with room to grade away.
         inner = max(self.contact_radius_m, self.pillar_height_m or 0.0)
         if self.block_size_m < 4.0 * inner:
-            raise MeshError(
+            raise GeometryError(
                 f"block_size_m = {self.block_size_m:g} m: must be >= 4 x "
                 f"{inner:g} m (the larger of contact radius and pillar height); "
                 "the truncation error is about 2a/L, so use L >= 1e3 a")
         if self.block_size_m > 1e8 * self.focus_radius_m:
-            raise MeshError(
+            raise GeometryError(
                 f"block_size_m = {self.block_size_m:g} m: more than 1e8 x the focus radius "
                 f"{self.focus_radius_m:g} m exceeds double-precision geometry")
         if self.mesh_size > 4.0 or self.mesh_size < 0.02:
-            raise MeshError(f"mesh_size = {self.mesh_size:g}: allowed range is [0.02, 4]")
+            raise GeometryError(f"mesh_size = {self.mesh_size:g}: allowed range is [0.02, 4]")
 
     @property
     def has_pillar(self) -> bool:

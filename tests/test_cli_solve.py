@@ -36,3 +36,113 @@ def test_paper_search_and_centre_cells_from_the_cli(capsys):
     doc = json.loads(capsys.readouterr().out)
     assert doc["discretisation"]["contact"] == "paper"
     assert doc["discretisation"]["cells"] == "centre"
+
+
+# --- the solve's figure (issue 10: readable figures) -----------------------------------------
+def _lines(ax, style):
+    return [ln for ln in ax.get_lines() if ln.get_linestyle() == style]
+
+
+def test_grid_pressure_map_is_an_image_and_its_profile_a_density():
+    """8e3 FFT cells: the map is one image (not 8e3 polygons), sigma(r) a density (hexbin),
+    not a blob of points."""
+    from matplotlib.collections import PolyCollection
+
+    from bem_solver import solve_fft
+    from scenes import load_scene
+    from validation.report import SCATTER_MAX, pressure_plot
+
+    result = solve_fft(load_scene("paper-fig3-dense"), 6)
+    assert result.fields["x_m"].size > SCATTER_MAX
+    ax_map, ax_prof = pressure_plot(result).axes[:2]
+    assert len(ax_map.images) == 1 and ax_map.images[0].get_array().count() == \
+        result.fields["x_m"].size  # every cell a pixel, nothing else
+    assert any(isinstance(c, PolyCollection) for c in ax_prof.collections)  # the hexbin
+    assert max(len(ln.get_xdata()) for ln in ax_prof.get_lines()) < SCATTER_MAX
+
+
+def test_dense_map_draws_the_lattice_wedge_only_with_a_lattice():
+    from bem_solver import solve_dense
+    from scenes import load_scene
+    from validation.report import pressure_plot
+
+    lattice = pressure_plot(solve_dense(load_scene("paper-fig3-sparse"), 5)).axes[0]
+    flat = pressure_plot(solve_dense(load_scene("hertz"), 5)).axes[0]
+    assert len(_lines(lattice, "-.")) == 2  # theta = 0 and pi/6: the primitive cell
+    assert _lines(flat, "-.") == []  # no lattice, no wedge
+    assert not lattice.images and lattice.collections  # rotated squares, as computed
+
+
+def test_model_without_element_map_gets_one_panel_sized_to_the_pillar():
+    from fakes import fake_fem
+    from scenes import load_scene
+    from validation.report import pressure_plot
+
+    scene = load_scene("single-pillar")
+    fig = pressure_plot(fake_fem(scene, 1.0))
+    (ax,) = fig.axes  # no empty panel
+    assert ax.get_xlim()[1] == pytest.approx(1.05 * scene.pillars.diameter_m / 2 * 1e6)
+    assert "µm" in ax.get_xlabel() and "kPa" in ax.get_ylabel()
+    assert not any("NOT CONVERGED" in t.get_text() for t in fig.texts)
+
+
+def test_not_converged_figures_say_so():
+    from bem_solver import solve_fft
+    from scenes import load_scene
+    from validation.report import pressure_plot
+
+    result = solve_fft(load_scene("paper-fig3-sparse"), 8, max_iterations=2)
+    assert not result.converged
+    texts = [t.get_text() for t in pressure_plot(result).texts]
+    assert "NOT CONVERGED" in texts
+    assert any(result.diagnostics["message"] in t for t in texts)
+
+
+def test_solve_hands_the_model_a_progress_callback(monkeypatch, capsys):
+    """A model that reports progress gets the CLI's reporter; its lines go to stderr and
+    stdout stays one JSON document."""
+    import sys
+    import types
+
+    from validation import models
+
+    seen = []
+
+    def slow_model(scene, elements_per_diameter=11, progress=None):
+        seen.append(progress)
+        from fakes import fake_bem
+
+        return fake_bem(scene, elements_per_diameter)
+
+    module = types.ModuleType("xval_slow")
+    module.slow_model = slow_model
+    monkeypatch.setitem(sys.modules, "xval_slow", module)
+    monkeypatch.setitem(models.MODELS, "bem", ("xval_slow", "slow_model",
+                                               ("elements_per_diameter",)))
+    assert main(["solve", "--scene", "hertz", "--json"]) == 0
+    assert callable(seen[0])
+    json.loads(capsys.readouterr().out)
+
+
+def test_progress_lines_of_a_long_solve():
+    """Phases print as they come, iterations at most every `every_s`, a silent phase by a
+    heartbeat; nothing in the first `after_s` seconds."""
+    import io
+    import time
+
+    from validation.engine import SolveProgress
+
+    stream = io.StringIO()
+    with SolveProgress("solve x", stream=stream, every_s=0.2, after_s=0.0) as progress:
+        progress("meshing")
+        for k in range(1, 200):
+            progress(k, 1.0 / k)
+        time.sleep(0.5)
+    lines = stream.getvalue().splitlines()
+    assert lines[0].startswith("[solve x] meshing")
+    assert any(ln.startswith("[solve x] iteration ") and "residual" in ln for ln in lines)
+    assert 2 <= len(lines) <= 6  # throttled: 199 iterations, about 3 lines
+    quiet = io.StringIO()
+    with SolveProgress("y", stream=quiet, after_s=10.0) as progress:
+        progress("meshing")
+    assert quiet.getvalue() == ""

@@ -24,7 +24,6 @@ from scenes import load_scene
 from validation.engine import (Case, CaseStore, Engine, Progress, case_key, code_version,
                                read_journal, source_digest)
 
-from test_converge import fakes  # noqa: F401  (fixture: fake bem and fem-axisym)
 
 # A subprocess that should be well into its sweep: a generous bound on a contended machine.
 TIMEOUT_S = 120
@@ -159,7 +158,7 @@ def _vtu_case():
 
 
 @pytest.mark.parametrize("damage", ["missing", "truncated", "garbage-same-size"])
-def test_damaged_companion_vtu_is_recomputed(fakes, tmp_path, damage):  # noqa: F811
+def test_damaged_companion_vtu_is_recomputed(fakes, tmp_path, damage):
     case = _vtu_case()
     first = Engine("serial").run_one(case, tmp_path)
     vtu = first.files["fields.vtu"]
@@ -179,7 +178,7 @@ def test_damaged_companion_vtu_is_recomputed(fakes, tmp_path, damage):  # noqa: 
     assert again.files["fields.vtu"].read_bytes() == data
 
 
-def test_a_case_asking_for_the_vtu_recomputes_one_cached_without(fakes, tmp_path):  # noqa: F811
+def test_a_case_asking_for_the_vtu_recomputes_one_cached_without(fakes, tmp_path):
     plain = Case("fem-axisym", load_scene("single-pillar"), {"mesh_size": 1.0})
     Engine("serial").run_one(plain, tmp_path)
     assert _vtu_case().key == plain.key  # same computation, the VTU is a by-product

@@ -10,7 +10,7 @@ from scenes import analytic, load_scene
 from validation.cli import main
 from validation.profiles import edge_exponent, outer_load_fraction, plateau_ratio
 
-from test_converge import edge_exponent_of, fakes  # noqa: F401  (fixture)
+from fakes import edge_exponent_of
 
 D = 4e-6  # pillar diameter (m)
 RADIUS = D / 2
@@ -69,18 +69,20 @@ def test_outer_load_fraction_of_rigid_punch():
     assert uniform["profile_integral_ratio"] == pytest.approx(1.0, rel=1e-6)
 
 
-def test_cli_gecit_on_fakes_and_resume(fakes, tmp_path, capsys):  # noqa: F811
+def test_cli_gecit_on_fakes_and_resume(fakes, tmp_path, capsys):
     out = tmp_path / "gecit"
     argv = ["gecit", "--out", str(out), "--ratios", "0.01", "1", "1e6", "--aspect", "0.25", "1",
-            "--jobs", "1"]
+            "--workers", "1"]
     assert main(argv) == 0
     report = json.loads((out / "gecit.json").read_text())
     rows = report["rows"]
     assert len(rows) == 6 and {r["aspect"] for r in rows} == {0.25, 1.0}
     for r in rows:
-        scene = load_scene("single-pillar", [f"pillars.E_Pa={r['ratio'] * 1.6e6!r}",
+        # the paper's convention: the substrate as stiff as the pillars
+        e_p = r["ratio"] * 1.6e6
+        scene = load_scene("single-pillar", [f"pillars.E_Pa={e_p!r}", f"substrate.E_Pa={e_p!r}",
                                              f"pillars.height_um={r['aspect'] * 4.0!r}"])
-        assert r["E_p_Pa"] == pytest.approx(r["ratio"] * 1.6e6)
+        assert r["E_p_Pa"] == pytest.approx(e_p)
         assert r["h_m"] == pytest.approx(r["aspect"] * 4e-6)
         # window fit of (1 - (r/a)^2)^-lambda: slope bias <= lambda * 0.03 / 2
         assert r["edge_exponent"] == pytest.approx(edge_exponent_of(scene), abs=0.01)
@@ -93,7 +95,7 @@ def test_cli_gecit_on_fakes_and_resume(fakes, tmp_path, capsys):  # noqa: F811
     assert len(list(csv.DictReader((out / "gecit.csv").open()))) == 6
     assert (out / "gecit.png").stat().st_size > 0
     assert (out / "gecit_profiles.png").stat().st_size > 0
-    assert "E_p/E_l" in capsys.readouterr().out
+    assert "E_p/E_l" in capsys.readouterr().out and "E_s = E_p" in report["convention"]
     fakes.clear()
     assert main(argv) == 0 and fakes == []  # everything cached
     # two worker processes give the same table (fresh: every case recomputed)
@@ -102,40 +104,34 @@ def test_cli_gecit_on_fakes_and_resume(fakes, tmp_path, capsys):  # noqa: F811
     assert [r["err_F_T"] for r in again] == [r["err_F_T"] for r in rows]
 
 
-def test_cli_gecit_refuses_bad_input(fakes, tmp_path, capsys):  # noqa: F811
-    assert main(["gecit", "--out", str(tmp_path), "--ratios", "-1"]) == 2
-    assert main(["gecit", "--out", str(tmp_path), "--edge-window", "0.1", "0.01"]) == 2
-    assert main(["gecit", "--out", str(tmp_path), "--scene", "hertz"]) == 2
-    # h/d = 0.05 gives h = 0.2 um below the indentation 0.3 um: a SceneError, before any solve
-    assert main(["gecit", "--out", str(tmp_path), "--aspect", "0.05"]) == 2
+@pytest.mark.parametrize("argv, message", [
+    (["--ratios", "-1"], "argument --ratios: -1: allowed range is (0, inf)"),
+    (["--ratios", "nan"], "'nan': expected a decimal number"),
+    (["--edge-window", "0.1", "0.01"], "--edge-window 0.1 0.01: need 0 < LO < HI < 1"),
+    (["--scene", "hertz"], "needs a scene with pillars"),
+    # h/d = 0.05 gives h = 0.2 um below the indentation 0.3 um: a SceneError
+    (["--aspect", "0.05"], "pillar height"),
+    (["--levels", "0"], "argument --levels: 0: allowed range is [1, 5]"),
+    (["--bem-levels", "2"], "--bem-levels was renamed: use --levels"),
+    (["--jobs", "2"], "--jobs was renamed: use --workers"),
+    (["--mesh-size", "5"], "argument --mesh-size: 5: allowed range is [0.02, 4]"),
+    (["--elements-per-diameter", "300", "--levels", "2"], "level 2 would be"),
+])
+def test_cli_gecit_refuses_bad_input_before_any_solve(fakes, tmp_path, cli, argv, message):
+    code, _, err = cli("gecit", "--out", tmp_path, "--executor", "serial", *argv)
+    assert code == 2 and message in err and len(err.strip().splitlines()) == 1, err
     assert fakes == []
-    assert "pillar height" in capsys.readouterr().err
 
 
 @pytest.mark.slow
 def test_real_gecit_limits(tmp_path):
     """Real models: a stiff pillar gives the rigid punch's edge exponent 1/2 and a Hooke BEM
     within its band of the FEM; a soft pillar gives no edge singularity."""
-    import importlib
-
-    from validation import models
-
-    for module in ("bem_solver", "fem_reference"):
-        try:
-            importlib.import_module(module)
-        except ImportError as exc:
-            pytest.skip(f"{module} not importable yet ({exc})")
-    if "fem-axisym" not in models.MODELS:
-        pytest.skip("fem-axisym not registered in validation.models yet")
     out = tmp_path / "gecit"
-    # The paper's E_s = E_p: a scene without [substrate], whose substrate follows the pillars.
-    scene = tmp_path / "implied-substrate.toml"
-    scene.write_text("[lens]\nradius_mm = 2.0\nE_Pa = 1.6e6\nnu = 0.5\n"
-                     "[pillars]\ndiameter_um = 4.0\nheight_um = 2.0\nsurface_fraction = 2.3e-3\n"
-                     "E_Pa = 1.6e6\nnu = 0.5\n[load]\nindentation_um = 0.3\n")
+    # The study sets the paper's E_s = E_p on the preset, whose own substrate is E_l.
     # mesh_size 0.5 (the default): at 1 no profile node is left in the fit window
-    assert main(["gecit", "--scene", str(scene), "--out", str(out), "--ratios", "1e-3", "1e6",
-                 "--aspect", "0.5"]) == 0
+    assert main(["gecit", "--scene", "single-pillar", "--out", str(out), "--ratios", "1e-3",
+                 "1e6", "--aspect", "0.5"]) == 0
     soft, stiff = json.loads((out / "gecit.json").read_text())["rows"]
     assert stiff["edge_exponent"] == pytest.approx(0.5, abs=0.02)
     assert abs(soft["edge_exponent"]) < 0.02
@@ -143,20 +139,40 @@ def test_real_gecit_limits(tmp_path):
     assert stiff["outer_load_fraction"] == pytest.approx(np.sqrt(0.19), abs=0.01)
 
 
-def test_failed_case_is_a_row_not_a_crash(fakes, tmp_path, monkeypatch):  # noqa: F811
+def test_failed_case_is_a_row_not_a_crash(fakes, tmp_path, monkeypatch):
     import sys
 
-    from test_converge import fake_fem
+    from fakes import fake_fem
+
+    from scenes import ToolError
 
     def flaky(scene, mesh_size=1.0, *, vtu_path=None):
         if scene.pillars.material.E_Pa == 1.6e6:
-            raise RuntimeError("linear solve failed")
+            raise ToolError("SuperLU could not factorise")
         return fake_fem(scene, mesh_size)
 
     monkeypatch.setattr(sys.modules["xval_fakes"], "fake_fem", flaky)
     out = tmp_path / "g"
-    # two workers: the exception crosses the process boundary
+    # two workers: the exception crosses the process boundary; a tool failure is exit 3
     assert main(["gecit", "--out", str(out), "--ratios", "1", "10", "--aspect", "0.5",
-                 "--jobs", "2"]) == 1
+                 "--workers", "2"]) == 3
     rows = json.loads((out / "gecit.json").read_text())["rows"]
-    assert rows[0]["status"] == "failed: linear solve failed" and rows[1]["status"] == "ok"
+    assert rows[0]["status"] == "failed: SuperLU could not factorise"
+    assert rows[1]["status"] == "ok"
+
+
+def test_gecit_figure_draws_the_bands_it_computes(tmp_path, monkeypatch):
+    from validation import plots
+
+    rows = [{"ratio": r, "aspect": 0.5, "err_F_T": -0.01 * r, "U_BEM_F_T": 0.002,
+             "err_sigma0": 0.1, "U_BEM_sigma0": 0.004, "edge_exponent": 0.3, "plateau": 1.0,
+             "outer_load_fraction": 0.2, "status": "ok"} for r in (0.1, 1.0, 10.0)]
+    figures = []
+    monkeypatch.setattr(plots, "_save", lambda fig, path: figures.append(fig))
+    plots.plot_gecit(rows, tmp_path / "g.png", "E_s = E_p (the paper's convention)")
+    fig = figures[0]
+    bars = [c for c in fig.axes[0].containers if hasattr(c, "has_yerr") and c.has_yerr]
+    assert len(bars) == 1
+    segments = bars[0].lines[2][0].get_segments()  # one vertical bar per point, +-U in %
+    assert [s[1][1] - s[0][1] for s in segments] == pytest.approx([0.4] * 3)
+    assert "$E_s = E_p$" in fig._suptitle.get_text()

@@ -109,3 +109,37 @@ def test_a_model_that_refuses_the_scene_is_skipped(monkeypatch):
                    ladders=ladders)
     assert "refused" in doc["skipped"]["refuser"]
     assert {r["model"] for r in doc["rows"]} == {"bem-fft"}
+
+
+def test_pareto_front_is_the_set_nothing_beats():
+    from validation.plots import pareto_front
+
+    points = [(1.0, 0.1), (2.0, 0.2), (2.0, 0.05), (3.0, 0.05), (4.0, 0.01), (0.5, 0.5)]
+    # (2, 0.2) is beaten by (1, 0.1); (3, 0.05) by (2, 0.05); the rest are each best so far
+    assert sorted(pareto_front(points)) == [0, 2, 4, 5]
+
+
+def test_tradeoff_figure_marks_the_front_labels_rungs_and_crosses_misses(tmp_path,
+                                                                          monkeypatch):
+    import matplotlib.pyplot as plt
+
+    from validation import plots
+
+    rows = [{"model": "bem", "option": "elements_per_diameter", "level": n, "h": 1 / n,
+             "wall_time_s": 0.01 * n, "converged": n != 9, "err_F_T": 1.0 / n**2,
+             "err_sigma0": 1.0 / n, "err_a": None, "err_A": 1e-6}
+            for n in (5, 7, 9)]
+    doc = {"models": ["bem"], "rows": rows, "scene": {"name": "s"},
+           "references": {"hooke-pillar": {q: {"model": "bem"} for q in
+                                           ("F_T", "sigma0", "a", "A")}}}
+    figures = []
+    monkeypatch.setattr(plots, "save_figure", lambda fig, path, *a, **k: figures.append(fig))
+    plots.plot_tradeoff(doc, tmp_path / "t.png")
+    fig = figures[0]
+    ax = fig.axes[0]
+    assert sorted(t.get_text() for t in ax.texts) == ["P=5", "P=7", "P=9"]
+    assert any(ln.get_label() == "Pareto front" for ln in ax.get_lines())
+    assert any(ln.get_marker() == "x" for ln in ax.get_lines())  # P = 9 did not converge
+    assert "NOT CONVERGED" in [t.get_text() for t in fig.texts]
+    assert "every rung equals the reference" in fig.axes[2].texts[0].get_text()
+    plt.close(fig)

@@ -42,7 +42,7 @@ class Ladder:
     """How a model is refined.
 
     Option ``option`` takes ``coarsest * factor**k`` on level k, rounded by ``kind``:
-    ``"float"`` (none), ``"int"`` (nearest integer) or ``"odd"``
+    ``"float"`` (three significant digits), ``"int"`` (nearest integer) or ``"odd"``
     (``round((coarsest + 1) factor**k) - 1``, which keeps an odd count odd for factor 2, so a
     centre element stays centred).  ``rungs`` are the explicit values, coarse to fine, that a
     cost study walks.  The relative cell size of a value is ``h = value**h_power``; ``fixed``
@@ -65,7 +65,7 @@ class Ladder:
             return int(round((v0 + 1) * self.factor**k)) - 1
         if self.kind == "int":
             return int(round(v0 * self.factor**k))
-        return float(v0 * self.factor**k)
+        return float(f"{v0 * self.factor**k:.3g}")  # 2.83 / sqrt(2)^k: 2.83, 2, 1.41
 
     def size(self, value) -> float:
         """Relative cell size h of an option value."""
@@ -91,6 +91,10 @@ LADDERS: dict[str, Ladder] = {
     # FEM: the mesh builder's single size parameter scales every element size.
     "fem-axisym": Ladder("mesh_size", 1.0, 0.5, "float", 1.0, (4.0, 2.0, 1.0, 0.5), {},
                          "mesh_size (relative)"),
+    # 3D FEM: ratio sqrt(2) per level (each halving of the size multiplies the unknowns by ~8);
+    # 2.83, 2, 1.41 fit this machine on the paper's densest scene (validation/bench/fem3d.py).
+    "fem-3d": Ladder("mesh_size", 2 * 2**0.5, 2 ** -0.5, "float", 1.0, (4.0, 2.83, 2.0, 1.41), {},
+                     "mesh_size (relative)"),
 }
 
 

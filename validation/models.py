@@ -15,7 +15,8 @@ from scenes import ContactResult, Scene
 MODELS: dict[str, tuple[str, str, tuple[str, ...]]] = {
     "bem": ("bem_solver", "solve_dense", ("elements_per_diameter", "contact", "cells")),
     "fem-axisym": ("fem_reference", "solve_axisymmetric", ("mesh_size", "vtu_path")),
-    "bem-fft": ("bem_solver._fft", "solve_fft", ("cells_per_diameter",)),
+    "bem-fft": ("bem_solver._fft", "solve_fft", ("cells_per_diameter", "device")),
+    "fem-3d": ("fem_reference", "solve_fem3d", ("mesh_size", "vtu_path")),
     # Closed forms as models (the planner's cheapest candidates).
     "hertz": ("scenes.closed_form_models", "solve_hertz", ()),
     "spring": ("scenes.closed_form_models", "solve_spring", ()),

@@ -53,7 +53,7 @@ def _ours(scene_name, overrides, n, tol, edge_correction=True):
             "candidate_cells": d["candidate_cells"],
             "grid_cells": d["grid_shape"][0] * d["grid_shape"][1],
             "fft_shape": d["fft_shape"], "total_force_N": res.total_force_N,
-            "converged": res.converged, "contact_residual": d["final_error"]}
+            "converged": res.converged, "contact_residual": d["contact_residual"]}
 
 
 def _contactmechanics(scene_name, overrides, n, tol):
@@ -110,10 +110,15 @@ def _worker(spec: dict) -> dict:
 def run_case(solver, scene, overrides, n, tol=TOL, timeout=1800) -> dict:
     """One solve in a fresh interpreter; returns its measurements or {'error': ...}."""
     spec = {"solver": solver, "scene": scene, "overrides": list(overrides), "n": n, "tol": tol}
+    return run_worker("validation.bench.fft", spec, timeout)
+
+
+def run_worker(module: str, spec: dict, timeout: float) -> dict:
+    """``python -m module --worker SPEC`` in a fresh interpreter: the JSON it prints last, or
+    ``{**spec, 'error': ...}`` (also used by validation.bench.gpu)."""
     try:
-        proc = subprocess.run([sys.executable, "-m", "validation.bench.fft", "--worker",
-                               json.dumps(spec)], capture_output=True, text=True,
-                              timeout=timeout)
+        proc = subprocess.run([sys.executable, "-m", module, "--worker", json.dumps(spec)],
+                              capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired:
         return {**spec, "error": f"timed out after {timeout} s"}
     if proc.returncode != 0:

@@ -1,57 +1,122 @@
 """Command line: ``pillar-xval COMMAND --scene PRESET|FILE [--set table.key=value ...]``.
 
 Each command lives in its own module of this package, listed in ``COMMANDS``: a thin layer
-that parses options, calls a study (:mod:`validation.studies`) and prints.  A module provides
-``add_parser(subparsers)`` (which sets ``func``) and the function it names.  Bad input ends
-the program with one line on stderr and exit status 2, never a traceback.
+that parses options (the shared vocabulary of :mod:`validation.cli._args`), validates every
+option before anything is solved, calls a study (:mod:`validation.studies`) and prints.  A
+module provides ``add_parser(subparsers)`` (which sets ``func``) and the function it names.
+
+Exit status and stderr (the failure policy of :mod:`scenes._errors`): every outcome is one
+line on stderr, never a traceback.
+
+====  ===========================================================================
+0     done
+1     a solver did not converge (the line says which case and why)
+2     bad input or a scene outside a model's scope (option or key as written, value, range)
+3     a tool underneath failed: gmsh, a linear solver, the file system, memory
+4     an internal error, i.e. a bug: ``--debug`` (or ``PILLAR_XVAL_DEBUG=1``) shows its
+      traceback
+130   interrupted (Ctrl-C)
+====  ===========================================================================
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
+import warnings
 
 from scenes import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_TOOL_FAILURE, InputError, ToolError
+from scenes.result import package_version
 
-from ._args import add_scene_arguments
+from ._args import DEBUG_ENV, EXIT_INTERNAL_ERROR, Parser, add_scene_arguments, one_line
 
-__all__ = ["COMMANDS", "UserError", "add_scene_arguments", "build_parser", "main"]
+__all__ = ["COMMANDS", "DEBUG_ENV", "EXIT_INTERNAL_ERROR", "UserError",
+           "add_scene_arguments", "build_parser", "main"]
 
 COMMANDS = ("validation.cli.solve", "validation.cli.compare", "validation.cli.converge",
             "validation.cli.gecit", "validation.cli.tradeoff", "validation.cli.sweep",
             "validation.cli.plan", "validation.cli.calibrate", "validation.cli.extremes")
 
-
-class UserError(Exception):
-    """An error in what the user asked for; printed as one line."""
+# Kept for commands written against it: an error in what the user asked for.
+UserError = InputError
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="pillar-xval",
         description="Contact of a spherical lens on a hexagonal lattice of pillars: "
-                    "BEM solver and FEM references.  SI units in results.")
-    sub = parser.add_subparsers(dest="command", required=True)
+                    "boundary-element solvers cross-validated against finite elements.  SI "
+                    "units in results; scene files state theirs in the key names.",
+        epilog="Exit status: 0 done, 1 not converged, 2 bad input, 3 a tool failed "
+               f"(gmsh, a linear solver, files, memory), {EXIT_INTERNAL_ERROR} internal error "
+               "(--debug shows the traceback), 130 interrupted.")
+    parser.add_argument("--version", action="version",
+                        version=f"pillar-xval {package_version()}")
+    parser.add_argument("--debug", action="store_true",
+                        help=f"show the traceback of an internal error (or set {DEBUG_ENV}=1)")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND",
+                                parser_class=Parser)
     for name in COMMANDS:
         importlib.import_module(name).add_parser(sub)
+    for command in sub.choices.values():
+        # SUPPRESS: a subcommand's default must not overwrite `pillar-xval --debug CMD`.
+        command.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                             help="show the traceback of an internal error")
     return parser
 
 
+def _debugging(args) -> bool:
+    return bool(getattr(args, "debug", False)) or os.environ.get(DEBUG_ENV, "") not in ("", "0")
+
+
+def _one_line_warnings(prog: str):
+    """Warnings as one line without a source path (``--debug`` keeps Python's own form)."""
+    def show(message, category, filename, lineno, file=None, line=None):
+        print(f"{prog}: warning: {category.__name__}: {one_line(message, 200)}",
+              file=file or sys.stderr)
+
+    return show
+
+
 def main(argv: list[str] | None = None) -> int:
+    """Run one command; returns the exit status (see the module docstring)."""
     parser = build_parser()
-    args = parser.parse_args(argv)
     try:
-        return int(args.func(args) or 0)
-    except (InputError, UserError, ValueError) as exc:
-        print(f"pillar-xval {args.command}: error: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    except ToolError as exc:
-        print(f"pillar-xval {args.command}: failure: {exc}", file=sys.stderr)
-        return EXIT_TOOL_FAILURE
-    except KeyboardInterrupt:
-        print(f"pillar-xval {args.command}: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, --version, or a one-line usage error (status 2)
+        return exc.code if isinstance(exc.code, int) else EXIT_BAD_INPUT
+    prog = f"pillar-xval {args.command}"
+    debug = _debugging(args)
+    with warnings.catch_warnings():
+        if not debug:
+            warnings.showwarning = _one_line_warnings(prog)
+        try:
+            return int(args.func(args) or 0)
+        except KeyboardInterrupt:
+            print(f"{prog}: interrupted", file=sys.stderr)
+            return EXIT_INTERRUPTED
+        except InputError as exc:  # SceneError, ScopeError too
+            print(f"{prog}: error: {one_line(exc)}", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        except ToolError as exc:
+            print(f"{prog}: failure: {one_line(exc)}", file=sys.stderr)
+            return EXIT_TOOL_FAILURE
+        except MemoryError as exc:
+            detail = f" ({one_line(exc, 200)})" if str(exc) else ""
+            print(f"{prog}: failure: out of memory{detail}; try a coarser resolution or a "
+                  "smaller scene", file=sys.stderr)
+            return EXIT_TOOL_FAILURE
+        except OSError as exc:
+            print(f"{prog}: failure: file system: {one_line(exc)}", file=sys.stderr)
+            return EXIT_TOOL_FAILURE
+        except Exception as exc:
+            if debug:
+                raise
+            print(f"{prog}: internal error: {type(exc).__name__}: {one_line(exc, 200)} (a bug; "
+                  f"--debug or {DEBUG_ENV}=1 shows the traceback)", file=sys.stderr)
+            return EXIT_INTERNAL_ERROR
 
 
 if __name__ == "__main__":

@@ -7,27 +7,41 @@ from pathlib import Path
 
 from scenes import load_scene
 
-from ..studies.compare import FEM_COARSEST
-from ._args import add_engine_arguments, add_scene_arguments, engine_from_args
+from scenes import InputError
+
+from ..studies.compare import BEM, FEM_COARSEST, FEM_MODELS, OUTPUTS
+from ._args import (Renamed, add_engine_arguments, add_levels_argument, add_models_argument,
+                    add_output_arguments,
+                    add_refinement_arguments, add_scene_arguments, check_out,
+                    engine_from_args, not_converged, print_json, refuse_inapplicable)
 
 
 def add_parser(sub) -> None:
     """Register ``compare`` on the CLI's subparsers."""
-    p = sub.add_parser("compare", help="BEM (Hooke pillar) against FEM (elastic pillar) with "
-                                       "the FEM's GCI uncertainty")
+    p = sub.add_parser(
+        "compare", help="BEM (Hooke pillar) against FEM (elastic pillar), each with its GCI "
+                        "uncertainty",
+        description="Solve one scene with the dense BEM (Hooke-spring pillars) and an FEM "
+                    "with elastic pillars (the axisymmetric model on a flat scene or one pillar "
+                    "alone, fem-3d on a lattice scene), each on --levels refinements, and set "
+                    "every difference beside the two models' numerical uncertainty (GCI).  "
+                    "Writes report.json, summary.md, profiles.png/.csv, the finest FEM fields "
+                    "(VTU) and a 3D render of its stress.")
     add_scene_arguments(p)
-    p.add_argument("--out", type=Path, default=None,
-                   help="report folder (default out/compare/<scene>)")
-    p.add_argument("--fem-levels", type=int, default=3, metavar="N",
-                   help="FEM refinements for the GCI (default 3)")
-    p.add_argument("--fem-coarsest", type=float, default=FEM_COARSEST, metavar="MESH_SIZE",
-                   help=f"FEM mesh_size of the coarsest level, halved per level (default "
-                        f"{FEM_COARSEST:g})")
-    p.add_argument("--bem-levels", type=int, default=3, metavar="N",
-                   help="BEM refinements (default 3, for its own GCI; 1: no BEM uncertainty)")
-    p.add_argument("--elements-per-diameter", type=int, default=None, metavar="P",
-                   help="BEM elements per diameter on its coarsest level (default 11)")
+    add_models_argument(p, (BEM, *FEM_MODELS),
+                        "bem and one FEM; default bem and fem-axisym where it applies (flat "
+                        "scene, or Phi below Phi_S), fem-3d otherwise")
+    add_refinement_arguments(p, ladder=True, families=("elements_per_diameter", "mesh_size"),
+                             defaults={"elements_per_diameter": 11,
+                                       "mesh_size": " or ".join(
+                                           f"{v:g} ({m})" for m, v in FEM_COARSEST.items())})
+    add_levels_argument(p, 3, 2, 8, "refinement levels of each model (3 or more give an "
+                                    "observed order and a GCI)")
+    add_output_arguments(p, "report folder (default out/compare/<scene>)")
     p.add_argument("--no-render", action="store_true", help="skip the pyvista render")
+    for old, new in (("--fem-levels", "--levels"), ("--bem-levels", "--levels"),
+                     ("--fem-coarsest", "--mesh-size")):
+        p.add_argument(old, action=Renamed, successor=new)
     add_engine_arguments(p)
     p.set_defaults(func=run)
 
@@ -35,19 +49,43 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     """Run both models, write the report folder, print the table; exit 1 if a run did not
     converge."""
-    from ..studies.compare import compare_study
+    from ..studies.compare import check_options, compare_study, fem_model_for, table_text, title
 
+    fem = _chosen_fem(args.models)
+    refuse_inapplicable(args, [BEM, fem or FEM_MODELS[0]])
+    check_options(args.levels, args.mesh_size, args.elements_per_diameter, fem or FEM_MODELS[0])
     scene = load_scene(args.scene, args.overrides)
-    out = args.out or Path("out") / "compare" / scene.name
+    fem = fem or fem_model_for(scene)
+    check_options(args.levels, args.mesh_size, args.elements_per_diameter, fem)
+    out = check_out(args.out or Path("out") / "compare" / scene.name)
     with engine_from_args(args, "compare") as engine:
-        report = compare_study(scene, out, engine=engine, fem_levels=args.fem_levels,
-                               fem_coarsest=args.fem_coarsest, bem_levels=args.bem_levels,
+        report = compare_study(scene, out, engine=engine, levels=args.levels,
+                               mesh_size=args.mesh_size,
                                elements_per_diameter=args.elements_per_diameter,
-                               render=not args.no_render)
-    print(report["title"])
-    print(report["table"])
-    print(f"render: {report['render']}")
-    print(f"report: {out}/ (report.json, summary.md, profiles.png, profiles.csv"
-          + (", fem_finest.vtu" if report["vtu"] else "")
-          + (", fem_stress_3d.png" if (out / "fem_stress_3d.png").exists() else "") + ")")
-    return 0 if report["converged"] else 1
+                               render=not args.no_render, fem_model=fem)
+    if args.json:
+        print_json(report)
+    else:
+        ref = report["closed_form"]["name"]
+        r_label = "d/2" if report["scene"].get("pillars") else "a_Hertz"
+        print(title(scene, fem))
+        print(table_text(report["rows"], ref, r_label))
+        print(f"render: {report['render']}")
+        written = [name for name in OUTPUTS if (out / name).exists()]
+        print(f"report: {out}/ ({', '.join(written)})")
+    if report["converged"]:
+        return 0
+    return not_converged("compare", report["not_converged"])
+
+
+
+def _chosen_fem(models) -> str | None:
+    """The FEM named in ``--models`` (None: chosen by the scene); the list must be bem and
+    one FEM."""
+    if models is None:
+        return None
+    fems = [m for m in models if m in FEM_MODELS]
+    if BEM not in models or len(fems) != 1 or len(models) != 2:
+        raise InputError(f"--models {','.join(models)}: compare takes bem and one FEM "
+                         f"({' or '.join(FEM_MODELS)})")
+    return fems[0]

@@ -7,39 +7,58 @@ from pathlib import Path
 
 from scenes import load_scene
 
-from ..models import model_names
-from ._args import add_engine_arguments, add_scene_arguments, engine_from_args
+from ..ladders import LADDERS
+from ._args import (Renamed, add_engine_arguments, add_levels_argument, add_model_argument,
+                    add_output_arguments, add_refinement_arguments, add_scene_arguments,
+                    check_out, engine_from_args, not_converged, print_json,
+                    refuse_inapplicable)
 
 
 def add_parser(sub) -> None:
     """Register ``converge`` on the CLI's subparsers."""
-    p = sub.add_parser("converge", help="grid convergence study of one model: order, "
-                                        "Richardson estimate, GCI")
+    p = sub.add_parser(
+        "converge", help="grid convergence study of one model: order, Richardson estimate, GCI",
+        description="Solve a scene with one model on N refinement levels (each halving the "
+                    "element size of the last, from the coarsest given by the model's "
+                    "refinement option) and report, per quantity, the observed order, the "
+                    "Richardson estimate and the GCI band (Roache; Celik et al. 2008).")
     add_scene_arguments(p)
-    p.add_argument("--model", default="fem-axisym", choices=model_names(),
-                   help="model to refine (default fem-axisym)")
-    p.add_argument("--levels", type=int, default=3, metavar="N",
-                   help="refinement levels, >= 2 (3 or more give an observed order); default 3")
-    p.add_argument("--coarsest", type=float, default=None, metavar="VALUE",
-                   help="value of the refined option on the coarsest level (bem: elements per "
-                        "diameter, default 11; fem-axisym: mesh_size, default 1.0)")
-    p.add_argument("--out", type=Path, default=None,
-                   help="report folder (default out/converge/<scene>-<model>)")
+    add_model_argument(p, sorted(LADDERS), help_text="model to refine (default bem)")
+    add_refinement_arguments(p, ladder=True, defaults={
+        ladder.option: ladder.coarsest for ladder in LADDERS.values()})
+    add_levels_argument(p, 3, 2, 8, "refinement levels (3 or more give an observed order)")
+    add_output_arguments(p, "report folder (default out/converge/<scene>-<model>)")
+    p.add_argument("--coarsest", action=Renamed, successor="the model's refinement option "
+                   "(--elements-per-diameter, --cells-per-diameter or --mesh-size)")
     add_engine_arguments(p, "recompute cached levels")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     """Study, write the report folder, print the table; exit 1 if a level did not converge."""
-    from ..studies.converge import converge_study, study_table, write_report
+    from ..studies.converge import (OUTPUTS, check_ladder, converge_study, study_table,
+                                    write_report)
+    from ..report import clear_outputs
 
+    refuse_inapplicable(args, [args.model])
+    option = LADDERS[args.model].option
+    coarsest = getattr(args, option, None)
+    check_ladder(args.model, args.levels, coarsest)
     scene = load_scene(args.scene, args.overrides)
-    out = args.out or Path("out") / "converge" / f"{scene.name}-{args.model}"
+    out = check_out(args.out or Path("out") / "converge" / f"{scene.name}-{args.model}")
+    clear_outputs(out, OUTPUTS)
     with engine_from_args(args, "converge") as engine:
         data = converge_study(args.model, scene, args.levels, out / "cases",
-                              coarsest=args.coarsest, engine=engine)
+                              coarsest=coarsest, engine=engine)
     names = write_report(data, out)
-    print(f"{args.model} on {scene.name}: {args.levels} levels of {data['ladder']['option']}")
-    print(study_table(data))
-    print(f"report: {out}/ ({', '.join(names)})")
-    return 0 if data["all_converged"] else 1
+    if args.json:
+        print_json({k: v for k, v in data.items() if k != "results"})
+    else:
+        print(f"{args.model} on {scene.name}: {args.levels} levels of {data['ladder']['option']}")
+        print(study_table(data))
+        print(f"report: {out}/ ({', '.join(names)})")
+    if data["all_converged"]:
+        return 0
+    return not_converged("converge", [
+        f"level {lv['level'] + 1} ({option}={lv['value']}): {lv['message']}"
+        for lv in data["levels"] if not lv["converged"]])

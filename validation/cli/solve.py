@@ -2,57 +2,79 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from scenes import load_scene
 
-from ..models import model_names, run_model
-from ._args import add_scene_arguments
+from ..models import model_names
+from ._args import (add_choice_arguments, add_model_argument, add_output_arguments,
+                    add_refinement_arguments, add_scene_arguments, check_out, not_converged,
+                    print_json, refuse_inapplicable)
+
+# What `solve --out DIR` writes (result.json last: its presence means the folder is whole).
+OUTPUTS = ("elements.csv", "pillars.csv", "pressure.png", "fields.vtu", "fields.json",
+           "result.json")
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("solve", help="solve one scene with one model")
+    p = sub.add_parser(
+        "solve", help="solve one scene with one model",
+        description="Solve one scene with one model and print a summary (or, with --json, "
+                    "the result as one JSON document).  A model option that the chosen "
+                    "model does not take is refused.")
     add_scene_arguments(p)
-    p.add_argument("--model", default="bem", choices=model_names(),
-                   help="model to run (default: bem, the dense boundary-element solver)")
-    p.add_argument("--elements-per-diameter", type=int, default=None, metavar="P",
-                   help="BEM: square elements across a pillar diameter (flat scenes: across the "
-                        "Hertz contact diameter); default 11")
-    p.add_argument("--cells", choices=("centre", "covered"), default=None,
-                   help="BEM: 'centre' keeps the paper's cells whose centre lies on the pillar "
-                        "top; 'covered' adds edge cells weighted by their covered area "
-                        "(smooth convergence); default covered")
-    p.add_argument("--contact", choices=("exact", "paper"), default=None,
-                   help="BEM contact solver: exact complementarity (default) or the paper's "
-                        "contact-radius search")
-    p.add_argument("--cells-per-diameter", type=int, default=None, metavar="N",
-                   help="bem-fft: square cells across a pillar diameter (flat scenes: across the "
-                        "Hertz contact diameter 2 sqrt(R zeta)); default 32")
-    p.add_argument("--mesh-size", type=float, default=None, metavar="S",
-                   help="fem-axisym: dimensionless mesh refinement factor, 0.5 halves every "
-                        "element size; default 1.0")
-    p.add_argument("--json", action="store_true", help="print exactly one JSON document")
-    p.add_argument("--out", type=Path, default=None,
-                   help="folder for result.json, element and pillar CSVs, pressure.png "
-                        "(and fields.vtu for the FEM)")
+    add_model_argument(p, model_names(), help_text="model to run (default bem, the dense "
+                                                   "boundary-element solver)")
+    add_refinement_arguments(p, ladder=False)
+    add_choice_arguments(p, ("cells", "contact", "device"))
+    add_output_arguments(p, "folder for result.json, element and pillar CSVs, pressure.png "
+                            "(and fields.vtu for the FEM)",
+                         "print the result as exactly one JSON document")
     p.set_defaults(func=run)
 
 
+def model_options(args) -> dict:
+    """The model options the user gave (None: the model's default)."""
+    from ..options import MODEL_OPTIONS
+
+    return {k: getattr(args, k) for k in MODEL_OPTIONS if getattr(args, k, None) is not None}
+
+
 def run(args) -> int:
+    refuse_inapplicable(args, [args.model])
     scene = load_scene(args.scene, args.overrides)
-    options = {k: v for k, v in vars(args).items()
-               if k not in ("func", "command", "scene", "overrides", "model", "json", "out")}
+    options = model_options(args)
     if args.out is not None:
+        from ..report import clear_outputs
+
+        check_out(args.out)
+        clear_outputs(args.out, OUTPUTS)
         options["vtu_path"] = args.out / "fields.vtu"  # models with volume fields write them
-    result = run_model(args.model, scene, **options)
+    result = _solve(args.model, scene, options)
     if args.out is not None:
         from ..report import write_solve_report
 
         write_solve_report(result, args.out)
     if args.json:
-        print(result.to_json())
+        print_json(result.to_dict())
     else:
         print(result.summary())
         if args.out is not None:
             print(f"written to {args.out}/")
-    return 0 if result.converged else 1
+    if result.converged:
+        return 0
+    return not_converged("solve", [f"{result.model}: "
+                                   f"{result.diagnostics.get('message', 'no message')}"])
+
+
+def _solve(model: str, scene, options: dict):
+    """Run the model, with progress lines inside a long solve when the model reports them."""
+    from ..engine import SolveProgress, accepts_progress, accepts_vtu, solver_of
+    from ..models import MODELS
+
+    accepted = MODELS[model][2]
+    kwargs = {k: v for k, v in options.items() if k in accepted}
+    if "vtu_path" in options and accepts_vtu(model):
+        kwargs["vtu_path"] = options["vtu_path"]
+    with SolveProgress(f"solve {model}") as progress:
+        if accepts_progress(model):
+            kwargs["progress"] = progress
+        return solver_of(model)(scene, **kwargs)

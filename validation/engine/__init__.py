@@ -16,11 +16,12 @@ Example
 ...     outcomes = engine.run(cases, "out/my-study/cases")
 """
 
-from ._case import (COMPUTING_PACKAGES, Case, accepts_vtu, canonical_json, case_key,
-                    code_version, compute_case, scene_physics, solver_of, source_digest)
+from ._case import (COMPUTING_PACKAGES, Case, accepts_progress, accepts_vtu, canonical_json,
+                    case_key, code_version, compute_case, scene_physics, solver_of,
+                    source_digest)
 from ._engine import CASE_ERRORS, Engine, Outcome
 from ._executors import EXECUTORS, default_workers, make_executor
-from ._progress import Progress
+from ._progress import Progress, SolveProgress
 from ._store import RTOL_FORCE_SUM, CaseStore, read_journal
 
 __all__ = [
@@ -33,6 +34,8 @@ __all__ = [
     "Engine",
     "Outcome",
     "Progress",
+    "SolveProgress",
+    "accepts_progress",
     "accepts_vtu",
     "add_engine_arguments",
     "canonical_json",

@@ -33,6 +33,8 @@ from pathlib import Path
 from scenes import ContactResult, Scene, ToolError
 from scenes.result import package_version
 
+from ._progress import SolveProgress
+
 # The packages whose source decides a result.
 COMPUTING_PACKAGES = ("scenes", "contact", "bem_solver", "fem_reference", "meshes")
 
@@ -124,6 +126,7 @@ class Case:
         """What a worker needs (plain data: crosses process and machine boundaries)."""
         return {"model": self.model, "scene": self.scene.to_dict(), "options": dict(self.options),
                 "key": self.key, "code_version": code_version(), "repeats": self.repeats,
+                "tag": self.describe(),
                 "single_above": self.single_above, "vtu": self.vtu, "fields": self.fields}
 
 
@@ -139,12 +142,21 @@ def solver_of(model: str):
     return getattr(importlib.import_module(module), function)
 
 
-def accepts_vtu(model: str) -> bool:
-    """Whether the model's function takes ``vtu_path`` (it writes its fields as VTU)."""
+def _accepts(model: str, parameter: str) -> bool:
     try:
-        return "vtu_path" in inspect.signature(solver_of(model)).parameters
+        return parameter in inspect.signature(solver_of(model)).parameters
     except (ImportError, ValueError, TypeError):
         return False
+
+
+def accepts_vtu(model: str) -> bool:
+    """Whether the model's function takes ``vtu_path`` (it writes its fields as VTU)."""
+    return _accepts(model, "vtu_path")
+
+
+def accepts_progress(model: str) -> bool:
+    """Whether the model's function takes ``progress`` (lines inside a long solve)."""
+    return _accepts(model, "progress")
 
 
 # --- memory ------------------------------------------------------------------------------
@@ -246,7 +258,11 @@ def compute_case(spec: dict) -> dict:
         first_kwargs = dict(kwargs)
         if spec.get("vtu") and accepts_vtu(spec["model"]):
             first_kwargs["vtu_path"] = Path(tmp) / "fields.vtu"
-        result, wall, memory = _measured_run(solver, scene, first_kwargs)
+        # Lines inside a long first run (on the worker's stderr); the timing repeats are quiet.
+        with SolveProgress(spec.get("tag") or spec["model"], every_s=10.0) as progress:
+            if accepts_progress(spec["model"]):
+                first_kwargs["progress"] = progress
+            result, wall, memory = _measured_run(solver, scene, first_kwargs)
         for path in sorted(Path(tmp).iterdir()):
             files[path.name] = path.read_bytes()
     if spec.get("fields"):

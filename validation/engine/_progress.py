@@ -3,6 +3,7 @@ line per event otherwise (CI logs, pipes)."""
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 
@@ -71,3 +72,67 @@ class Progress:
         if self._bar is not None:
             self._bar.close()
             self._bar = None
+
+
+class SolveProgress:
+    """Progress inside one long solve, for a model's ``progress`` callback.
+
+    Models call it as ``progress(iteration, residual)`` (the FFT model, the constrained CG) or
+    ``progress(text)`` (a phase: meshing, assembling, factorising, ...).  A solve shorter
+    than ``after_s`` prints nothing; after that a line ``[label] what (elapsed)`` comes on a
+    change of phase (at most one a second) and every ``every_s`` seconds while nothing
+    changes (a heartbeat thread, so a phase of minutes without callbacks still shows).  Use
+    it as a context manager around the solve.
+    """
+
+    def __init__(self, label: str, stream=None, every_s: float = 5.0, after_s: float = 2.0):
+        import threading
+
+        self.label, self.stream = label, stream or sys.stderr
+        self.every_s, self.after_s = every_s, after_s
+        self._t0 = time.perf_counter()
+        self._state, self._changed, self._last = "running", False, -math.inf
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._beat, daemon=True, name="solve-progress")
+        self.lines = 0
+
+    def __enter__(self) -> "SolveProgress":
+        self._t0 = time.perf_counter()
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._stop.set()
+        self._thread.join(timeout=1.0)
+
+    def __call__(self, *args) -> None:
+        if len(args) == 1:
+            state = str(args[0])
+        elif len(args) >= 2:
+            state = f"iteration {args[0]}, residual {float(args[1]):.3g}"
+        else:
+            return
+        with self._lock:
+            phase = len(args) == 1
+            self._changed = self._changed or phase
+            self._state = state
+        if phase:
+            self._maybe_print()
+
+    def _beat(self) -> None:
+        while not self._stop.wait(0.25):
+            self._maybe_print()
+
+    def _maybe_print(self) -> None:
+        now = time.perf_counter()
+        with self._lock:
+            elapsed = now - self._t0
+            if elapsed < self.after_s:
+                return
+            due = now - self._last >= self.every_s or (self._changed and now - self._last >= 1.0)
+            if not due:
+                return
+            self._last, self._changed, state = now, False, self._state
+        print(f"[{self.label}] {state} ({_eta(elapsed)})", file=self.stream, flush=True)
+        self.lines += 1

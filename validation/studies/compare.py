@@ -1,15 +1,16 @@
 """BEM (Hooke pillar) against FEM (elastic pillar) on one scene, with
 the FEM's numerical uncertainty beside every difference.
 
-The FEM runs on three refinements (mesh_size 2, 1, 0.5 by default, see ``FEM_COARSEST``);
-its uncertainty on each quantity is the GCI band U = GCI_fine |f1| (Roache, Fs = 1.25), or,
-for a sequence without an observed order, the spread of the levels (marked).  The BEM is
-refined too (11, 23, 47 elements per diameter by default) and its band is added in
-quadrature.  A difference between the finest BEM and FEM values larger than the combined band
-is marked: it is a model difference, not noise of the discretisations.
+Both models run on the same number of refinements (``levels``, 3 by default): the FEM from
+mesh_size 2 (``FEM_COARSEST``; 2, 1, 0.5), the BEM from 11 elements per diameter (11, 23,
+47).  Each model's uncertainty on each quantity is its GCI band U = GCI_fine |f1| (Roache,
+Fs = 1.25), or, for a sequence without an observed order, the spread of the levels (marked);
+the two bands add in quadrature.  A difference between the finest BEM and FEM values larger
+than the combined band is marked: it is a model difference, not noise of the
+discretisations.
 
-Outputs: report.json, summary.md, profiles.png and profiles.csv, the finest FEM VTU and a
-pyvista render of its stress field revolved about the axis.
+Outputs (:data:`OUTPUTS`): summary.md, profiles.png and profiles.csv, the finest FEM VTU and a
+pyvista render of its stress field revolved about the axis, and report.json, written last.
 """
 
 from __future__ import annotations
@@ -22,15 +23,16 @@ from pathlib import Path
 
 import numpy as np
 
-from scenes import InputError, Scene, analytic, write_atomic
+from scenes import Scene, analytic, write_atomic
 
 from ..engine import Engine
 from ..ladders import QUANTITIES, ladder_for, quantity_values
 from ..profiles import profile_at
 from ..verification import study
-from .converge import level_cases, study_levels
+from .converge import check_ladder, level_cases, study_levels
 
-FEM, BEM = "fem-axisym", "bem"
+FEM, FEM_3D, BEM = "fem-axisym", "fem-3d", "bem"
+FEM_MODELS = (FEM, FEM_3D)
 # Display units: (scale factor from SI, unit label).
 DISPLAY = {"F_T": (1e6, "uN"), "sigma0": (1e-3, "kPa"), "a": (1e6, "um"), "A": (1e12, "um^2"),
            "profile": (1e-3, "kPa")}
@@ -40,7 +42,20 @@ PROFILE_POINTS = (0.25, 0.5, 0.75, 0.9)
 # FEM levels 2, 1, 0.5 by default: measured on single-pillar (hertz), mesh_size 2 / 1 / 0.5 /
 # 0.25 took 0.5 / 1.1 / 8-20 / 290 s (0.6 / 6 / 122 s for 0.5 / 0.25), while F_T moved by
 # 1e-4 relative from 1 to 0.5: the 0.25 level would cost minutes for a band already < 0.1 %.
-FEM_COARSEST = 2.0
+# fem-3d: 2.83, 2, 1.41 (its ladder's sqrt(2) steps): about a minute on a 7-pillar scene and
+# 4-5 minutes on the paper's densest one (validation/bench/fem3d.py).
+FEM_COARSEST = {FEM: 2.0, FEM_3D: 2.0 * 2.0**0.5}
+# The report folder's files, report.json last: its presence means a whole report.
+OUTPUTS = ("summary.md", "profiles.png", "profiles.csv", "fem_finest.vtu", "fem_finest.json",
+           "fem_stress_3d.png", "report.json")
+
+
+def fem_model_for(scene: Scene) -> str:
+    """The cheapest FEM that represents ``scene``: the axisymmetric model on a flat scene or
+    one pillar alone (Phi below the spring-model threshold Phi_S), fem-3d otherwise."""
+    if scene.is_flat or scene.pillars.surface_fraction < analytic.single_pillar_threshold(scene):
+        return FEM
+    return FEM_3D
 
 
 def reference_radius(scene: Scene) -> tuple[float, str]:
@@ -51,8 +66,11 @@ def reference_radius(scene: Scene) -> tuple[float, str]:
 
 
 def closed_form(scene: Scene) -> tuple[str, dict]:
-    """Hertz values on a flat scene; the spring model (one Hooke pillar) otherwise."""
+    """Hertz values on a flat scene; the spring model (one Hooke pillar) for one pillar alone;
+    none on a lattice scene with several pillars in contact."""
     r_ref, _ = reference_radius(scene)
+    if fem_model_for(scene) == FEM_3D:
+        return "none", {}
     r = np.array(PROFILE_POINTS) * r_ref
     if scene.is_flat:
         h = analytic.hertz(scene)
@@ -170,7 +188,9 @@ def _profile_curves(scene: Scene, bem_res, fem_data: dict, r_ref: float) -> list
         curves.append({"label": f"FEM mesh_size={lv['value']:g}" + (" (finest)" if finest else ""),
                        "style": "-" if finest else ":", **res.pillar_top_profile})
     r = np.linspace(0.0, 0.999 * r_ref, 400)
-    if scene.is_flat:
+    if fem_data["model"] == FEM_3D:
+        pass  # several pillars share the load: no single-pillar closed form applies
+    elif scene.is_flat:
         curves.append({"label": "Hertz", "style": "k--", "r_m": r,
                        "pressure_Pa": analytic.hertz(scene).pressure(r)})
     else:
@@ -185,12 +205,12 @@ def summary_markdown(scene: Scene, rows: list[dict], ref_name: str, r_label: str
                      meta: dict) -> str:
     """summary.md: what ran, the table, and which differences exceed the uncertainty."""
     lines = [f"# {title(scene)}", "",
-             f"- FEM: {meta['fem_levels']} levels of mesh_size "
+             f"- FEM ({meta['fem_model']}): {meta['levels']} levels of mesh_size "
              f"{', '.join(f'{v:g}' for v in meta['fem_sizes'])}; finest VTU: "
              f"`{meta['vtu'] or 'not written'}`",
-             f"- BEM: {meta['bem_levels']} level(s), finest: "
-             + ", ".join(f"{k}={v}" for k, v in meta["bem_discretisation"].items())
-             + ("" if meta["bem_levels"] > 1 else " (one level: its own error is not estimated)"),
+             f"- BEM: {meta['levels']} levels of elements_per_diameter "
+             f"{', '.join(str(v) for v in meta['bem_sizes'])}; finest: "
+             + ", ".join(f"{k}={v}" for k, v in meta["bem_discretisation"].items()),
              f"- closed form: {ref_name}; profile radii are r / ({r_label})",
              f"- render: {meta['render']}", f"- wall time: {meta['wall_time_s']:.1f} s", "",
              "```", table_text(rows, ref_name, r_label), "```", ""]
@@ -201,38 +221,52 @@ def summary_markdown(scene: Scene, rows: list[dict], ref_name: str, r_label: str
     real = [r["quantity"] for r in rows if r["exceeds"]]
     lines.append("Differences larger than the numerical uncertainty (model differences): "
                  + (", ".join(real) if real else "none"))
+    if meta.get("not_converged"):
+        lines += ["", "**NOT CONVERGED**: " + "; ".join(meta["not_converged"])]
     return "\n".join(lines) + "\n"
 
 
 def profiles_csv(bem_res, fem_res) -> str:
     """The pillar-top profiles of the finest BEM and FEM runs: model, r_m, pressure_Pa."""
     lines = ["model,r_m,pressure_Pa"]
-    for label, res in (("bem", bem_res), ("fem-axisym", fem_res)):
+    for label, res in ((bem_res.model, bem_res), (fem_res.model, fem_res)):
         prof = res.pillar_top_profile
         lines += [f"{label},{r!r},{p!r}" for r, p in zip(prof["r_m"], prof["pressure_Pa"])]
     return "\n".join(lines) + "\n"
 
 
-def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None,
-                  fem_levels: int = 3, fem_coarsest: float = FEM_COARSEST, bem_levels: int = 3,
-                  elements_per_diameter: int | None = None, render: bool = True) -> dict:
-    """Run both models (one batch on the engine, cached in ``out/cases``), write the report
-    folder and return the report dict (``rows``, ``converged``, ``render``, ...)."""
+def check_options(levels: int = 3, mesh_size: float | None = None,
+                  elements_per_diameter: int | None = None, fem_model: str = FEM) -> None:
+    """Refuse, before any solve, ladders whose levels a model would refuse (one line)."""
+    check_ladder(fem_model, levels, FEM_COARSEST[fem_model] if mesh_size is None else mesh_size)
+    check_ladder(BEM, levels, elements_per_diameter)
+
+
+def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None, levels: int = 3,
+                  mesh_size: float | None = None, elements_per_diameter: int | None = None,
+                  render: bool = True, fem_model: str | None = None) -> dict:
+    """Run both models on ``levels`` refinements each (one batch on the engine, cached in
+    ``out/cases``), write the report folder and return the report dict (``rows``,
+    ``converged``, ``not_converged``, ``render``, ...).
+
+    ``fem_model`` is fem-axisym or fem-3d (default :func:`fem_model_for`: the axisymmetric
+    model where it applies); ``mesh_size`` is its coarsest level (default
+    :data:`FEM_COARSEST`),
+    ``elements_per_diameter`` the BEM's (default its ladder's).  The files of an earlier
+    report in ``out`` are removed first and ``report.json`` is written last, so the folder
+    never mixes two runs."""
+    from ..report import clear_outputs
+
     t0 = time.perf_counter()
-    if bem_levels < 1:
-        raise InputError(f"--bem-levels {bem_levels}: must be >= 1")
+    fem = fem_model or fem_model_for(scene)
+    check_options(levels, mesh_size, elements_per_diameter, fem)
+    fem_coarsest = FEM_COARSEST[fem] if mesh_size is None else mesh_size
     cache = out / "cases"
     r_ref, r_label = reference_radius(scene)
-    fem_cases = level_cases(FEM, scene, fem_levels, coarsest=fem_coarsest, tag="fem",
+    fem_cases = level_cases(fem, scene, levels, coarsest=fem_coarsest, tag="fem",
                             vtu_finest=True)
-    if bem_levels >= 2:
-        bem_cases = level_cases(BEM, scene, bem_levels, coarsest=elements_per_diameter,
-                                tag="bem")
-    else:
-        from ..engine import Case
-
-        bem_cases = [Case(BEM, scene, ladder_for(BEM).options(0, elements_per_diameter),
-                          tag="bem")]
+    bem_cases = level_cases(BEM, scene, levels, coarsest=elements_per_diameter, tag="bem")
+    clear_outputs(out, OUTPUTS)
     own = engine is None
     engine = engine or Engine("serial")
     try:
@@ -240,18 +274,19 @@ def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None,
     finally:
         if own:
             engine.close()
-    fem_data = study_levels(FEM, scene, outcomes[:len(fem_cases)])
+    fem_data = study_levels(fem, scene, outcomes[:len(fem_cases)])
     fem_res = fem_data["results"][-1]
     fem_studies = dict(fem_data["studies"]) | _profile_studies(fem_data, r_ref)
-    if bem_levels >= 2:
-        bem_data = study_levels(BEM, scene, outcomes[len(fem_cases):])
-        bem_res = bem_data["results"][-1]
-        bem_studies = dict(bem_data["studies"]) | _profile_studies(bem_data, r_ref)
-    else:
-        bem_res, bem_data, bem_studies = outcomes[-1].unwrap(), None, None
+    bem_data = study_levels(BEM, scene, outcomes[len(fem_cases):])
+    bem_res = bem_data["results"][-1]
+    bem_studies = dict(bem_data["studies"]) | _profile_studies(bem_data, r_ref)
     ref_name, reference = closed_form(scene)
     rows = compare_rows(_values(bem_res, r_ref), _values(fem_res, r_ref), bem_studies,
                         fem_studies, reference)
+    unconverged = [f"{data['model']} level {lv['level'] + 1} "
+                   f"({data['ladder']['option']}={lv['value']}): {lv['message']}"
+                   for data in (fem_data, bem_data) for lv in data["levels"]
+                   if not lv["converged"]]
 
     vtu = fem_data["levels"][-1]["vtu"]
     if vtu:
@@ -263,40 +298,45 @@ def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None,
         render_msg = "skipped (--no-render)"
     elif not vtu:
         render_msg = "not possible: the FEM model wrote no VTU"
-    else:
-        from ..plots import render_stress
+    elif fem == FEM_3D:
+        from ..render3d import render_sector
 
-        (out / "fem_stress_3d.png").unlink(missing_ok=True)  # never report a stale picture
-        ok, msg = render_stress(Path(vtu), out / "fem_stress_3d.png", roi_m=2.5 * r_ref)
+        ok, msg = render_sector(Path(vtu), out / "fem_stress_3d.png",
+                                stamp="" if fem_res.converged else "NOT CONVERGED")
+        render_msg = msg if ok else f"not rendered on this machine: {msg}"
+    else:
+        from ..render import render_stress
+
+        ok, msg = render_stress(Path(vtu), out / "fem_stress_3d.png", roi_m=2.5 * r_ref,
+                                stamp="" if fem_res.converged else "NOT CONVERGED")
         render_msg = msg if ok else f"not rendered on this machine: {msg}"
     from ..plots import plot_profiles
 
     plot_profiles(_profile_curves(scene, bem_res, fem_data, r_ref), r_ref, out / "profiles.png",
                   f"pressure across the {'contact' if scene.is_flat else 'pillar top'}: "
-                  f"{scene.name}", r_label)
-    meta = {"fem_levels": fem_levels, "bem_levels": bem_levels,
+                  f"{scene.name}", r_label, not_converged=unconverged)
+    meta = {"levels": levels, "fem_model": fem,
             "fem_sizes": [lv["value"] for lv in fem_data["levels"]],
+            "bem_sizes": [lv["value"] for lv in bem_data["levels"]],
             "bem_discretisation": bem_res.discretisation, "vtu": vtu, "render": render_msg,
             "executor": engine.describe(), "wall_time_s": time.perf_counter() - t0}
-    converged = fem_res.converged and bem_res.converged and fem_data["all_converged"]
     report = {"scene": scene.to_dict(), "closed_form": {"name": ref_name, **reference},
               "profile_radius_m": r_ref, "profile_points": list(PROFILE_POINTS), "rows": rows,
               "fem": {k: v for k, v in fem_data.items() if k != "results"},
               "fem_profile_studies": {k: v for k, v in fem_studies.items()
                                       if k.startswith("sigma(")},
-              "bem": None if bem_data is None
-              else {k: v for k, v in bem_data.items() if k != "results"},
+              "bem": {k: v for k, v in bem_data.items() if k != "results"},
               "bem_finest": bem_res.to_dict(), "fem_finest": fem_res.to_dict(),
-              "converged": bool(converged), **meta}
-    write_atomic(out / "report.json", json.dumps(report, indent=2, allow_nan=False, default=str))
-    write_atomic(out / "summary.md", summary_markdown(scene, rows, ref_name, r_label, meta))
+              "converged": not unconverged, "not_converged": unconverged, **meta}
+    write_atomic(out / "summary.md", summary_markdown(scene, rows, ref_name, r_label,
+                                                      {**meta, "not_converged": unconverged}))
     write_atomic(out / "profiles.csv", profiles_csv(bem_res, fem_res))
-    report["title"] = title(scene)
-    report["table"] = table_text(rows, ref_name, r_label)
+    write_atomic(out / "report.json", json.dumps(report, indent=2, allow_nan=False, default=str))
     return report
 
 
-def title(scene) -> str:
+def title(scene, fem_model: str | None = None) -> str:
     if scene.is_flat:
         return f"BEM vs FEM on {scene.name} (flat substrate: both solve the Hertz problem)"
-    return f"BEM (Hooke pillar) vs FEM (elastic pillar) on {scene.name}"
+    fem = fem_model or fem_model_for(scene)
+    return f"BEM (Hooke pillars) vs {fem} (elastic pillars) on {scene.name}"

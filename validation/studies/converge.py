@@ -12,14 +12,43 @@ from scenes import InputError, Scene, write_atomic
 
 from ..engine import Case, Engine, Outcome
 from ..ladders import QUANTITIES, ladder_for, quantity_values
+from ..options import MODEL_OPTIONS, check_option, flag
 from ..verification import study
+
+# The report folder's files, report (converge.json) last: its presence means a whole report.
+OUTPUTS = ("levels.csv", "gci.csv", "convergence.png", "converge.json")
+LEVELS_RANGE = (2, 8)
+
+
+def check_ladder(model: str, levels: int, coarsest: float | None = None,
+                 levels_flag: str = "--levels", lo: int = LEVELS_RANGE[0]) -> list:
+    """The option values of ``levels`` refinements of ``model`` from ``coarsest`` (default:
+    the ladder's), coarse to fine; InputError (one line) unless every level is allowed."""
+    ladder = ladder_for(model)
+    hi = LEVELS_RANGE[1]
+    if isinstance(levels, bool) or not isinstance(levels, int) or not lo <= levels <= hi:
+        raise InputError(f"{levels_flag} {levels!r}: allowed range is [{lo}, {hi}]")
+    name = flag(ladder.option)
+    if coarsest is not None:
+        check_option(ladder.option, coarsest)
+    values = [ladder.value(k, coarsest) for k in range(levels)]
+    for k, value in enumerate(values):
+        try:
+            check_option(ladder.option, value)
+        except InputError:
+            start = f"{name} {coarsest:g}" if coarsest is not None else \
+                f"{model}'s default {name} {ladder.coarsest:g}"
+            raise InputError(
+                f"{start} with {levels_flag} {levels}: level {k + 1} would be "
+                f"{ladder.option} = {value:g}, outside {MODEL_OPTIONS[ladder.option].allowed()} "
+                f"(fewer levels, or another coarsest level)") from None
+    return values
 
 
 def level_cases(model: str, scene: Scene, levels: int, *, coarsest: float | None = None,
                 tag: str = "", vtu_finest: bool = False) -> list[Case]:
     """The cases of ``levels`` refinements of ``model`` on ``scene``, coarse to fine."""
-    if not 2 <= levels <= 8:
-        raise InputError(f"--levels {levels}: allowed range is 2..8")
+    check_ladder(model, levels, coarsest)
     ladder = ladder_for(model)
     return [Case(model, scene, ladder.options(k, coarsest), vtu=vtu_finest and k == levels - 1,
                  tag=f"{tag + ' ' if tag else ''}{k + 1}/{levels}") for k in range(levels)]
@@ -40,7 +69,9 @@ def study_levels(model: str, scene: Scene, outcomes: list[Outcome]) -> dict:
         vtu = o.files.get("fields.vtu")
         rows.append({"level": k, "options": dict(o.case.options), "value": value,
                      "h": ladder.size(value), "cached": o.cached,
-                     "converged": bool(result.converged), "wall_time_s": o.timing["wall_time_s"],
+                     "converged": bool(result.converged),
+                     "message": str(result.diagnostics.get("message", "")),
+                     "wall_time_s": o.timing["wall_time_s"],
                      "vtu": None if vtu is None else str(vtu), **quantity_values(result)})
         results.append(result)
     h = [r["h"] for r in rows]
@@ -116,12 +147,12 @@ def gci_csv(data: dict) -> str:
 
 
 def write_report(data: dict, out: Path) -> list[str]:
-    """converge.json, levels.csv, gci.csv and convergence.png in ``out``; returns the names."""
+    """:data:`OUTPUTS` in ``out`` (converge.json last); returns their names."""
     from ..plots import plot_convergence
 
     doc = {k: v for k, v in data.items() if k != "results"}
-    write_atomic(out / "converge.json", json.dumps(doc, indent=2, allow_nan=False))
     write_atomic(out / "levels.csv", levels_csv(doc))
     write_atomic(out / "gci.csv", gci_csv(doc))
     plot_convergence(doc, out / "convergence.png")
-    return ["converge.json", "levels.csv", "gci.csv", "convergence.png"]
+    write_atomic(out / "converge.json", json.dumps(doc, indent=2, allow_nan=False))
+    return list(OUTPUTS)

@@ -1,7 +1,8 @@
 """The Gecit-like study of the Hooke-spring pillar.
 
-Over stiffness ratios E_p/E_l and aspect ratios h/d on the single-pillar scene, the
-Hooke-spring BEM is compared with the elastic-pillar FEM in F_T and sigma_0, and the shape of
+Over stiffness ratios E_p/E_l and aspect ratios h/d on the single-pillar scene, with the
+substrate as stiff as the pillars (E_s = E_p, the paper's convention), the Hooke-spring BEM
+is compared with the elastic-pillar FEM in F_T and sigma_0, and the shape of
 the FEM pressure across the pillar top is measured (:mod:`validation.profiles`): the centre
 plateau sigma(d/4)/sigma_0, the exponent lambda of the edge singularity
 sigma ~ (d/2 - r)^(-lambda) (a rigid pillar gives the flat punch's 1/2, a soft one none), and
@@ -20,6 +21,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import math
 import time
 from pathlib import Path
 
@@ -27,9 +29,13 @@ from scenes import InputError, load_scene, write_atomic
 
 from ..engine import Case, Engine
 from ..ladders import ladder_for
+from ..options import check_option
 from ..profiles import EDGE_SKIP, EDGE_WINDOW, edge_exponent, outer_load_fraction, plateau_ratio
-from .converge import study_levels
+from .converge import check_ladder, study_levels
 
+# The paper's convention (Table 1: E_p = E_s): every scene of the study has it.
+CONVENTION = "E_s = E_p (substrate as stiff as the pillars, the paper's convention)"
+OUTPUTS = ("gecit.csv", "gecit.png", "gecit_profiles.png", "gecit.json")
 RATIOS = (1e-3, 1e-2, 0.1, 1.0, 10.0, 100.0, 1e3, 1e6)
 ASPECTS = (0.25, 0.5, 1.0)
 FEM, BEM = "fem-axisym", "bem"
@@ -37,33 +43,42 @@ FEM, BEM = "fem-axisym", "bem"
 
 def study_scenes(scene: str, overrides=(), ratios=RATIOS, aspects=ASPECTS) -> list[dict]:
     """The validated scenes of the study, one per (h/d, E_p/E_l): refuses bad ratios before
-    any solve."""
+    any solve.  The substrate takes the pillars' modulus, E_s = E_p (the paper's convention,
+    :data:`CONVENTION`), whatever the base scene's substrate."""
     base = load_scene(scene, overrides)
     if base.pillars is None:
         raise InputError(f"--scene {scene}: the Gecit-like study needs a scene with pillars")
-    if any(not x > 0 for x in ratios) or any(not x > 0 for x in aspects):
-        raise InputError("--ratios and --aspect: values must be > 0")
+    for flag_, values in (("--ratios", ratios), ("--aspect", aspects)):
+        bad = [x for x in values if not 0 < x < math.inf]
+        if bad or not values:
+            raise InputError(f"{flag_} {' '.join(map(repr, bad))}: allowed range is (0, inf)")
     if base.lens.material.rigid:
         raise InputError("--scene: the stiffness ratio E_p/E_l needs an elastic lens")
     e_l, d_um = base.lens.material.E_Pa, base.pillars.diameter_m * 1e6
     cases = []
     for aspect in aspects:
         for ratio in ratios:
-            sets = [*overrides, f"pillars.E_Pa={ratio * e_l!r}",
+            e_p = ratio * e_l
+            sets = [*overrides, f"pillars.E_Pa={e_p!r}", f"substrate.E_Pa={e_p!r}",
                     f"pillars.height_um={aspect * d_um!r}"]
             cases.append({"ratio": ratio, "aspect": aspect, "scene": load_scene(scene, sets)})
     return cases
 
 
-def check_fit_options(edge_window, edge_nodes, edge_skip, bem_levels) -> None:
+def check_fit_options(edge_window, edge_nodes, edge_skip, bem_levels,
+                      mesh_size: float = 0.5, elements_per_diameter: int | None = None) -> None:
+    """Refuse, before any solve, options the study would refuse later (one line each)."""
     lo, hi = edge_window
     if not 0 < lo < hi < 1:
         raise InputError(f"--edge-window {lo:g} {hi:g}: need 0 < LO < HI < 1")
-    if not 1 <= bem_levels <= 5:
-        raise InputError(f"--bem-levels {bem_levels}: allowed range is 1..5")
-    if (edge_nodes is not None and edge_nodes < 3) or edge_skip < 0:
-        raise InputError(f"--edge-nodes {edge_nodes}, --edge-skip {edge_skip}: need "
-                         "N >= 3 and SKIP >= 0")
+    if not isinstance(bem_levels, int) or not 1 <= bem_levels <= 5:
+        raise InputError(f"--levels {bem_levels!r}: allowed range is [1, 5]")
+    if edge_nodes is not None and edge_nodes < 3:
+        raise InputError(f"--edge-nodes {edge_nodes}: allowed range is >= 3")
+    if edge_skip < 0:
+        raise InputError(f"--edge-skip {edge_skip}: allowed range is >= 0")
+    check_option("mesh_size", mesh_size)
+    check_ladder(BEM, bem_levels, elements_per_diameter, lo=1)
 
 
 def gecit_study(scenes: list[dict], cache_dir: Path, *, engine: Engine | None = None,
@@ -73,7 +88,8 @@ def gecit_study(scenes: list[dict], cache_dir: Path, *, engine: Engine | None = 
     """Run (or resume) every FEM and BEM case of ``scenes`` (from :func:`study_scenes`) in
     one batch and analyse each scene; returns ``{"rows", "profiles", "meta"}``.  A scene whose
     case failed is a row with ``status = "failed: ..."``."""
-    check_fit_options(edge_window, edge_nodes, edge_skip, bem_levels)
+    check_fit_options(edge_window, edge_nodes, edge_skip, bem_levels, mesh_size,
+                      elements_per_diameter)
     t0 = time.perf_counter()
     fem_opts = ladder_for(FEM).options_at(mesh_size)
     bem_ladder = ladder_for(BEM)
@@ -98,6 +114,7 @@ def gecit_study(scenes: list[dict], cache_dir: Path, *, engine: Engine | None = 
         failed = next((o for o in (fem_o, *bem_o) if not o.ok), None)
         if failed is not None:
             row["status"] = f"failed: {failed.error}"
+            row["refused"] = isinstance(failed.error, InputError)  # a model's scope, not a tool
             rows.append(row)
             continue
         cached += all(o.cached for o in (fem_o, *bem_o))
@@ -113,7 +130,7 @@ def gecit_study(scenes: list[dict], cache_dir: Path, *, engine: Engine | None = 
         profiles.append({"ratio": c["ratio"], "aspect": c["aspect"],
                          "radius_m": c["scene"].pillars.diameter_m / 2.0,
                          "sigma0_Pa": fem.centre_pressure_Pa, **fem.pillar_top_profile})
-    meta = {"fem_options": fem_opts, "bem_options": bem_opts, "edge_window": list(edge_window),
+    meta = {"convention": CONVENTION, "fem_options": fem_opts, "bem_options": bem_opts, "edge_window": list(edge_window),
             "edge_nodes": edge_nodes, "edge_skip": edge_skip, "executor": engine.describe(),
             "cached_cases": cached, "wall_time_s": time.perf_counter() - t0}
     return {"rows": rows, "profiles": profiles, "meta": meta}
@@ -230,14 +247,20 @@ def rows_csv(rows: list[dict]) -> str:
     return buf.getvalue()
 
 
+def report_doc(doc: dict, extra_meta: dict | None = None) -> dict:
+    """What gecit.json holds: the meta data and the rows."""
+    return {**(extra_meta or {}), **doc["meta"], "rows": doc["rows"]}
+
+
 def write_report(doc: dict, out: Path, extra_meta: dict | None = None) -> list[str]:
-    """gecit.json, gecit.csv, gecit.png and gecit_profiles.png in ``out``."""
+    """:data:`OUTPUTS` in ``out``, gecit.json last (its presence means a whole report)."""
     from ..plots import plot_gecit, plot_gecit_profiles
 
     rows = doc["rows"]
-    write_atomic(out / "gecit.json", json.dumps({**(extra_meta or {}), **doc["meta"],
-                                                 "rows": rows}, indent=2, allow_nan=False))
     write_atomic(out / "gecit.csv", rows_csv(rows))
-    plot_gecit([r for r in rows if r["status"] == "ok" or "err_F_T" in r], out / "gecit.png")
-    plot_gecit_profiles(doc["profiles"], out / "gecit_profiles.png")
-    return ["gecit.json", "gecit.csv", "gecit.png", "gecit_profiles.png"]
+    plot_gecit([r for r in rows if r["status"] == "ok" or "err_F_T" in r], out / "gecit.png",
+               CONVENTION)
+    plot_gecit_profiles(doc["profiles"], out / "gecit_profiles.png", CONVENTION)
+    write_atomic(out / "gecit.json", json.dumps(report_doc(doc, extra_meta), indent=2,
+                                                allow_nan=False))
+    return list(OUTPUTS)

@@ -13,6 +13,7 @@ from pathlib import Path
 from scenes import InputError, Scene, SceneError, load_scene
 
 from ..engine import Case
+from ..options import check_option
 
 _RANGE_KEYS = {"linear", "log", "num"}
 
@@ -168,6 +169,9 @@ class Sweep:
                 raise InputError(f"[[models]] {m.name}: unknown option(s) "
                                  f"{', '.join(bad or ['vtu_path'])}; allowed: "
                                  f"{', '.join(o for o in MODELS[m.name][2] if o != 'vtu_path')}")
+            for opts in m.option_sets():  # values the model would refuse, before any solve
+                for k, v in opts.items():
+                    check_option(k, v, where=f"[[models]] {m.name}: {k} =")
         out, skipped = [], []
         for point in self.points():
             sets = [*self.overrides, *(_override(k, v) for k, v in point.items())]
@@ -192,6 +196,9 @@ class Sweep:
             data = tomllib.loads(path.read_text())
         except FileNotFoundError:
             raise InputError(f"sweep spec {str(path)!r}: no such file") from None
+        except OSError as exc:
+            raise InputError(f"sweep spec {str(path)!r}: cannot read it "
+                             f"({exc.strerror or exc})") from None
         except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
             raise InputError(f"sweep spec {path}: not valid TOML ({exc})") from None
         return cls.from_dict(data, base_dir=path.parent, default_name=path.stem)

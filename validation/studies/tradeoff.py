@@ -14,7 +14,8 @@ rung is |f - f_ref| / |f_ref|.
 
 Outputs: ``tradeoff.csv`` (one row per model and rung), ``tradeoff.json`` (rows,
 references with their orders and bands, scene and versions) and ``tradeoff.png`` (log-log
-error against wall time, one panel per quantity, one line per model).
+error against wall time, one panel per quantity, one line per model, points labelled by their
+refinement, the Pareto front marked: :func:`validation.plots.plot_tradeoff`).
 
 References
 ----------
@@ -36,34 +37,87 @@ from scenes.result import package_version
 
 from ..engine import Case, Engine
 from ..ladders import LADDERS, QUANTITIES
-from ..report import save_figure
 
 # Models that solve the same equations share a reference; a model with other physics (the
 # elastic pillar of the FEM against the Hooke pillar of the BEM) is measured against its own,
 # so that its errors are discretisation errors, not the modelling difference (which
 # ``pillar-xval compare`` reports).  On a flat scene every model solves the Hertz problem.
-PHYSICS = {"bem": "hooke-pillar", "bem-fft": "hooke-pillar", "fem-axisym": "elastic-pillar"}
+PHYSICS = {"bem": "hooke-pillar", "bem-fft": "hooke-pillar", "fem-axisym": "elastic-pillar",
+           "fem-3d": "elastic-pillar"}
 
 
 def physics_group(model: str, scene) -> str:
     return "half-space" if scene.is_flat else PHYSICS.get(model, model)
 
 
+def rungs_for(ladder, coarsest=None, levels: int | None = None) -> list:
+    """The rungs a model climbs, coarse to fine: the ladder's ``rungs``, or, from a given
+    ``coarsest`` value, that value and the ladder's finer rungs (continued geometrically by
+    the ladder's factor to at least three, for a Richardson estimate); the first ``levels``
+    of them when given (continued the same way if the ladder has fewer)."""
+    rungs = list(ladder.rungs)
+    want = levels
+    if coarsest is not None:
+        h0 = ladder.size(coarsest)
+        rungs = [coarsest] + [r for r in rungs if ladder.size(r) < h0 * (1.0 - 1e-12)]
+        want = max(3, len(rungs)) if levels is None else levels
+    while want is not None and len(rungs) < want:
+        rungs.append(ladder.value(1, rungs[-1]))
+    return rungs[:want] if want is not None else rungs
+
+
+def check_options(models, ladders=None, *, coarsest: dict | None = None,
+                  levels: int | None = None, repeats: int = 3, single_above: float = 20.0,
+                  max_time: float = 600.0) -> dict:
+    """Every model's rungs ({model: [values]}); InputError (one line, naming the option)
+    for anything a study could only refuse after solving."""
+    from ..options import check_option, flag
+
+    ladders = ladders or LADDERS
+    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
+        raise InputError(f"--repeats {repeats!r}: allowed range is >= 1")
+    if not (isinstance(max_time, (int, float)) and max_time > 0 and max_time < math.inf):
+        raise InputError(f"--max-time {max_time!r}: allowed range is (0, inf) seconds")
+    if not (isinstance(single_above, (int, float)) and 0 <= single_above <= math.inf):
+        raise InputError(f"--single-above {single_above!r}: allowed range is [0, inf] seconds")
+    if levels is not None and not 1 <= levels <= 12:
+        raise InputError(f"--levels {levels!r}: allowed range is [1, 12]")
+    unknown = [m for m in models if m not in ladders]
+    if unknown or not models:
+        raise InputError(f"--models {','.join(models)}: no refinement ladder for "
+                         f"{', '.join(unknown) or 'an empty list'}; known: "
+                         f"{', '.join(sorted(ladders))}")
+    plan = {}
+    for name in models:
+        ladder = ladders[name]
+        start = (coarsest or {}).get(ladder.option)
+        plan[name] = rungs_for(ladder, start, levels)
+        for k, value in enumerate(plan[name]):
+            try:
+                check_option(ladder.option, value)
+            except InputError as exc:
+                given = "" if start is None else f"{flag(ladder.option)} {start:g}, "
+                raise InputError(f"{name}: {given}rung {k + 1} would be {ladder.option} = "
+                                 f"{value:g}: {str(exc).split(': ', 1)[-1]}") from None
+    return plan
+
+
 def tradeoff(scene, models, cache_dir: Path | None = None, *, engine: Engine | None = None,
              repeats: int = 3, single_above: float = 20.0, max_time: float = 600.0,
-             ladders=None) -> dict:
+             ladders=None, coarsest: dict | None = None, levels: int | None = None) -> dict:
     """Solve every rung of every model and attach errors against the Richardson reference.
 
-    Rungs run one by one on ``engine`` (default: serial, in this process), cached in
-    ``cache_dir`` when given.  A model that refuses the scene (an InputError, e.g. the FEM on
-    a scene with several pillars in contact) is skipped with its reason; a model stops
-    climbing after a rung slower than ``max_time`` seconds.
+    Rungs (:func:`rungs_for`: the ladder's, or ``levels`` from ``coarsest[option]``) run one
+    by one on ``engine`` (default: serial, in this process), cached in ``cache_dir`` when
+    given.  A model that refuses the scene (an InputError, e.g. the FEM on a scene with
+    several pillars in contact) is skipped with its reason; a model stops climbing after a
+    rung slower than ``max_time`` seconds.
     """
     from ..models import MODELS
 
-    if repeats < 1:
-        raise InputError(f"--repeats {repeats}: must be >= 1")
     ladders = ladders or LADDERS
+    plan = check_options(models, ladders, coarsest=coarsest, levels=levels, repeats=repeats,
+                         single_above=single_above, max_time=max_time)
     own = engine is None
     engine = engine or Engine("serial", label="tradeoff")
     scratch = None
@@ -79,10 +133,10 @@ def tradeoff(scene, models, cache_dir: Path | None = None, *, engine: Engine | N
             except ImportError as exc:
                 skipped[name] = f"not available ({exc})"
                 continue
-            for k, level in enumerate(ladder.rungs):
+            rungs = plan[name]
+            for k, level in enumerate(rungs):
                 case = Case(name, scene, ladder.options_at(level), repeats=repeats,
-                            single_above=single_above,
-                            tag=f"{name} {k + 1}/{len(ladder.rungs)}")
+                            single_above=single_above, tag=f"{name} {k + 1}/{len(rungs)}")
                 outcome = engine.run_one(case, cache_dir, label="tradeoff")
                 if isinstance(outcome.error, ValueError):  # the model refuses this scene
                     skipped[name] = f"refused {ladder.option}={level}: {outcome.error}"
@@ -92,11 +146,12 @@ def tradeoff(scene, models, cache_dir: Path | None = None, *, engine: Engine | N
                        "h": ladder.size(level), "wall_time_s": timing["wall_time_s"],
                        "peak_memory_MB": timing["peak_memory_MB"],
                        "iterations": result.iterations, "converged": bool(result.converged),
+                       "message": str(result.diagnostics.get("message", "")),
                        "cached": outcome.cached}
                 for q in QUANTITIES:
                     row[q.key] = float(getattr(result, q.attr))
                 rows.append(row)
-                if timing["wall_time_s"] > max_time and k + 1 < len(ladder.rungs):
+                if timing["wall_time_s"] > max_time and k + 1 < len(rungs):
                     skipped[name] = (f"stopped after {ladder.option}={level} "
                                      f"({timing['wall_time_s']:.0f} s > --max-time)")
                     break
@@ -115,8 +170,7 @@ def tradeoff(scene, models, cache_dir: Path | None = None, *, engine: Engine | N
             row[f"err_{q.key}"] = abs(row[q.key] - ref) / abs(ref) if ref else None
     return {"scene": scene.to_dict(), "models": list(models), "rows": rows,
             "references": references, "skipped": skipped, "repeats": repeats,
-            "ladders": {m: {"option": ladders[m].option, "levels": list(ladders[m].rungs)}
-                        for m in models if m in ladders},
+            "ladders": {m: {"option": ladders[m].option, "levels": plan[m]} for m in models},
             "version": package_version()}
 
 
@@ -263,12 +317,14 @@ def reference_values(rows: list) -> dict:
     return out
 
 
+OUTPUTS = ("tradeoff.csv", "tradeoff.png", "tradeoff.json")
 CSV_COLUMNS = ("model", "physics", "option", "level", "h", "wall_time_s", "peak_memory_MB", "iterations",
                "converged", "F_T", "sigma0", "a", "A", "err_F_T", "err_sigma0", "err_a",
                "err_A")
 
 
 def write_outputs(doc: dict, out: Path) -> None:
+    """:data:`OUTPUTS` in ``out``, tradeoff.json last (its presence means a whole report)."""
     out.mkdir(parents=True, exist_ok=True)
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=CSV_COLUMNS, extrasaction="ignore")
@@ -276,33 +332,10 @@ def write_outputs(doc: dict, out: Path) -> None:
     for row in doc["rows"]:
         writer.writerow({k: ("" if row.get(k) is None else row.get(k)) for k in CSV_COLUMNS})
     write_atomic(out / "tradeoff.csv", buf.getvalue())
+    from ..plots import plot_tradeoff
+
+    plot_tradeoff(doc, out / "tradeoff.png")
     write_atomic(out / "tradeoff.json", json.dumps(doc, indent=2, allow_nan=False))
-    plot_pareto(doc, out / "tradeoff.png")
-
-
-def plot_pareto(doc: dict, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(2, 2, figsize=(10, 8))
-    for ax, short in zip(axes.ravel(), (q.key for q in QUANTITIES)):
-        for model in doc["models"]:
-            pts = [(r["wall_time_s"], r[f"err_{short}"]) for r in doc["rows"]
-                   if r["model"] == model and r[f"err_{short}"]]
-            if pts:
-                ax.loglog(*zip(*pts), "o-", label=model)
-        refs = ", ".join(f"{g}: {ref[short]['model']}" for g, ref in doc["references"].items())
-        ax.set(xlabel="wall time (s)", ylabel=f"relative error of {short}",
-               title=f"{short}  (reference {refs})")
-        ax.grid(True, which="both", alpha=0.3)
-        if ax.get_legend_handles_labels()[0]:
-            ax.legend(fontsize=8)
-        else:  # every error is zero (e.g. an area fixed by the geometry): nothing to plot
-            ax.text(0.5, 0.5, "all errors zero", ha="center", transform=ax.transAxes)
-    fig.suptitle(f"speed against accuracy, scene {doc['scene'].get('name', '?')}")
-    save_figure(fig, path, 110)
 
 
 def pareto_table(doc: dict) -> str:

@@ -1,0 +1,143 @@
+"""Devices of the FFT model: an array backend (:mod:`contact._xp`) plus FFTs, sparse matrices
+and the size limit of the padded FFT grid.
+
+``select_backend("cpu" | "gpu" | "auto")`` gives the backend :func:`bem_solver.solve_fft`
+runs on: numpy and scipy.fft on the CPU (the default), cupy and cuFFT on a CUDA GPU.
+``available_devices()`` lists what this machine offers (for the CLI's ``--device``).
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from contact._xp import CupyArrays, NumpyArrays
+from scenes import InputError
+
+from ._fft_grid import MAX_FFT_POINTS
+
+DEVICES = ("cpu", "gpu", "auto")
+GPU_INSTALL = "pip install -e '.[gpu]' (cupy-cuda12x; with CUDA 13, pip install cupy-cuda13x)"
+# GPU: device bytes per padded FFT point at the peak of an operator application (kernel
+# spectrum 4, complex column transforms 16 + 8, cuFFT work area ~16, vectors) with a margin;
+# the limit is the free device memory over this.
+GPU_BYTES_PER_FFT_POINT = 64
+
+
+class NumpyDevice(NumpyArrays):
+    """numpy + scipy.fft (threaded) + scipy.sparse on the CPU."""
+
+    def __init__(self, workers: int = 2, max_fft_points: int = MAX_FFT_POINTS):
+        self.workers = workers
+        self.max_fft_points = max_fft_points  # default ~1 GB of work arrays
+
+    def rfft2(self, a):
+        import scipy.fft as sfft
+
+        return sfft.rfft2(a, workers=self.workers)
+
+    def rfft(self, a, axis):
+        import scipy.fft as sfft
+
+        return sfft.rfft(a, axis=axis, workers=self.workers)
+
+    def fft(self, a, n, axis):
+        import scipy.fft as sfft
+
+        return sfft.fft(a, n=n, axis=axis, workers=self.workers, overwrite_x=True)
+
+    def ifft(self, a, axis):
+        import scipy.fft as sfft
+
+        return sfft.ifft(a, axis=axis, workers=self.workers, overwrite_x=True)
+
+    def irfft(self, a, n, axis):
+        import scipy.fft as sfft
+
+        return sfft.irfft(a, n=n, axis=axis, workers=self.workers)
+
+    def next_fast_len(self, n: int) -> int:
+        import scipy.fft as sfft
+
+        return sfft.next_fast_len(n, real=True)
+
+    def sparse(self, rows, cols, values, n: int):
+        import scipy.sparse as sp
+
+        return sp.csr_matrix((values, (rows, cols)), shape=(n, n))
+
+    def synchronize(self) -> None:
+        pass
+
+
+class CupyDevice(CupyArrays):
+    """cupy + cuFFT + cupyx.scipy.sparse on the current CUDA device."""
+
+    def __init__(self):
+        super().__init__()
+        import cupyx.scipy.fft as cfft
+        import cupyx.scipy.sparse as csp
+
+        self._fft, self._sparse = cfft, csp
+        free, _total = self._cp.cuda.runtime.memGetInfo()
+        self.max_fft_points = int(free // GPU_BYTES_PER_FFT_POINT)
+
+    def rfft2(self, a):
+        return self._fft.rfft2(a)
+
+    def rfft(self, a, axis):
+        return self._fft.rfft(a, axis=axis)
+
+    def fft(self, a, n, axis):
+        return self._fft.fft(a, n=n, axis=axis, overwrite_x=True)
+
+    def ifft(self, a, axis):
+        return self._fft.ifft(a, axis=axis, overwrite_x=True)
+
+    def irfft(self, a, n, axis):
+        return self._fft.irfft(a, n=n, axis=axis)
+
+    def next_fast_len(self, n: int) -> int:
+        return self._fft.next_fast_len(n)
+
+    def sparse(self, rows, cols, values, n: int):
+        # COO with the entries in any order, then CSR for the products (no duplicates here).
+        return self._sparse.coo_matrix((values, (rows, cols)), shape=(n, n)).tocsr()
+
+    def synchronize(self) -> None:
+        self._cp.cuda.Device().synchronize()
+
+
+@functools.lru_cache(maxsize=1)
+def _gpu_reason() -> str:
+    """'' when cupy imports and sees a CUDA device, else why not (one line)."""
+    try:
+        import cupy
+    except Exception as exc:  # any import failure is a reason, reported verbatim
+        return f"cupy is not installed ({type(exc).__name__}); install it with {GPU_INSTALL}"
+    try:
+        count = cupy.cuda.runtime.getDeviceCount()
+    except Exception as exc:  # no driver, no device: the CUDA runtime's own words
+        return f"cupy finds no CUDA GPU ({type(exc).__name__}: {exc})".splitlines()[0]
+    return "" if count > 0 else "cupy finds no CUDA GPU (0 devices)"
+
+
+def available_devices() -> dict:
+    """{device: '' if usable here, else the reason}, for 'cpu' and 'gpu'."""
+    return {"cpu": "", "gpu": _gpu_reason()}
+
+
+def select_backend(device: str = "cpu", workers: int = 2):
+    """The backend for ``device``: 'cpu', 'gpu' (InputError with what to install when no GPU
+    is usable) or 'auto' (the GPU when cupy finds one, else the CPU)."""
+    if device not in DEVICES:
+        raise InputError(f"device = {device!r}: choose one of {', '.join(DEVICES)}")
+    if device == "cpu":
+        return NumpyDevice(workers)
+    reason = _gpu_reason()
+    if reason:
+        if device == "gpu":
+            raise InputError(f"device = 'gpu': {reason}")
+        return NumpyDevice(workers)
+    return CupyDevice()

@@ -1,0 +1,86 @@
+"""Array backends: the few primitives the contact solvers need beyond the array API standard.
+
+Solvers written against an array namespace ``xp`` (numpy, cupy, or any library implementing
+the Python array API standard) run unchanged on the CPU or a GPU.  The standard leaves out a
+handful of operations the solvers need; a backend supplies them:
+
+- ``dot(a, b)``: the scalar product of two vectors, as a Python float;
+- ``segment_sum(index, weights, n)``: sums of ``weights`` per integer label (numpy's bincount);
+- ``put(target, index, values)``: ``target[index] = values`` on a 1-D array (the standard
+  has integer-array gathers, ``xp.take``, but no scatters); returns the updated array;
+- ``asarray`` / ``to_numpy``: to and from host numpy arrays.
+
+:class:`NumpyArrays` is the default everywhere (the FEM's contact solves use it unchanged);
+:class:`CupyArrays` needs the optional ``[gpu]`` extra.  Everything is float64.
+
+References
+----------
+.. [1] Consortium for Python Data API Standards, "Python array API standard", 2023.12,
+   https://data-apis.org/array-api/
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class NumpyArrays:
+    """numpy on the CPU."""
+
+    name = "numpy"
+    device = "cpu"
+    xp = np
+
+    def asarray(self, a, dtype=None):
+        return np.asarray(a, dtype=dtype)
+
+    def to_numpy(self, a) -> np.ndarray:
+        return np.asarray(a)
+
+    def dot(self, a, b) -> float:
+        # einsum, not BLAS ddot: a threaded ddot wakes OpenBLAS threads that then spin against
+        # the FFT worker threads (measured 0.04 to 8 ms for 2e5 cells, against a steady 0.1 ms).
+        return float(np.einsum("i,i->", a, b))
+
+    def segment_sum(self, index, weights, n: int):
+        return np.bincount(index, weights=weights, minlength=n)
+
+    def put(self, target, index, values):
+        target[index] = values
+        return target
+
+
+class CupyArrays:
+    """cupy on the current CUDA device (``pip install -e '.[gpu]'``)."""
+
+    name = "cupy"
+    device = "gpu"
+
+    def __init__(self):
+        import cupy
+
+        self._cp = cupy
+        try:  # the standard's names (asinh, concat, ...) on every cupy version
+            import array_api_compat.cupy as xp
+        except ImportError:  # cupy >= 14 mirrors numpy 2's namespace itself
+            xp = cupy
+        self.xp = xp
+
+    def asarray(self, a, dtype=None):
+        return self._cp.asarray(a, dtype=dtype)
+
+    def to_numpy(self, a) -> np.ndarray:
+        return self._cp.asnumpy(a)
+
+    def dot(self, a, b) -> float:
+        return float(self._cp.dot(a, b))
+
+    def segment_sum(self, index, weights, n: int):
+        return self._cp.bincount(index, weights=weights, minlength=n)
+
+    def put(self, target, index, values):
+        target[index] = values
+        return target
+
+
+NUMPY = NumpyArrays()

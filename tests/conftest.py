@@ -1,0 +1,34 @@
+"""Shared fixtures: the fake models (tests/fakes.py) and the CLI run in-process."""
+
+import sys
+import types
+
+import pytest
+
+import fakes as fake_models
+from validation import models
+from validation.cli import main
+
+
+@pytest.fixture
+def fakes(monkeypatch):
+    """Register the fake 'bem' and 'fem-axisym' in the model registry."""
+    mod = types.ModuleType("xval_fakes")
+    mod.fake_fem, mod.fake_bem = fake_models.fake_fem, fake_models.fake_bem
+    monkeypatch.setitem(sys.modules, "xval_fakes", mod)
+    monkeypatch.setitem(models.MODELS, "fem-axisym", ("xval_fakes", "fake_fem", ("mesh_size",)))
+    monkeypatch.setitem(models.MODELS, "bem", ("xval_fakes", "fake_bem",
+                                               ("elements_per_diameter", "cells", "contact")))
+    fake_models.CALLS.clear()
+    return fake_models.CALLS
+
+
+@pytest.fixture
+def cli(capsys):
+    """Run ``pillar-xval ARGV`` in-process: returns (exit status, stdout, stderr)."""
+    def run(*argv):
+        code = main([str(a) for a in argv])
+        captured = capsys.readouterr()
+        return code, captured.out, captured.err
+
+    return run

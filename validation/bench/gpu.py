@@ -1,0 +1,206 @@
+"""Benchmark of the FFT boundary-element model on a GPU against the same model on the CPU, on
+the same machine and in one run (issue 11).
+
+Run as ``python -m validation.bench.gpu --out DIR``.  Scene: paper-fig3-dense (Phi = 0.82),
+rigid and elastic pillars, edge correction on, tolerance 1e-8 zeta, from 3e5 to 2e7 grid cells
+(32 to 256 cells per pillar diameter).  For each case it reports the wall time of each path,
+the time to build the kernel table (kernel block, its spectrum and the near-field correction
+of the finest level) apart, the iterations, and the relative difference of F_T between the
+paths.  Each solve runs in its own interpreter, so its peak host memory (``ru_maxrss``) is its
+own.  Prints a table and writes ``bench_gpu.json``.
+
+Without a usable GPU (no cupy, or cupy finds no device) it runs the CPU column on the smallest
+levels only and says that the GPU column is pending.  The CPU path is given the machine's
+cores as FFT threads and a padded-FFT limit from its memory, so that the large grids the GPU
+solves are not refused on the CPU of a large machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import resource
+import sys
+from pathlib import Path
+
+from .fft import run_worker
+
+SCENE = "paper-fig3-dense"
+PILLARS = {"rigid": ("pillars.rigid=true",), "elastic": ()}
+# Bounding-grid cells on this scene: 32 -> 3.1e5, 58 -> 1.0e6, 100 -> 3.0e6, 180 -> 9.8e6,
+# 256 -> 2.0e7 (d/256).
+LEVELS = (32, 58, 100, 180, 256)
+CPU_ONLY_LEVELS = (32, 58)  # without a GPU: the CPU column on a small subset
+TOL = 1e-8
+# Host bytes per padded FFT point for the CPU path's limit (the arrays of one operator
+# application and the kernel table, with a margin).
+CPU_BYTES_PER_FFT_POINT = 64
+
+
+def _solve(spec: dict) -> dict:
+    import time
+
+    from bem_solver._fft import solve_fft
+    from bem_solver._xp import NumpyDevice, select_backend
+    from scenes import load_scene
+
+    scene = load_scene(SCENE, list(PILLARS[spec["pillars"]]))
+    if spec["device"] == "cpu":
+        backend = NumpyDevice(spec["workers"], max_fft_points=spec["cpu_max_fft_points"])
+    else:
+        backend = select_backend("gpu")
+    start = time.perf_counter()
+    res = solve_fft(scene, spec["n"], tol=TOL, workers=spec["workers"], backend=backend)
+    wall = time.perf_counter() - start
+    d = res.diagnostics
+    return {"wall_time_s": wall, "kernel_table_s": d["timings_s"]["kernel_table"],
+            "grid_s": d["timings_s"]["grid"], "warm_start_s": d["timings_s"]["warm_start"],
+            "solve_s": d["timings_s"]["solve"], "iterations": res.iterations,
+            "warm_start_iterations": sum(v["iterations"] for v in d["warm_start_levels"]),
+            "operator_applications": d["operator_applications"],
+            "candidate_cells": d["candidate_cells"],
+            "grid_cells": d["grid_shape"][0] * d["grid_shape"][1],
+            "total_force_N": res.total_force_N, "converged": res.converged,
+            "message": d["message"], "device": d["device"]}
+
+
+def run_case(spec: dict, timeout: float) -> dict:
+    """One solve in a fresh interpreter: the spec with its measurements, or an 'error'."""
+    return {**spec, **run_worker("validation.bench.gpu", spec, timeout)}
+
+
+def _median(runs: list) -> dict:
+    ok = sorted((r for r in runs if "error" not in r), key=lambda r: r["wall_time_s"])
+    if not ok:
+        return runs[0]
+    best = dict(ok[len(ok) // 2])
+    best["repeats"] = len(ok)
+    best["wall_times_s"] = [r["wall_time_s"] for r in ok]
+    return best
+
+
+def _cpu_max_fft_points() -> int:
+    memory = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    return int(memory // CPU_BYTES_PER_FFT_POINT)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m validation.bench.gpu", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--out", type=Path, default=Path("out/bench-gpu"))
+    ap.add_argument("--levels", type=int, nargs="*", default=None,
+                    help="cells per pillar diameter (default: 32 58 100 180 256 with a GPU, "
+                         "32 58 without)")
+    ap.add_argument("--pillars", nargs="*", default=list(PILLARS), choices=list(PILLARS))
+    ap.add_argument("--repeats", type=int, default=3, help="runs per case (median)")
+    ap.add_argument("--cpu-max-cells", type=float, default=2.1e7,
+                    help="skip the CPU path above this many grid cells")
+    ap.add_argument("--timeout", type=float, default=1800.0, help="seconds per solve")
+    ap.add_argument("--worker", help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    if args.worker:
+        out = _solve(json.loads(args.worker))
+        out["peak_rss_MB"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+        print(json.dumps(out))
+        return 0
+    from bem_solver import available_devices
+
+    gpu_reason = available_devices()["gpu"]
+    levels = args.levels or list(LEVELS if not gpu_reason else CPU_ONLY_LEVELS)
+    devices = ["cpu"] + ([] if gpu_reason else ["gpu"])
+    base = {"workers": os.cpu_count() or 1, "cpu_max_fft_points": _cpu_max_fft_points()}
+    rows = []
+    for pillars in args.pillars:
+        for n in levels:
+            row = {"pillars": pillars, "n": n}
+            for device in devices:
+                spec = {**base, "device": device, "pillars": pillars, "n": n}
+                if device == "cpu" and rows and _too_big(rows, pillars, n, args.cpu_max_cells):
+                    row[device] = {"error": f"skipped: over --cpu-max-cells "
+                                            f"{args.cpu_max_cells:g}"}
+                    continue
+                print(f"bench-gpu: {pillars} N = {n} on {device}", file=sys.stderr, flush=True)
+                row[device] = _median([run_case(spec, args.timeout)
+                                       for _ in range(args.repeats)])
+            rows.append(row)
+    meta = {"scene": SCENE, "tolerance": TOL, "edge_correction": True,
+            "python": platform.python_version(), "machine": platform.machine(),
+            "cpu_workers": base["workers"], "cpu_max_fft_points": base["cpu_max_fft_points"],
+            "gpu": gpu_reason or _gpu_name(), "gpu_pending": bool(gpu_reason)}
+    table = write_report(args.out, rows, meta)
+    print(table)
+    return 0
+
+
+def _too_big(rows, pillars, n, limit) -> bool:
+    """The CPU path's grid at N, estimated from an earlier level (cells grow as N^2)."""
+    done = [r for r in rows if r["pillars"] == pillars and "grid_cells" in r.get("cpu", {})]
+    if not done:
+        return False
+    last = done[-1]
+    return last["cpu"]["grid_cells"] * (n / last["n"]) ** 2 > limit
+
+
+def _gpu_name() -> str:
+    import cupy
+
+    props = cupy.cuda.runtime.getDeviceProperties(cupy.cuda.Device().id)
+    name = props["name"]
+    return name.decode() if isinstance(name, bytes) else str(name)
+
+
+def write_report(out: Path, rows: list, meta: dict) -> str:
+    """Write bench_gpu.json into ``out``; return the printed table."""
+    from scenes import write_atomic
+
+    head = (f"{'pillars':>7} {'N':>4} {'cells':>9} {'CPU s':>8} {'table':>6} {'it':>4} "
+            f"{'GPU s':>8} {'table':>6} {'it':>4} {'speed-up':>8} {'dF_T rel':>9}")
+    lines = [f"bem-fft on {meta['scene']} (Phi = 0.82), edge correction on, tol 1e-8 zeta; "
+             f"median of runs; 'table' = kernel table of the finest level (s), included in "
+             f"the total", head]
+    for r in rows:
+        cpu, gpu = r.get("cpu", {}), r.get("gpu")
+        cells = cpu.get("grid_cells") or (gpu or {}).get("grid_cells") or 0
+        lines.append(f"{r['pillars']:>7} {r['n']:>4} {cells:>9.3g} " + _cell(cpu) + " "
+                     + (_cell(gpu) if gpu is not None else f"{'pending':>20}") + " "
+                     + _ratio(cpu, gpu))
+        r["force_rel_diff"] = _force_diff(cpu, gpu)
+    for r in rows:
+        for path in ("cpu", "gpu"):
+            if "error" in r.get(path, {}):
+                lines.append(f"{r['pillars']} N = {r['n']} {path}: {r[path]['error']}")
+    if meta["gpu_pending"]:
+        lines.append(f"GPU column pending: {meta['gpu']}")
+    else:
+        lines.append(f"GPU: {meta['gpu']}; CPU: {meta['cpu_workers']} FFT threads")
+    table = "\n".join(lines)
+    out.mkdir(parents=True, exist_ok=True)
+    write_atomic(out / "bench_gpu.json",
+                 json.dumps({"meta": meta, "rows": rows, "table": table}, indent=2,
+                            allow_nan=False))
+    return table
+
+
+def _cell(r: dict) -> str:
+    if "wall_time_s" not in r:
+        return f"{'-':>8} {'-':>6} {'-':>4}"
+    return f"{r['wall_time_s']:>8.2f} {r['kernel_table_s']:>6.2f} {r['iterations']:>4}"
+
+
+def _ratio(cpu: dict, gpu) -> str:
+    if gpu is None or "wall_time_s" not in cpu or "wall_time_s" not in gpu:
+        return f"{'-':>8} {'-':>9}"
+    diff = _force_diff(cpu, gpu)
+    return f"{cpu['wall_time_s'] / gpu['wall_time_s']:>8.1f} {diff:>9.1e}"
+
+
+def _force_diff(cpu: dict, gpu):
+    if not gpu or "total_force_N" not in cpu or "total_force_N" not in gpu:
+        return None
+    return (gpu["total_force_N"] - cpu["total_force_N"]) / abs(cpu["total_force_N"])
+
+
+if __name__ == "__main__":
+    sys.exit(main())
