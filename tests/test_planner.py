@@ -243,7 +243,8 @@ def test_shipped_data_loads_and_covers_every_regime():
 
 @pytest.mark.parametrize("name, sets, expect", [
     ("hertz", [], {"hertz"}),
-    ("single-pillar", ["pillars.rigid=true"], {"spring", "fem-axisym"}),
+    # a rigid pillar: bem-fft N=24 is -0.37 % from fem-axisym mesh 0.5 in F_T, cheaper than it
+    ("single-pillar", ["pillars.rigid=true"], {"spring", "fem-axisym", "bem-fft"}),
     ("single-pillar", ["pillars.E_Pa=1.6e3", "substrate.E_Pa=1.6e3"], {"fem-axisym"}),
     ("paper-fig3-dense", [], {"bem", "bem-fft"}),
 ])
@@ -284,3 +285,21 @@ def test_cli_plan_and_solve_auto(capsys):
     assert result["model"] == "hertz"
     assert result["diagnostics"]["plan"]["choice"]["model"] == "hertz"
     assert np.isfinite(result["total_force_N"])
+
+
+# --- the planner validated (slow: about half an hour on this machine) ---------------------
+# Issue 9's targets: the planned model within tolerance of the best reference on >= 95 % of
+# the seeded scenes, and its time within 2x of the cheapest candidate that was.
+SHARE_ACCURATE = 0.95
+
+
+@pytest.mark.slow
+def test_planner_validation(tmp_path):
+    from validation.engine import Engine
+    from validation.studies.planner_validation import summary_text, validate_planner
+
+    with Engine("pool", workers=2, quiet=True) as engine:
+        doc = validate_planner(tmp_path, engine)
+    t = doc["totals"]
+    assert t["judged"] >= 50, summary_text(doc)
+    assert t["accurate_share"] >= SHARE_ACCURATE, summary_text(doc)

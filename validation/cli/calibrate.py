@@ -3,11 +3,10 @@
 
 from __future__ import annotations
 
-import json
 import shutil
 from pathlib import Path
 
-from ._args import add_engine_arguments, engine_from_args
+from ._args import add_engine_arguments, check_out, engine_from_args, print_json
 
 
 def add_parser(sub) -> None:
@@ -35,6 +34,7 @@ def run(args) -> int:
     from ..studies.calibrate import calibrate, write_data
     from ..studies.planner_tables import data_dir
 
+    check_out(args.out)
     with engine_from_args(args, "calibrate") as engine:
         doc = calibrate(args.out, engine, quick=args.quick)
     names = write_data(doc, args.out)
@@ -44,8 +44,8 @@ def run(args) -> int:
             installed.append(str(shutil.copyfile(args.out / name, data_dir() / name)))
     prov = doc["errors"]["provenance"]
     if args.json:
-        print(json.dumps({"written": [str(args.out / n) for n in names],
-                          "installed": installed, "provenance": prov}, indent=2))
+        print_json({"written": [str(args.out / n) for n in names], "installed": installed,
+                    "provenance": prov})
         return 0
     print(f"calibration: {len(doc['errors']['tables'])} error tables, "
           f"{len(doc['costs']['models'])} cost fits from {prov['scenes']} scenes in "

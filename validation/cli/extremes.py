@@ -3,10 +3,9 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
-from ._args import add_engine_arguments, engine_from_args
+from ._args import add_engine_arguments, check_out, engine_from_args, print_json
 
 
 def add_parser(sub) -> None:
@@ -41,13 +40,21 @@ def run(args) -> int:
     bad = [m for m in models if m not in MODELS]
     if bad or not models:
         raise InputError(f"--models {args.models}: allowed: {', '.join(MODELS)}")
+    check_out(args.out)
     with engine_from_args(args, "extremes") as engine:
         doc = run_extremes(args.out, engine, quick=args.quick, models=models)
     names = write_outputs(doc, args.out)
     if args.json:
-        print(json.dumps(counts(doc), indent=2))
+        print_json(counts(doc))
     else:
         print(summary_text(doc))
         print(f"written to {args.out}/ ({', '.join(names)})")
-    broken = [r for r in doc["records"] if r["status"] in ("fail", "error")]
-    return 1 if broken else 0
+    broken = [f"{r['corner']} / {r['model']}: {r['status']}" for r in doc["records"]
+              if r["status"] in ("fail", "error")]
+    if broken:
+        import sys
+
+        print(f"pillar-xval extremes: {len(broken)} run(s) broke an invariant or crashed: "
+              + "; ".join(broken[:3]) + (" ..." if len(broken) > 3 else ""), file=sys.stderr)
+        return 1
+    return 0

@@ -9,7 +9,8 @@ from pathlib import Path
 
 from scenes import load_scene
 
-from ._args import add_engine_arguments, add_scene_arguments, engine_from_args
+from ._args import (add_engine_arguments, add_scene_arguments, check_out, engine_from_args,
+                    integer, number, print_json)
 
 
 def add_parser(sub) -> None:
@@ -25,12 +26,13 @@ def _add_plan(sub) -> None:
                     "choose the cheapest within --tolerance for every requested quantity. "
                     "`solve --model auto` runs the choice.")
     add_scene_arguments(p)
-    p.add_argument("--tolerance", type=float, default=0.01, metavar="REL",
+    p.add_argument("--tolerance", type=number(0.0, 1.0, open_lo=True), default=0.01,
+                   metavar="REL",
                    help="relative error allowed on each quantity (default 0.01 = 1 %%)")
     p.add_argument("--quantities", default="F_T,sigma0", metavar="Q,Q",
                    help="comma-separated among F_T, sigma0, a, A (default F_T,sigma0)")
-    p.add_argument("--budget", type=float, default=None, metavar="SECONDS",
-                   help="leave out candidates predicted slower than this")
+    p.add_argument("--budget", type=number(0.0, None, open_lo=True), default=None,
+                   metavar="SECONDS", help="leave out candidates predicted slower than this")
     p.add_argument("--json", action="store_true", help="print the plan as one JSON document")
     p.set_defaults(func=run)
 
@@ -42,7 +44,7 @@ def run(args) -> int:
     scene = load_scene(args.scene, args.overrides)
     p = plan(scene, tolerance, quantities, budget)
     if args.json:
-        print(json.dumps(p, indent=2, allow_nan=False))
+        print_json(p)
     else:
         print(plan_text(p))
     return 0
@@ -59,11 +61,11 @@ def _add_validate(sub) -> None:
                     "cheapest candidate that was.")
     p.add_argument("--out", type=Path, default=Path("out") / "validate-plan",
                    help="report folder and cached cases (default out/validate-plan)")
-    p.add_argument("--tolerance", type=float, default=0.01, metavar="REL",
-                   help="relative error allowed on each quantity (default 0.01)")
+    p.add_argument("--tolerance", type=number(0.0, 1.0, open_lo=True), default=0.01,
+                   metavar="REL", help="relative error allowed on each quantity (default 0.01)")
     p.add_argument("--quantities", default="F_T,sigma0", metavar="Q,Q",
                    help="comma-separated among F_T, sigma0, a, A (default F_T,sigma0)")
-    p.add_argument("--scenes", type=int, default=50, metavar="N",
+    p.add_argument("--scenes", type=integer(1, 500), default=50, metavar="N",
                    help="scenes of the paper's family (default 50; plus 6 stiff-substrate "
                         "and 4 flat ones)")
     p.add_argument("--json", action="store_true", help="print the totals as one JSON document")
@@ -72,22 +74,19 @@ def _add_validate(sub) -> None:
 
 
 def run_validate(args) -> int:
-    from scenes import InputError
-
     from ..studies.planner import check_request
     from ..studies.planner_validation import (summary_text, validate_planner,
                                               validation_scenes, write_outputs)
 
     tolerance, quantities, _ = check_request(args.tolerance, args.quantities)
-    if not 1 <= args.scenes <= 500:
-        raise InputError(f"--scenes {args.scenes}: allowed range is 1..500")
+    check_out(args.out)
     scenes = validation_scenes(args.scenes)
     with engine_from_args(args, "validate-plan") as engine:
         doc = validate_planner(args.out, engine, scenes=scenes, tolerance=tolerance,
                                quantities=quantities)
     names = write_outputs(doc, args.out)
     if args.json:
-        print(json.dumps(doc["totals"], indent=2))
+        print_json(doc["totals"])
     else:
         print(summary_text(doc))
         print(f"written to {args.out}/ ({', '.join(names)})")

@@ -368,7 +368,7 @@ def calibrate(out: Path, engine: Engine | None = None, *, n_lattice: int = 40,
     sample = (lattice_scenes(n_lattice, seed, "pillars", "c")
               + lattice_scenes(n_stiff, seed + 1, "lens", "k") + flat_scenes()[:2 if quick else 4])
     punches = punch_scenes(zetas_um=(0.005, 0.05, 0.5)) if quick else punch_scenes()
-    gecit = gecit_scenes((1e-3, 1.0, 1e6), (0.5,), (1.0,)) if quick else gecit_scenes()
+    gecit = gecit_scenes((1e-3, 1.0, math.inf), (0.5,), (1.0,)) if quick else gecit_scenes()
     try:
         batches = [_cases_of(e) for e in sample]
         punch_batches = [[Case("bem", e["scene"], LADDERS["bem"].options_at(v),
@@ -437,5 +437,16 @@ def write_data(doc: dict, out: Path) -> list:
     names = {"error_models.json": doc["errors"], "cost_models.json": doc["costs"],
              "calibration.json": doc["report"]}
     for name, content in names.items():
-        write_atomic(out / name, json.dumps(content, indent=1, allow_nan=False))
+        write_atomic(out / name, json.dumps(_finite(content), indent=1, allow_nan=False))
     return list(names)
+
+
+def _finite(obj):
+    """``obj`` with every non-finite number (a rigid body's modulus, its ratio) as None."""
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    return obj

@@ -157,7 +157,8 @@ class ErrorTable:
 
 def _interpolate(points: np.ndarray, values: np.ndarray, q: np.ndarray) -> tuple[float, bool]:
     """Piecewise-linear interpolation of scattered ``values`` at ``q`` (all scaled to the
-    unit box); nearest neighbour outside the triangulated hull.  Returns (value, outside)."""
+    unit box): multilinear on a tensor grid (:func:`_grid_interpolate`), else on the Delaunay
+    triangulation; nearest neighbour outside it.  Returns (value, outside)."""
     n, dim = points.shape if points.ndim == 2 else (len(points), 0)
     if dim == 0 or n == 1:
         return float(np.mean(values)), False
@@ -166,6 +167,9 @@ def _interpolate(points: np.ndarray, values: np.ndarray, q: np.ndarray) -> tuple
         x, v = points[order, 0], values[order]
         outside = bool(q[0] < x[0] or q[0] > x[-1])
         return float(np.interp(q[0], x, v)), outside
+    grid = _grid_interpolate(points, values, q)
+    if grid is not None:
+        return grid
     if n > dim:
         from scipy.interpolate import LinearNDInterpolator
         from scipy.spatial import QhullError
@@ -178,6 +182,47 @@ def _interpolate(points: np.ndarray, values: np.ndarray, q: np.ndarray) -> tuple
             return value, False
     nearest = int(np.argmin(np.sum((points - q[None, :]) ** 2, axis=1)))
     return float(values[nearest]), True
+
+
+# A table is a tensor grid when its points take few distinct values per feature and fill at
+# least this share of their combinations (failed calibration cases leave holes).
+GRID_FILL = 0.6
+
+
+def _grid_interpolate(points, values, q):
+    """Multilinear interpolation when the points lie on a tensor grid (a Gecit-like study):
+    a triangulation of an anisotropic grid makes long thin simplices that mix far rows.  The
+    cell's missing corners are left out and the weights renormalised (all missing: the
+    nearest measured point); outside the grid the query is clamped to it.  None when the
+    points are no grid."""
+    axes = [np.unique(np.round(points[:, k], 12)) for k in range(points.shape[1])]
+    cells = math.prod(len(a) for a in axes)
+    if any(len(a) < 2 for a in axes) or cells > 10 * len(points) or \
+            len(points) < GRID_FILL * cells:
+        return None
+    index = tuple(np.searchsorted(a, np.round(points[:, k], 12)) for k, a in enumerate(axes))
+    table = np.full([len(a) for a in axes], np.nan)
+    table[index] = values
+    if np.count_nonzero(np.isfinite(table)) != len(values):
+        return None  # repeated points: not a grid
+    outside = False
+    lower, frac = [], []
+    for k, a in enumerate(axes):
+        x = float(np.clip(q[k], a[0], a[-1]))
+        outside |= x != q[k]
+        i = min(int(np.searchsorted(a, x, side="right")) - 1, len(a) - 2)
+        lower.append(i)
+        frac.append((x - a[i]) / (a[i + 1] - a[i]))
+    total = weight = 0.0
+    for corner in np.ndindex(*(2,) * len(axes)):
+        v = table[tuple(i + c for i, c in zip(lower, corner))]
+        w = math.prod(f if c else 1.0 - f for f, c in zip(frac, corner))
+        if np.isfinite(v) and w > 0:
+            total += w * v
+            weight += w
+    if weight <= 1e-12:  # every corner missing: the nearest measured node
+        return float(values[np.argmin(np.sum((points - q[None, :]) ** 2, axis=1))]), True
+    return total / weight, outside
 
 
 @dataclass
