@@ -19,7 +19,8 @@ from ._args import add_scene_arguments
 __all__ = ["COMMANDS", "UserError", "add_scene_arguments", "build_parser", "main"]
 
 COMMANDS = ("validation.cli.solve", "validation.cli.compare", "validation.cli.converge",
-            "validation.cli.gecit", "validation.cli.tradeoff", "validation.cli.sweep")
+            "validation.cli.gecit", "validation.cli.tradeoff", "validation.cli.sweep",
+            "validation.cli.figures")
 
 
 class UserError(Exception):
