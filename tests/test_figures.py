@@ -33,6 +33,9 @@ RTOL_EXTRAPOLATED_HERTZ = 0.003
 # side over the pitch (the ring's first contact is resolved to its innermost element's
 # collocation point): at P = 21 and zeta = 0.3 um, b/e = 0.19/38 = 0.5 %; plus the bracket.
 RTOL_THRESHOLD_P21 = 0.008
+# Quick figures (P = 7, 3 halvings of a +-15 % bracket): 1.5 % + 1.8 %.
+RTOL_THRESHOLD_QUICK = 0.035
+RTOL_SPRING_MODEL = 0.02
 
 
 # --- the extrapolated dense model ------------------------------------------------------
@@ -169,6 +172,17 @@ def test_quick_figures_command(tmp_path, capsys):
     assert "| quantity | paper | ours | difference |" in text and "E_s = E_p" in text
     sparse = next(p for p in doc["fig3"] if p["phi"] < 0.5)
     assert sparse["pillars"] == 7  # the paper's Fig. 3a
+    # Fig. 5: the single pillar against the spring model, which ignores the lens sag over
+    # the pillar top (a relative a^2 (1 + s)/(R zeta) <= 1.2 % at zeta = 0.3 um), plus the
+    # model's 0.6 % discretisation error.
+    with open(out / "fig5.csv") as fh:
+        for row in csv.DictReader(fh):
+            assert float(row["centre_pressure_Pa"]) == pytest.approx(
+                float(row["closed_form_Pa"]), rel=RTOL_SPRING_MODEL)
+    # Figs. 7-8: the bisected threshold (P = 7, 3 halvings) against the rim-corrected
+    # closed form: one element side over the pitch (0.57/38 um) plus the bracket (1.8 %).
+    for e in doc["exact_phi_s"]:
+        assert e["phi_s"] == pytest.approx(e["phi_s_rim"], rel=RTOL_THRESHOLD_QUICK)
     assert doc["timing"]["cases_computed"] == doc["timing"]["unique_cases"]
     # A rerun resumes: nothing is computed again.
     assert main(["figures", "--quick", "--out", str(out), "--executor", "serial",

@@ -28,7 +28,7 @@ def add_parser(sub) -> None:
                         "P and 2P - 1, extrapolated) or bem")
     p.add_argument("--elements-per-diameter", type=int, default=None, metavar="P",
                    help="square elements across a pillar (bem-richardson: the coarse level); "
-                        "default 5 (--quick: 3)")
+                        "default 5")
     p.add_argument("--quick", "--coarse", action="store_true",
                    help="a coarse version of every figure (a few seconds; for tests)")
     p.add_argument("--json", action="store_true",
@@ -47,7 +47,7 @@ def run(args) -> int:
     p = args.elements_per_diameter
     if p is not None and not 3 <= p <= 41:
         raise InputError(f"--elements-per-diameter {p}: allowed range is [3, 41]")
-    grid = FigureGrid.quick(p or 3) if args.quick else FigureGrid.full(p or 5)
+    grid = FigureGrid.quick(p or 5) if args.quick else FigureGrid.full(p or 5)
     with engine_from_args(args, "figures") as engine:
         doc = run_figures(args.out, grid, model=args.model, engine=engine)
     t = doc["timing"]

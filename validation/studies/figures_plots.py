@@ -125,7 +125,8 @@ def plot_fig4(curves: dict, area_rows: list[dict], path: Path) -> Path:
     """(a) sigma_0(Phi) at zeta = 0.3 um per E_p/E_l with the fitted master curves;
     (b) A against pi a^2 at E_p = E_l per Phi, with A = Phi pi a^2."""
     plt = _pyplot()
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(13, 5.2))
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(14.5, 5.4),
+                                 gridspec_kw={"width_ratios": [1.25, 1]})
     colours = _ratio_colours(sorted(curves, reverse=True))
     for ratio in sorted(curves, reverse=True):
         c = curves[ratio]
@@ -134,11 +135,10 @@ def plot_fig4(curves: dict, area_rows: list[dict], path: Path) -> Path:
         phis = np.geomspace(min(c["phi"]), max(c["phi"]), 200)
         ax.loglog(phis, np.asarray(c["master_Pa"](phis)) * KPA, "-", lw=1.0,
                   color=colours[ratio])
-    # Ten stiffness ratios: the legend goes above the axes, clear of the curves.
+    # Ten stiffness ratios: the legend goes beside the axes, clear of the curves.
     _dress(ax, "surface fraction Φ", "centre pressure σ₀ (kPa)",
-           "(a) σ₀ at ζ = 0.3 µm; lines: master curve with fitted Φ_S, Φ_H", "lower left",
-           ncol=5, bbox_to_anchor=(0.0, 1.07), frameon=False, columnspacing=0.8,
-           handletextpad=0.2, pad=34)
+           "(a) σ₀ at ζ = 0.3 µm; lines: master curve with fitted Φ_S, Φ_H", "upper left",
+           bbox_to_anchor=(1.01, 1.0), frameon=False)
 
     phis = sorted({r["phi"] for r in area_rows}, reverse=True)
     cmap = plt.cm.rainbow
@@ -154,7 +154,7 @@ def plot_fig4(curves: dict, area_rows: list[dict], path: Path) -> Path:
             line = np.geomspace(start, apparent.max(), 20)
             bx.loglog(line, phi * line, "--", lw=0.8, color=colour)
     _dress(bx, "apparent contact area π a² (µm²)", "real contact area A (µm²)",
-           "(b) E_p = E_l, ζ = 0.005-0.5 µm; dashed: A = Φ π a²", "upper left", pad=34)
+           "(b) E_p = E_l, ζ = 0.005-0.5 µm; dashed: A = Φ π a²", "upper left")
     fig.suptitle(f"Fig. 4 ({CONVENTION})", fontsize=11)
     return save_figure(fig, path)
 

@@ -85,7 +85,7 @@ class FigureGrid:
             name="full")
 
     @classmethod
-    def quick(cls, elements_per_diameter: int = 3) -> "FigureGrid":
+    def quick(cls, elements_per_diameter: int = 5) -> "FigureGrid":
         """A coarse version of every figure, for tests (a few seconds)."""
         return cls(
             phis=(2.3e-3, 0.01, 0.03, 0.1, 0.3, 0.82),
