@@ -165,7 +165,7 @@ def test_quick_figures_command(tmp_path, capsys):
     doc = json.loads(capsys.readouterr().out)
     assert code == 0 and not doc["failed"]
     for k in range(3, 9):
-        assert (out / f"fig{k}.png").stat().st_size > 10_000
+        assert (out / f"fig{k}.png").stat().st_size > 5_000
         with open(out / f"fig{k}.csv") as fh:
             assert len(list(csv.reader(fh))) > 2
     text = (out / "figures.md").read_text()

@@ -18,8 +18,6 @@ largest Phi with one pillar in contact (bisection), and the Phi where sigma_0 co
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 import time
 from collections import defaultdict
@@ -28,14 +26,16 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from scenes import Scene, analytic, write_atomic
+from scenes import Scene, write_atomic
 
 from ..engine import Case, Engine
-from . import figures_plots as plots
-from .figures_fits import (fit_area_exponent, fit_common_exponent, fit_thresholds,
-                           hertz_band_entry, master_curve, reduced_area, reduced_pressure)
+from .figures_files import write_figures
+from .figures_fits import (exponent_profile, fit_area_exponent, fit_common_exponent,
+                           fit_thresholds, hertz_band_entry, master_curve, reduced_area,
+                           reduced_pressure)
 from .figures_scenes import (FIG3_ZETA_UM, FigureGrid, expected_pillars, figure_sweeps,
-                             table1_scene)
+                             pillar_height, table1_scene)
+from .figures_scenes import in_um as _um
 from .figures_thresholds import analytic_thresholds, bisect_single_pillar
 
 __all__ = ["DENSE_MODELS", "HERTZ_BAND", "run_figures"]
@@ -90,6 +90,8 @@ def _run_batch(sweeps: dict, engine: Engine, folder: Path, extra: list[Case]):
 def _curve_fit(rows: list[dict], zeta_um: float, ratio: float, band: float) -> dict:
     """Fitted Phi_S, Phi_H (n = 3) and the Hertz-band entry of one sigma_0(Phi) curve."""
     rows = sorted((r for r in rows if r.get("converged")), key=lambda r: r["phi"])
+    if len(rows) < 3:
+        return None
     closed = analytic_thresholds(zeta_um, ratio)
     s_h = closed["sigma0_hertz_Pa"]
     single = rows[0]
@@ -117,19 +119,11 @@ def _curves(rows: list[dict], band: float) -> list[dict]:
     out = []
     for (ratio, zeta_um), rs in sorted(groups.items()):
         c = _curve_fit(rs, zeta_um, ratio, band)
+        if c is None:  # fewer than three converged points: nothing to fit
+            continue
         c["zeta_h"] = zeta_um * 1e-6 / pillar_height()
         out.append(c)
     return out
-
-
-def _um(length_m: float) -> float:
-    """A length in um, rounded so that equal grid values compare equal."""
-    return round(length_m * 1e6, 9)
-
-
-def pillar_height() -> float:
-    """h of Table 1 (m), the unit of the reduced indentation zeta/h."""
-    return table1_scene(0.01, FIG3_ZETA_UM, 1.0).pillars.height_m
 
 
 def run_figures(out: Path, grid: FigureGrid | None = None, *, model: str = "bem-richardson",
@@ -193,7 +187,7 @@ def run_figures(out: Path, grid: FigureGrid | None = None, *, model: str = "bem-
     # loaded machine (measured: 0.5 s for a 600 x 61 Jacobian).
     with threadpool_limits(limits=1, user_api="blas"):
         doc = _analyse(grid, model, options, rows, pairs, extra_out, exact, band)
-        doc["paths"] = [str(p) for p in _write_figures(out, doc, pairs)]
+        doc["paths"] = [str(p) for p in write_figures(out, doc, pairs)]
     timing["analysis_and_plots_s"] = time.perf_counter() - t0
     computed = [o for p in pairs.values() for _, o in p if o.ok and not o.cached]
     timing.update({
@@ -220,6 +214,7 @@ def _analyse(grid, model, options, rows, pairs, extra_out, exact, band) -> dict:
     n3 = np.concatenate([master_curve(c["phi"], c["phi_s_fit"], c["phi_h_fit"])
                          - np.asarray(c["star"]) for c in curves])
     common["rms_n3"] = float(np.sqrt(np.mean(n3**2)))
+    common["profile"] = exponent_profile([(c["phi"], c["star"]) for c in curves])
     points = []
     by_curve = {(c["ratio"], c["zeta_um"]): c for c in curves}
     table1 = table1_scene(0.01, FIG3_ZETA_UM, 1.0)
@@ -228,7 +223,9 @@ def _analyse(grid, model, options, rows, pairs, extra_out, exact, band) -> dict:
     for r in rows["master"]:
         if not r.get("converged"):
             continue
-        c = by_curve[(r["ratio"], _um(r["zeta_m"]))]
+        c = by_curve.get((r["ratio"], _um(r["zeta_m"])))
+        if c is None:
+            continue
         points.append({
             "ratio": r["ratio"], "zeta_m": r["zeta_m"], "phi": r["phi"],
             "phi_star": (r["phi"] - c["phi_s_fit"]) / c["phi_h_fit"],
@@ -252,7 +249,7 @@ def _analyse(grid, model, options, rows, pairs, extra_out, exact, band) -> dict:
                        "phi_s": [analytic_thresholds(z, 1.0)["phi_s_large_zeta"] for z in zetas]},
         "zeta_t_over_h": {str(r): analytic_thresholds(0.3, r)["zeta_t_over_h"]
                           for r in sorted({*grid.ratios, *grid.fig4a_ratios})},
-        "common_exponent": {k: common[k] for k in ("exponent", "rms", "rms_n3")},
+        "common_exponent": {k: common[k] for k in ("exponent", "rms", "rms_n3", "profile")},
         "area_exponent": area,
     }
     fig3 = []
@@ -275,125 +272,3 @@ def _summary(r) -> dict:
             "elements_per_diameter": r.discretisation.get("elements_per_diameter"),
             "max_interpenetration_m": r.diagnostics.get("max_interpenetration_m", 0.0),
             "min_pressure_Pa": r.diagnostics.get("min_pressure_Pa", 0.0)}
-
-
-# --- files ------------------------------------------------------------------------------
-def _csv(path: Path, header: list[str], rows) -> Path:
-    buf = io.StringIO()
-    w = csv.writer(buf)
-    w.writerow(header)
-    for row in rows:
-        w.writerow(["" if v is None else f"{v:.10g}" if isinstance(v, float) else v
-                    for v in row])
-    return write_atomic(path, buf.getvalue())
-
-
-def _write_figures(out: Path, doc: dict, pairs: dict) -> list[Path]:
-    from .figures_maps import ElementMap, quadrant_extent
-
-    paths = []
-    rows, t = doc["rows"], doc["thresholds"]
-    # Fig. 3
-    panels, elements = [], []
-    for c, o in pairs["fig3"]:
-        if not o.ok:
-            continue
-        res = o.result
-        arrays = o.field_arrays()
-        emap = ElementMap(res, arrays["pressure_Pa"])
-        scene = c.scene
-        panels.append({"result": res, "map": emap, "extent": quadrant_extent(res),
-                       "hertz": analytic.hertz(scene), "punch": analytic.spring_model(scene),
-                       "phi": scene.pillars.surface_fraction})
-        for x, y, w, p in zip(arrays["x_m"], arrays["y_m"], arrays["weight"],
-                              arrays["pressure_Pa"]):
-            elements.append([scene.pillars.surface_fraction, float(x), float(y), int(w),
-                             float(p)])
-    if panels:
-        paths.append(plots.plot_fig3(panels, out / "fig3.png", doc["grid"]["map_pixels"]))
-        paths.append(_csv(out / "fig3.csv", ["surface_fraction", "x_m", "y_m", "orbit_size",
-                                             "pressure_Pa"], elements))
-    # Fig. 4
-    curves = {}
-    for c in doc["fig4a_curves"]:
-        s_h, s_s, ps, ph = (c["sigma0_hertz_Pa"], c["sigma0_single_Pa"], c["phi_s_fit"],
-                            c["phi_h_fit"])
-        curves[c["ratio"]] = {"phi": c["phi"], "sigma0_Pa": c["sigma0_Pa"],
-                              "master_Pa": (lambda x, s_h=s_h, s_s=s_s, ps=ps, ph=ph:
-                                            s_h + (s_s - s_h) * master_curve(x, ps, ph))}
-    area_rows = [r for r in rows["fig4b"] if r.get("converged")]
-    paths.append(plots.plot_fig4(curves, area_rows, out / "fig4.png"))
-    table = []
-    for r in rows["fig4a"]:
-        m = curves.get(r["ratio"])
-        table.append(["a", r["ratio"], r["phi"], r["zeta_m"], r.get("sigma0_Pa"),
-                      float(m["master_Pa"](r["phi"])) if m else None, r.get("a_m"), None,
-                      r.get("A_m2"), r.get("F_N"), r.get("pillars")])
-    for r in rows["fig4b"]:
-        table.append(["b", r["ratio"], r["phi"], r["zeta_m"], r.get("sigma0_Pa"), None,
-                      r.get("a_m"), np.pi * r["a_m"] ** 2 if r.get("a_m") is not None else None,
-                      r.get("A_m2"), r.get("F_N"), r.get("pillars")])
-    paths.append(_csv(out / "fig4.csv", ["panel", "E_p_over_E_l", "surface_fraction",
-                                         "indentation_m", "centre_pressure_Pa",
-                                         "master_curve_Pa", "contact_radius_m",
-                                         "apparent_area_m2", "real_contact_area_m2",
-                                         "total_force_N", "pillars_in_contact"], table))
-    # Fig. 5
-    scene5 = pairs["fig5"][0][0].scene
-    lens_e = scene5.lens.material.E_Pa
-
-    def closed(x):  # eq. S0BvsE at E_p = E_s = E_l / x
-        return np.array([analytic.spring_model(_with_modulus(scene5, lens_e / v))
-                         .centre_pressure for v in np.atleast_1d(x)])
-
-    rigid = analytic.rigid_punch(scene5).centre_pressure
-    fig5 = [{"El_over_Ep": lens_e / r["E_p_Pa"], "sigma0_Pa": r["sigma0_Pa"],
-             "E_p_Pa": r["E_p_Pa"]} for r in rows["fig5"] if r.get("converged")]
-    paths.append(plots.plot_fig5(fig5, closed, rigid, out / "fig5.png"))
-    paths.append(_csv(out / "fig5.csv", ["E_p_Pa", "E_l_over_E_p", "centre_pressure_Pa",
-                                         "closed_form_Pa", "rigid_punch_Pa"],
-                      [[r["E_p_Pa"], r["El_over_Ep"], r["sigma0_Pa"],
-                        float(closed(r["El_over_Ep"])[0]), rigid] for r in fig5]))
-    doc["fig5"] = [{**r, "closed_form_Pa": float(closed(r["El_over_Ep"])[0])} for r in fig5]
-    doc["fig5_rigid_Pa"] = rigid
-    # Fig. 6
-    paths.append(plots.plot_fig6(doc["master_points"], t["area_exponent"]["exponent"],
-                                 out / "fig6.png"))
-    by_curve = {(c["ratio"], c["zeta_um"]): c for c in t["curves"]}
-    paths.append(_csv(out / "fig6.csv", ["E_p_over_E_l", "indentation_m", "surface_fraction",
-                                         "reduced_surface_fraction", "reduced_centre_pressure",
-                                         "reduced_area", "phi_s_fit", "phi_h_fit"],
-                      [[p["ratio"], p["zeta_m"], p["phi"], p["phi_star"], p["sigma_star"],
-                        p["area_star"],
-                        by_curve[(p["ratio"], _um(p["zeta_m"]))]["phi_s_fit"],
-                        by_curve[(p["ratio"], _um(p["zeta_m"]))]["phi_h_fit"]]
-                       for p in doc["master_points"]]))
-    # Figs. 7 and 8
-    paths.append(plots.plot_fig7(t, out / "fig7.png"))
-    paths.append(plots.plot_fig8(t, out / "fig8.png"))
-    exact = {(e["ratio"], e["zeta_um"]): e for e in t["exact"]}
-    keys = sorted(set(exact) | set(by_curve))
-    header = ["E_p_over_E_l", "indentation_m", "zeta_over_h", "phi_s_fit", "phi_h_fit",
-              "fit_rms", "phi_h_band", "phi_s_exact", "phi_s_exact_rel_halfwidth",
-              "phi_s_paper_eqs", "phi_s_rim", "phi_s_large_zeta", "zeta_t_over_h"]
-    table = []
-    for key in keys:
-        c, e = by_curve.get(key, {}), exact.get(key, {})
-        table.append([key[0], key[1] * 1e-6, key[1] * 1e-6 / pillar_height(), c.get("phi_s_fit"),
-                      c.get("phi_h_fit"), c.get("fit_rms"), c.get("phi_h_band"),
-                      e.get("phi_s"), e.get("rel_halfwidth"), e.get("phi_s_paper"),
-                      e.get("phi_s_rim"), e.get("phi_s_large_zeta"),
-                      t["zeta_t_over_h"].get(str(key[0]))])
-    paths.append(_csv(out / "fig7.csv", header, table))
-    paths.append(_csv(out / "fig8.csv", header, table))
-    return paths
-
-
-def _with_modulus(scene: Scene, e_pa: float) -> Scene:
-    from scenes import Material
-
-    mat = Material(e_pa, scene.pillars.material.nu)
-    return scene.replace(pillars=scene.pillars.__class__(
-        scene.pillars.diameter_m, scene.pillars.height_m, scene.pillars.pitch_m, mat),
-        substrate=Material(e_pa, scene.substrate.nu))
-

@@ -112,6 +112,18 @@ def fit_common_exponent(curves: list[tuple]) -> dict:
             "phi_h": [math.exp(v) for v in sol.x[2::2]]}
 
 
+def exponent_profile(curves: list[tuple], exponents=(2.0, 3.0, 5.0, 10.0)) -> list[dict]:
+    """The rms residual in sigma_0* of the master curve at each fixed n, every curve with its
+    own fitted Phi_S and Phi_H: how sharply the data pick the exponent."""
+    out = []
+    for n in exponents:
+        res = np.concatenate([
+            master_curve(p, f["phi_s"], f["phi_h"], n) - np.asarray(s, float)
+            for (p, s), f in ((c, fit_thresholds(*c, exponent=n)) for c in curves)])
+        out.append({"exponent": float(n), "rms": float(np.sqrt(np.mean(res**2)))})
+    return out
+
+
 def reduced_area(area, radius: float, indentation: float, diameter: float):
     """A* = (A - A_S) / (A_H - A_S), A_H = pi R zeta, A_S = pi d^2 / 4 ([P] eq. APhiRed)."""
     a_h, a_s = math.pi * radius * indentation, math.pi * diameter**2 / 4.0

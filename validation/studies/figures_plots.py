@@ -58,7 +58,7 @@ def _ratio_colours(ratios):
 
 
 # --- Fig. 3 -----------------------------------------------------------------------------
-def plot_fig3(panels: list[dict], path: Path, pixels: int = 520) -> Path:
+def plot_fig3(panels: list[dict], path: Path, pixels: int = 520, dpi: int = 120) -> Path:
     """Pressure maps (left, images on the element grid) and sigma(r) along theta = 0 (right),
     one row per scene.  ``panels``: dicts with ``result``, ``map`` (ElementMap), ``extent``,
     ``hertz``, ``punch`` (closed forms) and ``phi``."""
@@ -86,7 +86,7 @@ def plot_fig3(panels: list[dict], path: Path, pixels: int = 520) -> Path:
                         lw=1.0, label="primitive cell" if angle else None)
         a = res.contact_radius_m * UM
         t = np.linspace(0, math.pi / 2, 200)
-        ax_map.plot(a * np.cos(t), a * np.sin(t), "r:", lw=1.4, label=f"contact radius a")
+        ax_map.plot(a * np.cos(t), a * np.sin(t), "r:", lw=1.4, label="contact radius a")
         ax_map.set_xlim(um_ext[0], um_ext[1])
         ax_map.set_ylim(um_ext[2], um_ext[3])
         ax_map.set_aspect("equal")
@@ -117,11 +117,11 @@ def plot_fig3(panels: list[dict], path: Path, pixels: int = 520) -> Path:
                           fontsize=10)
     fig.suptitle(f"Fig. 3: contact pressure at ζ = 0.3 µm, "
                  f"E_p = E_s = E_l = 1.6 MPa ({CONVENTION})", fontsize=11)
-    return save_figure(fig, path)
+    return save_figure(fig, path, dpi)
 
 
 # --- Fig. 4 -----------------------------------------------------------------------------
-def plot_fig4(curves: dict, area_rows: list[dict], path: Path) -> Path:
+def plot_fig4(curves: dict, area_rows: list[dict], path: Path, dpi: int = 120) -> Path:
     """(a) sigma_0(Phi) at zeta = 0.3 um per E_p/E_l with the fitted master curves;
     (b) A against pi a^2 at E_p = E_l per Phi, with A = Phi pi a^2."""
     plt = _pyplot()
@@ -156,11 +156,12 @@ def plot_fig4(curves: dict, area_rows: list[dict], path: Path) -> Path:
     _dress(bx, "apparent contact area π a² (µm²)", "real contact area A (µm²)",
            "(b) E_p = E_l, ζ = 0.005-0.5 µm; dashed: A = Φ π a²", "upper left")
     fig.suptitle(f"Fig. 4 ({CONVENTION})", fontsize=11)
-    return save_figure(fig, path)
+    return save_figure(fig, path, dpi)
 
 
 # --- Fig. 5 -----------------------------------------------------------------------------
-def plot_fig5(rows: list[dict], closed_form, rigid_Pa: float, path: Path) -> Path:
+def plot_fig5(rows: list[dict], closed_form, rigid_Pa: float, path: Path,
+              dpi: int = 120) -> Path:
     """sigma_0S against E_l/E_p at Phi = 2.3e-3 with eq. S0BvsE (``closed_form(x)``, Pa)."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7, 5))
@@ -173,11 +174,12 @@ def plot_fig5(rows: list[dict], closed_form, rigid_Pa: float, path: Path) -> Pat
                label="rigid punch, σ₀S(E_p → ∞)")
     _dress(ax, "E_l/E_p", "σ₀S (kPa)",
            f"Fig. 5: single pillar, Φ = 2.3e-3, ζ = 0.3 µm ({CONVENTION})", "lower left")
-    return save_figure(fig, path)
+    return save_figure(fig, path, dpi)
 
 
 # --- Fig. 6 -----------------------------------------------------------------------------
-def plot_fig6(points: list[dict], area_exponent: float | None, path: Path) -> Path:
+def plot_fig6(points: list[dict], area_exponent: float | None, path: Path,
+              dpi: int = 120) -> Path:
     """(a) sigma_0* against Phi* with (1 + Phi*)^-3; (b) A* against Phi with Phi^0.7 (and
     our fitted exponent).  ``points``: dicts with ``zeta_m``, ``ratio``, ``phi``,
     ``phi_star``, ``sigma_star``, ``area_star``."""
@@ -215,11 +217,11 @@ def plot_fig6(points: list[dict], area_exponent: float | None, path: Path) -> Pa
            "(b) reduced real contact area (points with A* > 0)", "lower right")
     fig.suptitle(f"Fig. 6: master curves, ζ = 0.05-0.5 µm ({CONVENTION})",
                  fontsize=11)
-    return save_figure(fig, path)
+    return save_figure(fig, path, dpi)
 
 
 # --- Figs. 7 and 8 ----------------------------------------------------------------------
-def plot_fig7(t: dict, path: Path) -> Path:
+def plot_fig7(t: dict, path: Path, dpi: int = 120) -> Path:
     """(a) Phi_S and (b) Phi_H against zeta/h: fitted, exact and closed-form."""
     plt = _pyplot()
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(13, 5.2))
@@ -251,10 +253,10 @@ def plot_fig7(t: dict, path: Path) -> Path:
     _dress(bx, "ζ/h", "Φ_H", "(b) Hertz threshold Φ_H", "best")
     fig.suptitle(f"Fig. 7: thresholds against the reduced indentation ({CONVENTION})",
                  fontsize=11)
-    return save_figure(fig, path)
+    return save_figure(fig, path, dpi)
 
 
-def plot_fig8(t: dict, path: Path) -> Path:
+def plot_fig8(t: dict, path: Path, dpi: int = 120) -> Path:
     """Phase diagram in (Phi, zeta/h): Hertz beyond Phi_H, one pillar below Phi_S."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(11, 6))
@@ -285,4 +287,4 @@ def plot_fig8(t: dict, path: Path) -> Path:
             color="deepskyblue")
     _dress(ax, "surface fraction Φ", "ζ/h", f"Fig. 8: contact regimes ({CONVENTION})",
            "upper left", bbox_to_anchor=(1.02, 1.0), frameon=False)
-    return save_figure(fig, path)
+    return save_figure(fig, path, dpi)

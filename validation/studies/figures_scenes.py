@@ -61,6 +61,7 @@ class FigureGrid:
     threshold_steps: int
     search_elements_per_diameter: int
     map_pixels: int = 520
+    dpi: int = 120
     threshold_extra_zetas_um: tuple = ()
     name: str = "full"
     notes: dict = field(default_factory=dict)
@@ -96,11 +97,12 @@ class FigureGrid:
             fig4b_zetas_um=(0.02, 0.1, 0.3),
             fig5_E_Pa=(1e3, 1.6e6, 1e12),
             elements_per_diameter=elements_per_diameter,
-            map_elements_per_diameter=2 * elements_per_diameter - 1,
+            map_elements_per_diameter=elements_per_diameter,
             threshold_elements_per_diameter=7,
             threshold_steps=3,
             search_elements_per_diameter=5,
             map_pixels=240,
+            dpi=60,
             threshold_extra_zetas_um=(),
             name="quick")
 
@@ -157,3 +159,13 @@ def table1_scene(phi: float, zeta_um: float, ratio: float):
     sets = [f"pillars.surface_fraction={phi!r}", f"load.indentation_um={zeta_um!r}",
             *(f"{k}={v!r}" for k, v in material_sets(ratio).items())]
     return load_scene(BASE_SCENE, sets)
+
+
+def pillar_height() -> float:
+    """h of Table 1 (m), the unit of the reduced indentation zeta/h."""
+    return table1_scene(0.01, FIG3_ZETA_UM, 1.0).pillars.height_m
+
+
+def in_um(length_m: float) -> float:
+    """A length in um, rounded so that equal grid values compare equal."""
+    return round(length_m * 1e6, 9)
