@@ -13,10 +13,11 @@ The covered-cell pattern changes with P, so the error constant wobbles by a few 
 one P to the next; the extrapolation multiplies that wobble by P1 / (P2 - P1).  With
 P2 = 2 P1 - 1 (both odd, so both grids have an element centred at r = 0 and sigma_0 is the
 pressure of that element at both levels) the factor is P1 / (P1 - 1), 1.25 for (5, 9); for
-(9, 11) it would be 4.5.  Measured on 36 scenes over Phi = 2.3e-3..0.82, E_p/E_l = 1e-3..1e6
-and zeta = 0.05..0.5 um against an FFT-BEM reference (N = 32, 48 extrapolated): max |error|
-of (5, 9) 0.59 % in F_T and 0.35 % in sigma_0, of (9, 11) 0.40 % and 0.72 %, at less than
-half the cost (``python -m validation.bench.figures``).
+(9, 11) it would be 4.5.  Measured on a seeded sample of 40 of the 832 scenes behind the
+paper's Figs. 4-8 (Phi = 2.3e-3..0.82, E_p/E_l = 1e-3..1e6, zeta = 0.005..0.5 um) against the
+FFT BEM at N = 32 and 48 extrapolated (itself within 0.08 % of N = 48, 64): max |error| of
+(5, 9) 0.41 % in F_T and 0.36 % in sigma_0; of (9, 11) 0.87 % and 0.69 %; of the plain dense
+model at P = 11 2.0 % and 3.1 % (``python -m validation.bench.figures``).
 
 What is extrapolated and what is not
 ------------------------------------

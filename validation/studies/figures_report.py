@@ -182,14 +182,15 @@ def _not_reproduced(doc: dict) -> list[str]:
     out.append(
         f"- **sigma_0* = (1 + Phi*)^-3** describes our curves about as well as any exponent "
         f"(rms of sigma_0* {ce['rms_n3']:.3f} at n = 3, {ce['rms']:.3f} at the best "
-        f"n = {ce['exponent']:.1f}): n and Phi_H trade off, (1 + Phi*/Phi_H)^-n depending on "
-        f"n/Phi_H at first order. Beyond Phi* ~ 1 our sigma_0* falls faster than the power law "
-        f"(Fig. 6a), which the paper calls only a qualitative description there.")
+        f"n = {ce['exponent']:.1f}): n and Phi_H trade off, (1 + (Phi - Phi_S)/Phi_H)^-n "
+        f"depending on n/Phi_H alone at first order. Beyond Phi* ~ 1 our sigma_0* falls "
+        f"faster than the power law (Fig. 6a), which the paper calls only a qualitative "
+        f"description there.")
     if area["exponent"] is not None:
         tops = area["tops"]["exponent"]
         out.append(
             f"- **A* = Phi^0.7** is not reproduced: the exact real contact area gives "
-            f"A* = Phi^{area['exponent']:.2f} (a clean power law, rms "
+            f"A* = Phi^{area['exponent']:.2f} (rms "
             f"{area['rms']:.2f} decades over {area['points']} points), and counting every "
             f"pillar in contact with its whole top gives Phi^{tops:.2f}. The paper's areas come "
             f"from its radius search, which drops pillars at the rim of the contact (first "

@@ -32,7 +32,7 @@ FIG5_PHI = 2.3e-3
 
 
 def _clean(x: float) -> float:
-    """A value rounded to 6 significant digits: 1.6e6 * 1e-3 reads as 1600, not 1600.0000000000002."""
+    """``x`` to 6 significant digits: 1.6e6 * 1e-3 reads 1600, not 1600.0000000000002."""
     return float(f"{x:.6g}")
 
 
