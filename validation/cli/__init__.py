@@ -36,7 +36,8 @@ __all__ = ["COMMANDS", "DEBUG_ENV", "EXIT_INTERNAL_ERROR", "UserError",
            "add_scene_arguments", "build_parser", "main"]
 
 COMMANDS = ("validation.cli.solve", "validation.cli.compare", "validation.cli.converge",
-            "validation.cli.gecit", "validation.cli.tradeoff", "validation.cli.sweep")
+            "validation.cli.gecit", "validation.cli.tradeoff", "validation.cli.sweep",
+            "validation.cli.figures")
 
 # Kept for commands written against it: an error in what the user asked for.
 UserError = InputError
