@@ -5,8 +5,8 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: demo study-gecit test test-slow bench-bem bench-fft bench-gpu bench-fem3d bench-engine clean \
-	calibrate validate-planner extremes
+.PHONY: demo study-gecit study-lattice figures test test-slow bench-bem bench-fft bench-gpu bench-fem3d \
+	bench-engine bench-figures clean calibrate validate-planner extremes
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -14,11 +14,14 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e '.[dev]' --config-settings editable_mode=compat
 	touch $(STAMP)
 
-# The main job: BEM (Hooke pillar) against FEM (elastic pillar) on the single-pillar and Hertz
-# scenes, then the paper's Fig. 3 scenes with the BEM.
+# The main job: BEM (Hooke pillars) against FEM (elastic pillars) on the single-pillar and
+# Hertz scenes (axisymmetric FEM) and on a lattice of 43 pillars (Phi = 0.2, fem-3d at mesh_size
+# 2.83, 2, 1.41: about 3 minutes), then the paper's Fig. 3 scenes with the BEM.
 demo: $(STAMP)
 	$(VENV)/bin/pillar-xval compare --scene single-pillar --out $(OUT)/compare-single-pillar
 	$(VENV)/bin/pillar-xval compare --scene hertz --out $(OUT)/compare-hertz
+	$(VENV)/bin/pillar-xval compare --scene paper-fig3-sparse --set pillars.surface_fraction=0.2 \
+		--out $(OUT)/compare-lattice
 	$(VENV)/bin/pillar-xval solve --scene paper-fig3-sparse --out $(OUT)/fig3-sparse
 	$(VENV)/bin/pillar-xval solve --scene paper-fig3-dense --out $(OUT)/fig3-dense
 
@@ -26,6 +29,16 @@ demo: $(STAMP)
 # (a few minutes; resumes after an interruption).
 study-gecit: $(STAMP)
 	$(VENV)/bin/pillar-xval gecit --out $(OUT)/gecit
+
+# The multi-pillar cross-validation: Hooke BEM against fem-3d over Phi in {0.03, 0.1, 0.2, 0.4}
+# x E_p/E_l in {0.1, 1, 10, 1e6}, E_s = E_l (about an hour on 2 cores; resumes).
+study-lattice: $(STAMP)
+	$(VENV)/bin/pillar-xval lattice --out $(OUT)/lattice
+
+# The paper's Figs. 3-8 (PNG + CSV each), figures.md and timing.json in $(OUT)/figures; about
+# 900 scenes and 400 bisection solves, a few minutes on 2 cores (resumes after an interruption).
+figures: $(STAMP)
+	$(VENV)/bin/pillar-xval figures --out $(OUT)/figures
 
 test: $(STAMP)
 	$(PY) -m pytest -q
@@ -56,6 +69,11 @@ bench-fem3d: $(STAMP)
 
 bench-engine: $(STAMP)
 	$(PY) -m validation.bench.engine --out $(OUT)/bench-engine
+
+# Figures: error of the figures' resolution against a finer reference on a seeded sample of
+# their scenes, and the whole figure set timed in a fresh folder (bench_figures.json).
+bench-figures: $(STAMP)
+	$(PY) -m validation.bench.figures --out $(OUT)/bench-figures
 
 # The planner's error and cost models, measured (convergence ladders, Gecit grid, closed forms,
 # FEM truncation; resumable) and installed as the package's data (validation/data/*.json).

@@ -85,6 +85,10 @@ LADDERS: dict[str, Ladder] = {
     # 'covered' cells carry the true disk area, so the sequence converges smoothly.
     "bem": Ladder("elements_per_diameter", 11, 2.0, "odd", -1.0, (5, 7, 9, 11, 15, 21),
                   {"cells": "covered"}, "element side / diameter = 1/P"),
+    # Dense BEM at P and 2P - 1, Richardson-extrapolated: coarse levels 5, 11, 23, ...
+    "bem-richardson": Ladder("elements_per_diameter", 5, 2.0, "odd", -1.0, (5, 7, 9, 11),
+                             {"cells": "covered"},
+                             "coarse element side / diameter = 1/P (fine level 2P - 1)"),
     # FFT BEM: grid cells across a pillar diameter, 32, 64, 128, ...
     "bem-fft": Ladder("cells_per_diameter", 32, 2.0, "int", -1.0, (8, 12, 16, 24, 32, 48, 64),
                       {}, "cell side / diameter = 1/N"),

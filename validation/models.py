@@ -17,6 +17,8 @@ MODELS: dict[str, tuple[str, str, tuple[str, ...]]] = {
     "fem-axisym": ("fem_reference", "solve_axisymmetric", ("mesh_size", "vtu_path")),
     "bem-fft": ("bem_solver._fft", "solve_fft", ("cells_per_diameter", "device")),
     "fem-3d": ("fem_reference", "solve_fem3d", ("mesh_size", "vtu_path")),
+    "bem-richardson": ("bem_solver._extrapolated", "solve_dense_extrapolated",
+                       ("elements_per_diameter", "cells")),
     # Closed forms as models (the planner's cheapest candidates).
     "hertz": ("scenes.closed_form_models", "solve_hertz", ()),
     "spring": ("scenes.closed_form_models", "solve_spring", ()),

@@ -22,12 +22,11 @@ All cases run on the engine, so the study resumes after an interruption.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from scenes import Scene, lattice, load_scene
+from scenes import InputError, Scene, lattice, load_scene
 
 from ..engine import Case, Engine
 from ..ladders import QUANTITIES, quantity_values
@@ -80,8 +79,11 @@ def _ladder(outcomes, option, h_power) -> dict:
     """Levels of one model (coarse to fine) and the study of each quantity."""
     done = [o for o in outcomes if o.ok]
     if len(done) < 2:
-        errors = "; ".join(str(o.error) for o in outcomes if not o.ok)
-        return {"levels": [], "studies": {}, "results": [], "error": errors or "no level"}
+        errors = [o.error for o in outcomes if not o.ok]
+        return {"levels": [], "studies": {}, "results": [],
+                "error": "; ".join(str(e) for e in errors) or "no level",
+                # exit status of the failure: 2 if the model refused the scene, else 3
+                "exit": 2 if errors and all(isinstance(e, InputError) for e in errors) else 3}
     values = [o.case.options[option] for o in done]
     h = [float(v) ** h_power for v in values]
     rows = [{option: v, "h": hh, "converged": bool(o.result.converged),
@@ -141,6 +143,7 @@ def compare_point(point: LatticePoint, fem_outcomes, bem_outcomes) -> dict:
            "fem_error": fem["error"], "bem_error": bem["error"], "quantities": {}}
     if fem["error"] or bem["error"]:
         row["status"] = "failed: " + "; ".join(e for e in (fem["error"], bem["error"]) if e)
+        row["exit"] = max(fem.get("exit", 0), bem.get("exit", 0))
         return row
     row["converged"] = all(r["converged"] for r in fem["levels"] + bem["levels"])
     for q in QUANTITIES:
@@ -263,14 +266,97 @@ def rings_csv(report: dict) -> str:
     return buf.getvalue()
 
 
-def is_finite_report(report: dict) -> bool:
-    """No NaN or inf anywhere (the JSON writer refuses them too)."""
-    def ok(x):
-        if isinstance(x, float):
-            return math.isfinite(x)
-        if isinstance(x, dict):
-            return all(ok(v) for v in x.values())
-        if isinstance(x, list):
-            return all(ok(v) for v in x)
-        return True
-    return ok(report)
+# --- report folder -----------------------------------------------------------------------
+OUTPUTS = ("lattice.csv", "rings.csv", "lattice.png", "summary.md", "lattice.json")
+
+
+def plot_lattice(report: dict, path) -> None:
+    """Four panels: (FEM - BEM) / BEM of F_T, sigma0 and a against Phi, one line per
+    E_p/E_l with both models' bands as error bars; and the FEM/BEM force ratio by ring."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ..report import save_figure, stamp_not_converged
+
+    rows = [r for r in report["rows"] if r.get("quantities")]
+    ratios = sorted({r["ratio"] for r in rows})
+    phis = sorted({r["surface_fraction"] for r in rows})
+    colours = dict(zip(ratios, plt.cm.viridis(np.linspace(0.0, 0.9, max(len(ratios), 1)))))
+    fig, axes = plt.subplots(2, 2, figsize=(11, 8.5))
+    names = {"F_T": "total force F_T", "sigma0": "centre pressure σ0", "a": "contact radius a"}
+    for ax, key in zip(axes.ravel()[:3], ("F_T", "sigma0", "a")):
+        for ratio in ratios:
+            mine = sorted((r for r in rows if r["ratio"] == ratio),
+                          key=lambda r: r["surface_fraction"])
+            x = [r["surface_fraction"] for r in mine]
+            y = [100 * r["quantities"][key]["difference"] for r in mine]
+            err = [100 * r["quantities"][key]["band"] for r in mine]
+            ax.errorbar(x, y, yerr=err, fmt="o-", capsize=3, color=colours[ratio],
+                        label=f"E_p/E_l = {ratio:g}")
+        ax.axhline(0.0, color="k", lw=0.8)
+        ax.set(xscale="log", xlabel="surface fraction Φ",
+               ylabel="(FEM − BEM) / BEM (%)", title=names[key])
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0, 0].legend(fontsize=8)
+    ax = axes[1, 1]
+    markers = dict(zip(phis, "osd^v<>"))
+    for r in rows:
+        rings = [x for x in r["rings"] if x["ring_force_ratio"] is not None]
+        ax.plot([x["ring"] for x in rings], [x["ring_force_ratio"] for x in rings],
+                marker=markers[r["surface_fraction"]], color=colours[r["ratio"]], lw=1,
+                label=f"Φ = {r['surface_fraction']:g}" if r["ratio"] == ratios[0] else None)
+    ax.axhline(1.0, color="k", lw=0.8)
+    ax.set(xlabel="lattice ring (0 = centre pillar)", ylabel="force FEM / BEM",
+           title="per-ring force ratio (finest levels; colour: E_p/E_l)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.suptitle(f"Hooke BEM ({report['bem']['model']}) vs elastic-pillar FEM "
+                 f"({report['fem']['model']}), ζ = {report['zeta_um']:g} µm, "
+                 f"{report['substrate']}; error bars: both GCI bands")
+    bad = [f"Phi={r['surface_fraction']:g} Ep/El={r['ratio']:g}" for r in report["rows"]
+           if r["status"] != "ok"]
+    if bad:
+        stamp_not_converged(fig, bad)
+    save_figure(fig, path)
+
+
+def summary_markdown(report: dict) -> str:
+    lines = ["# Multi-pillar cross-validation: Hooke BEM against the elastic-pillar 3D FEM", "",
+             f"- zeta = {report['zeta_um']:g} um, Table 1 lens and pillars, {report['substrate']}",
+             f"- FEM: {report['fem']['model']}, mesh_size "
+             f"{', '.join(f'{v:g}' for v in report['fem']['mesh_size'])}",
+             f"- BEM (the paper's Hooke pillars): {report['bem']['model']}, cells per diameter "
+             f"{', '.join(str(v) for v in report['bem']['cells_per_diameter'])}",
+             "- each value is its model's Richardson estimate (or its finest level with the "
+             "spread band when the levels have no observed order)", "",
+             "```", table_text(report), "```", ""]
+    sig = [f"Phi={r['surface_fraction']:g}, Ep/El={r['ratio']:g}: "
+           + ", ".join(k for k, d in r["quantities"].items() if d["significant"])
+           for r in report["rows"] if r.get("quantities")
+           and any(d["significant"] for d in r["quantities"].values())]
+    lines.append("Differences beyond both bands (modelling error of the Hooke pillar):")
+    lines += [f"- {s}" for s in sig] or ["- none"]
+    failed = [r for r in report["rows"] if r["status"] != "ok"]
+    if failed:
+        lines += ["", "**Not converged or failed:** " + "; ".join(
+            f"Phi={r['surface_fraction']:g} Ep/El={r['ratio']:g}: {r['status']}"
+            for r in failed)]
+    return "\n".join(lines) + "\n"
+
+
+def write_report(report: dict, out) -> list[str]:
+    """The report folder, lattice.json last (its presence means a whole report)."""
+    import json
+    from pathlib import Path
+
+    from scenes import write_atomic
+
+    out = Path(out)
+    write_atomic(out / "lattice.csv", rows_csv(report))
+    write_atomic(out / "rings.csv", rings_csv(report))
+    plot_lattice(report, out / "lattice.png")
+    write_atomic(out / "summary.md", summary_markdown(report))
+    write_atomic(out / "lattice.json", json.dumps(report, indent=2, allow_nan=False))
+    return list(OUTPUTS)

@@ -42,8 +42,8 @@ from ..ladders import LADDERS, QUANTITIES
 # elastic pillar of the FEM against the Hooke pillar of the BEM) is measured against its own,
 # so that its errors are discretisation errors, not the modelling difference (which
 # ``pillar-xval compare`` reports).  On a flat scene every model solves the Hertz problem.
-PHYSICS = {"bem": "hooke-pillar", "bem-fft": "hooke-pillar", "fem-axisym": "elastic-pillar",
-           "fem-3d": "elastic-pillar"}
+PHYSICS = {"bem": "hooke-pillar", "bem-fft": "hooke-pillar", "bem-richardson": "hooke-pillar",
+           "fem-axisym": "elastic-pillar", "fem-3d": "elastic-pillar"}
 
 
 def physics_group(model: str, scene) -> str:
