@@ -82,6 +82,7 @@ def test_fast_subset_of_the_extremes(tmp_path):
         assert by[("nominal", model)]["status"] == "pass"
     assert by[("zeta-", "spring")]["status"] == "pass"
     assert by[("nominal", "fem-axisym")]["status"] == "refused"
+    assert by[("nominal", "fem-3d")]["status"] == "pass"  # its elastic pillars, mesh_size 4
     # pillars 1e9 times softer than the substrate (issue 9's FFT failure): the models say
     # plainly whether they converged
     assert by[("Ep- Es+", "bem")]["status"] == "pass"
@@ -94,3 +95,14 @@ def test_fast_subset_of_the_extremes(tmp_path):
     # resumable: a second run reads every case from the cache
     again = run_extremes(tmp_path, quick=True)
     assert [r["status"] for r in again["records"]] == [r["status"] for r in doc["records"]]
+
+
+def test_fem3d_is_skipped_for_cost_or_refused_on_wide_lattices():
+    from validation.studies.extremes import FEM3D_MAX_DOFS, MODELS, skip_reason
+
+    scenes = {c["label"]: c["scene"] for c in corner_scenes()}
+    opts = MODELS["fem-3d"]
+    assert skip_reason("fem-3d", scenes["nominal"], opts) is None
+    assert skip_reason("bem", scenes["R+"], MODELS["bem"]) is None
+    why = skip_reason("fem-3d", scenes["R+"], opts)  # a 1 m lens: ~1e2-1e3 sector pillars
+    assert why and "skipped for cost" in why and f"{FEM3D_MAX_DOFS:.2g}" in why

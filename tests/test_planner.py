@@ -241,6 +241,49 @@ def test_shipped_data_loads_and_covers_every_regime():
     assert any(t.component == "hooke" for t in data.tables)
 
 
+def _lattice_report(errors):
+    """A lattice-study report whose Hooke BEM is off the FEM by errors[(phi, ratio)]."""
+    rows = []
+    for (phi, ratio), err in errors.items():
+        q = {"fem": 1.0, "bem": 1.0 + err}
+        rows.append({"surface_fraction": phi, "ratio": ratio, "converged": True,
+                     "quantities": {"F_T": dict(q), "sigma0": dict(q)}})
+    return {"zeta_um": 0.3, "rows": rows}
+
+
+def test_lattice_study_supplies_the_hooke_error_in_lattices(tmp_path):
+    from validation.studies.calibrate import load_lattice, with_lattice
+
+    # bilinear in (Phi, log10 E_p/E_l): interpolation must return it exactly inside the grid
+    def err(phi, ratio):
+        return -0.5 + 0.4 * phi + 0.05 * math.log10(ratio)
+
+    grid = {(phi, ratio): err(phi, ratio) for phi in (0.1, 0.3) for ratio in (0.1, 10.0)}
+    gecit = ErrorTable("model", ["bem", "bem-fft"], ["single", "multi"], ["log_ep"],
+                       [[-1.0], [1.0]], {"F_T": [0.9, 0.9], "sigma0": [0.9, 0.9]},
+                       component="hooke")
+    tables = with_lattice([gecit], _lattice_report(grid))
+    assert gecit.regimes == ["single"]  # the single-pillar table no longer speaks for lattices
+    lattice = tables[-1]
+    assert lattice.component == "hooke" and lattice.regimes == ["multi"]
+    x = features(load_scene("paper-fig3-sparse", ["pillars.surface_fraction=0.2"]))
+    value, outside = lattice.predict(x, "sigma0")
+    assert value == pytest.approx(err(0.2, 1.0), abs=1e-9) and not outside
+    shipped = load_data()
+    others = [t for t in shipped.tables if t.component != "hooke"]
+    p = plan(load_scene("paper-fig3-sparse", ["pillars.surface_fraction=0.2"]),
+             data=PlannerData(shipped.candidates, others + tables, shipped.costs))
+    bem = next(c for c in p["candidates"] if c["model"] == "bem-fft" and c["eligible"])
+    assert bem["errors"]["sigma0"]["parts"]["hooke"] >= abs(err(0.2, 1.0))
+    assert "fem-3d" in p["reason"]
+    bad = tmp_path / "lattice.json"
+    bad.write_text("{}")
+    with pytest.raises(InputError, match="lattice.json|rows"):
+        load_lattice(bad)
+    with pytest.raises(InputError, match="readable"):
+        load_lattice(tmp_path / "missing.json")
+
+
 @pytest.mark.parametrize("name, sets, expect", [
     ("hertz", [], {"hertz"}),
     # a rigid pillar: bem-fft N=24 is -0.37 % from fem-axisym mesh 0.5 in F_T, cheaper than it

@@ -22,6 +22,10 @@ def add_parser(sub) -> None:
                         "(default out/calibrate)")
     p.add_argument("--install", action="store_true",
                    help="copy error_models.json and cost_models.json into validation/data")
+    p.add_argument("--lattice", type=Path, default=None, metavar="LATTICE_JSON",
+                   help="lattice.json of `pillar-xval lattice`: the Hooke pillar's error in "
+                        "lattices, measured against fem-3d (without it the Gecit grid's "
+                        "single-pillar error stands in)")
     p.add_argument("--quick", action="store_true",
                    help="a handful of scenes per study (a smoke test, not a calibration)")
     p.add_argument("--json", action="store_true",
@@ -31,12 +35,13 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    from ..studies.calibrate import calibrate, write_data
+    from ..studies.calibrate import calibrate, load_lattice, write_data
     from ..studies.planner_tables import data_dir
 
+    lattice = None if args.lattice is None else load_lattice(args.lattice)
     check_out(args.out)
     with engine_from_args(args, "calibrate") as engine:
-        doc = calibrate(args.out, engine, quick=args.quick)
+        doc = calibrate(args.out, engine, quick=args.quick, lattice=lattice)
     names = write_data(doc, args.out)
     installed = []
     if args.install:

@@ -14,7 +14,10 @@ Every number comes from studies run on the engine (resumable, cached in ``OUT/ca
 - single pillars over zeta and E_p/E_l: the spring model's flat punch against the curved lens
   (the dense BEM's Richardson estimate);
 - the lattice sample again: the Hertz-like closed form against the lattice;
-- fem-axisym on blocks 1e3, 1e4 and 1e5 pillar radii wide: the truncation of the half-spaces.
+- fem-axisym on blocks 1e3, 1e4 and 1e5 pillar radii wide: the truncation of the half-spaces;
+- given a report of ``pillar-xval lattice`` (``lattice=``): the Hooke pillar's error in a
+  lattice, the Hooke BEM against fem-3d's elastic pillars (:func:`lattice_hooke_table`),
+  in place of the Gecit grid's single-pillar values for multi-pillar scenes.
 
 Each case's wall time and peak memory feed one cost fit per model.  The result is two data
 files in the format of :mod:`.planner_tables` and a report of everything measured.
@@ -41,7 +44,8 @@ from .planner_features import features, regime
 from .planner_tables import DATA_FORMAT, DEFAULT_POLICY, CostFit, ErrorTable
 from .tradeoff import reference_values
 
-__all__ = ["CALIBRATION_SEED", "CANDIDATES", "calibrate", "write_data"]
+__all__ = ["CALIBRATION_SEED", "CANDIDATES", "calibrate", "lattice_hooke_table", "load_lattice",
+           "with_lattice", "write_data"]
 
 CALIBRATION_SEED = 20240901
 # The planner adds each table's local leave-one-out misfit, times this scale.
@@ -235,6 +239,68 @@ def _gecit_table(rows: list, scenes: list) -> ErrorTable:
              "study (fem-3d) measures it there")
 
 
+HOOKE_MODELS = ["bem", "bem-fft", "hertz"]
+
+
+def load_lattice(path) -> dict:
+    """A ``pillar-xval lattice`` report (its ``lattice.json``); InputError naming the file
+    when it is missing or not such a report."""
+    from scenes import InputError
+
+    path = Path(path)
+    try:
+        report = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise InputError(f"--lattice {path}: not a readable lattice.json ({exc})") from None
+    if not isinstance(report, dict) or not isinstance(report.get("rows"), list):
+        raise InputError(f"--lattice {path}: not a report of `pillar-xval lattice` "
+                         "(no 'rows')")
+    return report
+
+
+def lattice_hooke_table(report: dict) -> ErrorTable:
+    """The Hooke pillar's error in a lattice, (Hooke - elastic) / elastic of the lattice
+    study's Richardson estimates (bem-fft against fem-3d), on its Phi x E_p/E_l grid
+    (E_s = E_l, zeta = 0.3 um).  A quantity whose FEM estimate did not converge is left out
+    at that point."""
+    from .lattice import LatticePoint
+
+    points, errors = [], {q: [] for q in QKEYS}
+    for row in report["rows"]:
+        if not row.get("converged"):
+            continue
+        x = features(LatticePoint(row["surface_fraction"], row["ratio"]).scene())
+        points.append([x["phi"], x["log_ep"]])
+        for q in QKEYS:
+            v = row["quantities"].get(q) or {}
+            fem, bem = v.get("fem"), v.get("bem")
+            ok = fem is not None and bem is not None and fem != 0 and math.isfinite(fem) \
+                and math.isfinite(bem)
+            errors[q].append((bem - fem) / fem if ok else None)
+    return ErrorTable(
+        "model", list(HOOKE_MODELS), ["multi"], ["phi", "log_ep"], points, errors,
+        component="hooke",
+        source="lattice: Hooke-pillar bem-fft (Richardson) against the elastic-pillar fem-3d "
+               "(Richardson)",
+        note=f"measured on {len(points)} lattices, E_s = E_l, zeta = "
+             f"{report.get('zeta_um', 0.3)} um; other substrates and indentations take these "
+             "values (the Gecit grid measures the substrate's share on one pillar)")
+
+
+def with_lattice(tables: list, report: dict) -> list:
+    """``tables`` with the lattice study's Hooke table for multi-pillar scenes: the Gecit
+    grid's Hooke table keeps the single-pillar regime only."""
+    out = []
+    for t in tables:
+        if t.component == "hooke" and "multi" in t.regimes:
+            t.regimes = [r for r in t.regimes if r != "multi"]
+            t.note = "measured on one pillar; multi-pillar scenes use the lattice study's table"
+        out.append(t)
+    lattice = lattice_hooke_table(report)
+    lattice.loo = lattice.leave_one_out()
+    return out + [lattice]
+
+
 def _punch_table(records: list) -> ErrorTable:
     points, errors = [], {q: [] for q in QKEYS}
     for rec in records:
@@ -355,9 +421,11 @@ def _cost_samples(outcomes: list) -> list:
 
 
 def calibrate(out: Path, engine: Engine | None = None, *, n_lattice: int = 40,
-              n_stiff: int = 10, seed: int = CALIBRATION_SEED, quick: bool = False) -> dict:
+              n_stiff: int = 10, seed: int = CALIBRATION_SEED, quick: bool = False,
+              lattice: dict | None = None) -> dict:
     """Run (or resume) every calibration study into ``out/cases`` and build the planner's
-    data.  ``quick`` shrinks every set to a handful of scenes (for tests).  Returns
+    data.  ``quick`` shrinks every set to a handful of scenes (for tests); ``lattice`` (a
+    :func:`load_lattice` report) supplies the Hooke error in lattices.  Returns
     ``{"errors", "costs", "report"}`` (the two data documents and the measurements)."""
     t0 = time.perf_counter()
     own = engine is None
@@ -397,12 +465,15 @@ def calibrate(out: Path, engine: Engine | None = None, *, n_lattice: int = 40,
               + _truncation_tables(truncation))
     for t in tables:
         t.loo = t.leave_one_out()
+    if lattice is not None:
+        tables = with_lattice(tables, lattice)
     fits = _cost_fits(_cost_samples(outcomes))
     provenance = {"command": "pillar-xval calibrate", "version": package_version(),
                   "code_version": code_version(), "seed": seed,
                   "scenes": {"lattice": n_lattice, "stiff_substrate": n_stiff,
                              "flat": len(sample) - n_lattice - n_stiff,
-                             "gecit": len(gecit), "punch": len(punches)},
+                             "gecit": len(gecit), "punch": len(punches),
+                             "lattice_study": len(lattice["rows"]) if lattice else 0},
                   "executor": engine.describe(), "wall_time_s": time.perf_counter() - t0,
                   "created": time.strftime("%Y-%m-%dT%H:%M:%S")}
     errors = {"format": DATA_FORMAT, "provenance": provenance, "policy": dict(POLICY),

@@ -13,10 +13,10 @@ from scenes import write_atomic
 __all__ = ["STATUSES", "counts", "heatmap", "summary_text", "write_outputs"]
 
 # Verdicts, in the heat map's colour order.
-STATUSES = ("pass", "not converged", "refused", "fail", "error")
-COLOURS = ("#2e7d32", "#f9a825", "#9e9e9e", "#c62828", "#4a148c")
-SHORT = {"pass": "pass", "not converged": "n.c.", "refused": "refused", "fail": "FAIL",
-         "error": "ERROR"}
+STATUSES = ("pass", "not converged", "refused", "skipped", "fail", "error")
+COLOURS = ("#2e7d32", "#f9a825", "#9e9e9e", "#d7ccc8", "#c62828", "#4a148c")
+SHORT = {"pass": "pass", "not converged": "n.c.", "refused": "refused", "skipped": "skip",
+         "fail": "FAIL", "error": "ERROR"}
 
 
 def counts(doc: dict) -> dict:
@@ -52,10 +52,10 @@ def summary_text(doc: dict) -> str:
                   for r in notable]
     refusals = {}
     for r in doc["records"]:
-        if r["status"] == "refused":
+        if r["status"] in ("refused", "skipped"):
             refusals.setdefault((r["model"], _gist(r["reason"])), []).append(r["corner"])
     if refusals:
-        lines.append("refusals (up front, with the model's reason):")
+        lines.append("refusals and cost skips (up front, with the reason):")
         lines += [f"  {m}: {why} [{len(cs)} corners]" for (m, why), cs in refusals.items()]
     return "\n".join(lines)
 
