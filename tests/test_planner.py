@@ -276,6 +276,15 @@ def test_lattice_study_supplies_the_hooke_error_in_lattices(tmp_path):
     bem = next(c for c in p["candidates"] if c["model"] == "bem-fft" and c["eligible"])
     assert bem["errors"]["sigma0"]["parts"]["hooke"] >= abs(err(0.2, 1.0))
     assert "fem-3d" in p["reason"]
+    # the CLI's --lattice-only: the installed tables with this lattice table in place
+    good = tmp_path / "good.json"
+    good.write_text(json.dumps(_lattice_report(grid)))
+    assert main(["calibrate", "--lattice", str(good), "--lattice-only",
+                 "--out", str(tmp_path / "cal")]) == 0
+    doc = json.loads((tmp_path / "cal" / "error_models.json").read_text())
+    mine = [t for t in doc["tables"] if t["source"].startswith("lattice")]
+    assert len(mine) == 1 and mine[0]["errors"]["sigma0"] == lattice.errors["sigma0"]
+    assert main(["calibrate", "--lattice-only", "--out", str(tmp_path / "cal")]) == 2
     bad = tmp_path / "lattice.json"
     bad.write_text("{}")
     with pytest.raises(InputError, match="lattice.json|rows"):

@@ -26,6 +26,9 @@ def add_parser(sub) -> None:
                    help="lattice.json of `pillar-xval lattice`: the Hooke pillar's error in "
                         "lattices, measured against fem-3d (without it the Gecit grid's "
                         "single-pillar error stands in)")
+    p.add_argument("--lattice-only", action="store_true",
+                   help="with --lattice: replace only the lattice Hooke table of the installed "
+                        "error_models.json (seconds; the other studies are not re-run)")
     p.add_argument("--quick", action="store_true",
                    help="a handful of scenes per study (a smoke test, not a calibration)")
     p.add_argument("--json", action="store_true",
@@ -40,6 +43,8 @@ def run(args) -> int:
 
     lattice = None if args.lattice is None else load_lattice(args.lattice)
     check_out(args.out)
+    if args.lattice_only:
+        return _lattice_only(args, lattice)
     with engine_from_args(args, "calibrate") as engine:
         doc = calibrate(args.out, engine, quick=args.quick, lattice=lattice)
     names = write_data(doc, args.out)
@@ -73,3 +78,29 @@ def _median(values) -> float:
 
     known = [v for v in values if v is not None]
     return statistics.median(known) if known else float("nan")
+
+
+def _lattice_only(args, lattice) -> int:
+    import json
+
+    from scenes import InputError, write_atomic
+
+    from ..studies.calibrate import _finite, relattice
+    from ..studies.planner_tables import data_dir
+
+    if lattice is None:
+        raise InputError("--lattice-only: needs --lattice LATTICE_JSON")
+    installed = data_dir() / "error_models.json"
+    doc = relattice(json.loads(installed.read_text()), lattice, str(args.lattice))
+    args.out.mkdir(parents=True, exist_ok=True)
+    write_atomic(args.out / "error_models.json",
+                 json.dumps(_finite(doc), indent=1, allow_nan=False))
+    done = [str(args.out / "error_models.json")]
+    if args.install:
+        done.append(str(shutil.copyfile(args.out / "error_models.json", installed)))
+    if args.json:
+        print_json({"written": done, "lattice_rows": len(lattice["rows"])})
+    else:
+        print(f"lattice Hooke table from {args.lattice} ({len(lattice['rows'])} lattices): "
+              + ", ".join(done))
+    return 0

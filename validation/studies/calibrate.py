@@ -45,7 +45,7 @@ from .planner_tables import DATA_FORMAT, DEFAULT_POLICY, CostFit, ErrorTable
 from .tradeoff import reference_values
 
 __all__ = ["CALIBRATION_SEED", "CANDIDATES", "calibrate", "lattice_hooke_table", "load_lattice",
-           "with_lattice", "write_data"]
+           "relattice", "with_lattice", "write_data"]
 
 CALIBRATION_SEED = 20240901
 # The planner adds each table's local leave-one-out misfit, times this scale.
@@ -299,6 +299,22 @@ def with_lattice(tables: list, report: dict) -> list:
     lattice = lattice_hooke_table(report)
     lattice.loo = lattice.leave_one_out()
     return out + [lattice]
+
+
+def relattice(errors: dict, report: dict, source: str = "") -> dict:
+    """An ``error_models.json`` document with its lattice Hooke table replaced by one from
+    ``report`` (``calibrate --lattice F --lattice-only``: a rerun lattice study updates the
+    planner without re-running the other calibration studies)."""
+    tables = [ErrorTable(**t) for t in errors["tables"]]
+    tables = [t for t in tables if not t.source.startswith("lattice")]
+    tables = with_lattice(tables, report)
+    prov = dict(errors["provenance"])
+    prov["scenes"] = {**prov.get("scenes", {}), "lattice_study": len(report["rows"])}
+    prov["lattice_study"] = {"file": source, "rows": len(report["rows"]),
+                             "added": time.strftime("%Y-%m-%dT%H:%M:%S"),
+                             "how": "calibrate --lattice-only: the calibration above, its "
+                                    "multi-pillar Hooke table from this lattice study"}
+    return {**errors, "provenance": prov, "tables": [t.to_dict() for t in tables]}
 
 
 def _punch_table(records: list) -> ErrorTable:
