@@ -5,7 +5,8 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: demo study-gecit study-lattice figures test test-slow bench-bem bench-fft bench-gpu bench-fem3d bench-engine bench-figures clean
+.PHONY: demo study-gecit study-lattice figures test test-slow bench-bem bench-fft bench-gpu bench-fem3d \
+	bench-engine bench-figures clean calibrate validate-planner extremes
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -73,6 +74,21 @@ bench-engine: $(STAMP)
 # their scenes, and the whole figure set timed in a fresh folder (bench_figures.json).
 bench-figures: $(STAMP)
 	$(PY) -m validation.bench.figures --out $(OUT)/bench-figures
+
+# The planner's error and cost models, measured (convergence ladders, Gecit grid, closed forms,
+# FEM truncation, the lattice study's Hooke error; resumable; about 1.5 h) and installed as the
+# package's data (validation/data/*.json).
+calibrate: $(STAMP)
+	$(VENV)/bin/pillar-xval lattice --out $(OUT)/lattice
+	$(VENV)/bin/pillar-xval calibrate --out $(OUT)/calibrate --lattice $(OUT)/lattice/lattice.json --install
+
+# The planner validated on 60 seeded scenes it never saw (resumable; about half an hour).
+validate-planner: $(STAMP)
+	$(VENV)/bin/pillar-xval validate-plan --out $(OUT)/validate-plan
+
+# Every model over the corners and edges of the parameter space: table and heat map.
+extremes: $(STAMP)
+	$(VENV)/bin/pillar-xval extremes --out $(OUT)/extremes
 
 clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache

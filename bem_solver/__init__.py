@@ -8,7 +8,7 @@ regular grid with FFT-applied kernel and constrained conjugate gradients
 
 from ._cells import cell_pattern
 from ._disk import disk_rectangle_area, disk_rectangle_centroid
-from ._dense import lens_gap, solve_dense
+from ._dense import estimate_memory, lens_gap, solve_dense
 from ._discretise import discretise, overlap_radius
 from ._fft import solve_fft
 from ._love import love_rectangle, love_square
@@ -21,6 +21,7 @@ __all__ = [
     "discretise",
     "disk_rectangle_area",
     "disk_rectangle_centroid",
+    "estimate_memory",
     "expansion",
     "full_operator",
     "lens_gap",

@@ -14,13 +14,25 @@ import numpy as np
 
 from contact import ContactSolution, min_map_residual, solve_dense as solve_contact
 from scenes import ContactResult, PillarForce, Scene, ScopeError, analytic
+from scenes.memory import available_memory
 
-from ._cells import VARIANTS
+from ._cells import VARIANTS, cell_pattern
 from ._discretise import Discretisation, discretise, overlap_radius
 from ._operator import reduced_operator
 
 MAX_UNKNOWNS = 12_000  # dense reduced operator: 1.2 GB at this size
 RTOL_COMPLEMENTARITY = 1e-8
+# Bytes per image element while a discretisation is assembled (coordinates, angles, sides,
+# areas, owners and the 12-image work arrays of the D6 expansion; measured ~150-190 B) and per
+# entry of the dense reduced operator at its peak (row sums, their upper triangle, the
+# symmetrised copy and the active-set solve's submatrix: about five n x n arrays).
+BYTES_PER_IMAGE = 200.0
+BYTES_PER_OPERATOR_ENTRY = 5 * 8.0
+# Work arrays of a solve of any size: blocks of Love coefficients on two threads (measured
+# peaks of 5-40 MB on scenes with under a hundred unknowns).
+BYTES_FIXED = 48 * 2.0**20
+# Solves whose estimated peak exceeds this share of the memory available are refused up front.
+MEMORY_SHARE = 0.8
 
 
 def lens_gap(scene: Scene, x, y):
@@ -60,13 +72,10 @@ def solve_dense(scene: Scene, elements_per_diameter: int = 11, cells: str = "cov
     _check_options(elements_per_diameter, cells, contact)
     t0 = time.perf_counter()
     P = int(elements_per_diameter)
+    _refuse_if_too_large(scene, P, cells, contact)
     r_max = overlap_radius(scene)
     hertz_radius = math.sqrt(scene.lens.radius_m * scene.indentation_m)
-    radius = min(r_max, 1.15 * hertz_radius)
-    if scene.pillars is not None:
-        radius = min(r_max, max(radius, scene.pillars.diameter_m))
-    if contact == "paper":
-        radius = r_max  # the search starts from the overlap radius
+    radius = _initial_radius(scene, contact)
 
     # Collocation points out to the overlap radius, built once for the outside check.
     reach = None
@@ -103,6 +112,84 @@ def solve_dense(scene: Scene, elements_per_diameter: int = 11, cells: str = "cov
                                         4 * disc.cell_side))
     return _result(scene, disc, sol, P, cells, contact, rounds, extra,
                    time.perf_counter() - t0)
+
+
+def _initial_radius(scene: Scene, contact: str) -> float:
+    """First candidate radius (m): 1.15 Hertz radii, at least a pillar diameter, at most the
+    overlap radius (the paper's search starts from the overlap radius)."""
+    r_max = overlap_radius(scene)
+    if contact == "paper":
+        return r_max
+    radius = min(r_max, 1.15 * math.sqrt(scene.lens.radius_m * scene.indentation_m))
+    if scene.pillars is not None:
+        radius = min(r_max, max(radius, scene.pillars.diameter_m))
+    return radius
+
+
+def _elements_within(scene: Scene, P: int, cells: str, radius: float) -> float:
+    """Expected number of elements (all images) with collocation radius <= ``radius``, from
+    the lattice's element density, without building them (cheap for any scene size)."""
+    if scene.pillars is None:
+        side = 2.0 * math.sqrt(scene.lens.radius_m * scene.indentation_m) / P
+        return math.pi * radius**2 / side**2 + 1.0
+    per_pillar = len(cell_pattern(P, cells).x)
+    cell_area = math.sqrt(3.0) / 2.0 * scene.pillars.pitch_m ** 2  # one pillar per cell
+    return per_pillar * max(1.0, math.pi * radius**2 / cell_area)
+
+
+def estimate_memory(scene: Scene, elements_per_diameter: int = 11, cells: str = "covered",
+                    contact: str = "exact") -> dict:
+    """Peak memory a :func:`solve_dense` call needs, estimated without discretising.
+
+    The elements within the first candidate radius give the unknowns (one per D6 orbit, about
+    a twelfth: a quarter on a flat scene) and the dense operator; the outside check holds
+    every element out to the overlap radius, and its lower bound pairs each of them with every
+    loaded pillar.  Candidate regions that grow in later rounds are not foreseen.
+
+    Returns
+    -------
+    dict
+        ``bytes`` (peak estimate), ``unknowns``, ``elements`` (first candidate region),
+        ``outer_elements`` (out to the overlap radius, 0 when not needed), each a float.
+    """
+    _check_options(elements_per_diameter, cells, contact)
+    P = int(elements_per_diameter)
+    r_max = overlap_radius(scene)
+    radius = _initial_radius(scene, contact)
+    elements = _elements_within(scene, P, cells, radius)
+    if scene.pillars is None:
+        unknowns = elements / 4.0  # one quadrant (D2)
+    else:  # the centre pillar by D2, the others by D6
+        centre = float(len(cell_pattern(P, cells).x))
+        unknowns = centre / 4.0 + (elements - centre) / 12.0
+    outer = _elements_within(scene, P, cells, r_max) if (
+        contact == "exact" and radius < r_max) else 0.0
+    loaded = 1.0 if scene.pillars is None else max(
+        1.0, elements / len(cell_pattern(P, cells).x))
+    check = 3 * 8.0 * outer / 12.0 * (loaded if scene.pillars is not None else elements)
+    peak = (BYTES_FIXED + BYTES_PER_IMAGE * (elements + outer)
+            + BYTES_PER_OPERATOR_ENTRY * unknowns**2)
+    return {"bytes": float(peak + check), "unknowns": float(unknowns),
+            "elements": float(elements), "outer_elements": float(outer)}
+
+
+def _refuse_if_too_large(scene: Scene, P: int, cells: str, contact: str) -> None:
+    """ScopeError before any array is built when the solve would not fit in memory (or would
+    exceed the dense limit by far)."""
+    need = estimate_memory(scene, P, cells, contact)
+    free = available_memory()
+    if need["bytes"] > MEMORY_SHARE * free:
+        raise ScopeError(
+            f"elements_per_diameter = {P}: this scene needs about {need['bytes'] / 2**30:.3g} "
+            f"GiB ({need['elements'] + need['outer_elements']:.3g} elements, "
+            f"{need['unknowns']:.3g} unknowns), more than {MEMORY_SHARE:.0%} of the "
+            f"{free / 2**30:.3g} GiB available; use a smaller P, a smaller lens or "
+            "indentation, or the FFT model (--model bem-fft)")
+    if need["unknowns"] > 2 * MAX_UNKNOWNS:
+        raise ScopeError(
+            f"elements_per_diameter = {P}: about {need['unknowns']:.3g} unknowns, far beyond "
+            f"the dense limit {MAX_UNKNOWNS}; use a smaller P or the FFT model "
+            "(--model bem-fft)")
 
 
 def _paper_search(scene, disc, M, b):
@@ -277,4 +364,4 @@ def _residual_of(sol, q, gap, scene) -> float:
     return min_map_residual(np.abs(q), gap) / scene.indentation_m
 
 
-__all__ = ["lens_gap", "solve_dense"]
+__all__ = ["estimate_memory", "lens_gap", "solve_dense"]

@@ -13,9 +13,10 @@ the lens can reach, elastic and bonded to the substrate, Taylor-Hood P2/P1 tetra
 mortar contact solved by constrained conjugate gradients through one PARDISO factorisation.
 """
 
-from ._axisym import BLOCK_FACTOR, MODEL, solve_axisymmetric
-from ._solid3d import BLOCK_FACTOR_3D, solve_fem3d
+from ._axisym import BLOCK_FACTOR, MODEL, estimate_memory, solve_axisymmetric
+from ._solid3d import BLOCK_FACTOR_3D, estimate_memory_3d, solve_fem3d
 from ._system import SolveError
 
-__all__ = ["BLOCK_FACTOR", "BLOCK_FACTOR_3D", "MODEL", "SolveError", "solve_axisymmetric",
-           "solve_fem3d"]
+__all__ = ["BLOCK_FACTOR", "BLOCK_FACTOR_3D", "MODEL", "SolveError", "estimate_memory",
+           "estimate_memory_3d",
+           "solve_axisymmetric", "solve_fem3d"]

@@ -24,7 +24,8 @@ import numpy as np
 
 from meshes import build_axisymmetric_mesh, flat_geometry, pillar_geometry
 from contact import solve_dense
-from scenes import ContactResult, PillarForce, Scene, ScopeError, analytic
+from scenes import ContactResult, InputError, PillarForce, Scene, ScopeError, analytic
+from scenes.memory import available_memory
 
 from ._contact import contact_radius, mortar_matrix
 from ._fields import cell_stresses, write_vtu
@@ -41,6 +42,49 @@ HERTZ_CANDIDATE = 1.5
 # Verification thresholds for ``converged`` (a miss is reported in the result, not raised).
 RTOL_LINEAR = 1e-8
 RTOL_COMPLEMENTARITY = 1e-8
+# Memory model of a solve (measured on single-pillar and hertz at mesh_size 4..0.5): the
+# reduced unknowns grow as mesh_size^-1.9 from about 18k (pillar) or 12.5k (flat) at 1; the
+# sparse LU takes ~650 B per unknown per log(unknowns) (2D fill ~ n log n); the compliance
+# solves keep a dense (unknowns x contact vertices) array; imports and meshing ~40 MB.
+DOFS_AT_UNIT_SIZE = {"pillar": 18_000.0, "flat": 12_500.0}
+DOFS_EXPONENT = 1.9
+CONTACT_POINTS_AT_UNIT_SIZE = 60.0
+BYTES_PER_DOF_LOG = 650.0
+BYTES_FIXED = 40 * 2.0**20
+# Solves whose estimated peak exceeds this share of the memory available are refused up front.
+MEMORY_SHARE = 0.8
+
+
+def estimate_memory(scene: Scene, mesh_size: float = 1.0) -> dict:
+    """Peak memory of :func:`solve_axisymmetric` on ``scene`` (estimated, nothing built).
+
+    Returns
+    -------
+    dict
+        ``bytes`` (peak), ``dofs`` (reduced unknowns) and ``contact_points`` (P2 points on
+        the contact line), floats.
+    """
+    if not isinstance(mesh_size, (int, float)) or not math.isfinite(mesh_size) \
+            or mesh_size <= 0:
+        raise InputError(f"mesh_size = {mesh_size!r}: must be a number > 0")
+    kind = "flat" if scene.is_flat else "pillar"
+    dofs = DOFS_AT_UNIT_SIZE[kind] * mesh_size ** -DOFS_EXPONENT
+    if not scene.is_flat:  # taller pillars hold more elements along their side
+        dofs *= max(1.0, 2.0 * scene.pillars.height_m / scene.pillars.diameter_m) ** 0.5
+    contact = CONTACT_POINTS_AT_UNIT_SIZE / mesh_size
+    peak = (BYTES_FIXED + BYTES_PER_DOF_LOG * dofs * math.log(dofs)
+            + 8.0 * dofs * contact / 2.0 + 8.0 * contact**2)
+    return {"bytes": float(peak), "dofs": float(dofs), "contact_points": float(contact)}
+
+
+def _refuse_if_too_large(scene: Scene, mesh_size: float) -> None:
+    need = estimate_memory(scene, mesh_size)
+    free = available_memory()
+    if need["bytes"] > MEMORY_SHARE * free:
+        raise ScopeError(
+            f"mesh_size = {mesh_size:g}: this mesh needs about {need['bytes'] / 2**30:.3g} GiB "
+            f"(~{need['dofs']:.3g} unknowns), more than {MEMORY_SHARE:.0%} of the "
+            f"{free / 2**30:.3g} GiB available; use a larger mesh_size")
 
 
 def solve_axisymmetric(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None,
@@ -95,6 +139,7 @@ def solve_axisymmetric(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None,
     say = progress or (lambda text: None)
     clock = {"start": time.perf_counter()}
     setup = _setup(scene, mesh_size, block_factor)
+    _refuse_if_too_large(scene, mesh_size)
     say(f"meshing (mesh_size {mesh_size:g})")
     mesh = build_axisymmetric_mesh(setup["geometry"])
     clock["mesh"] = time.perf_counter()

@@ -34,6 +34,7 @@ from meshes import WedgeGeometry, build_wedge_mesh, sector_pillars
 from meshes import SECTORS
 from scenes import ContactResult, InputError, PillarForce, Scene, ScopeError, analytic
 from scenes.lattice import lattice_indices
+from scenes.memory import available_memory
 
 from ._contact import contact_radius
 from ._contact3d import contact_area_share, contact_faces, line_profile, preconditioner
@@ -52,6 +53,59 @@ MAX_CG_ITERATIONS = 2000
 # Smallest gap between neighbouring pillars, in diameters: at Phi = 0.9 (gap 0.0038 d) the
 # mesh still passes its quality check (q_min 0.047), at Phi = 0.9068 (5.5e-5 d) it fails.
 MIN_GAP = 2e-3
+# Size and peak memory, fitted on the lattice study's sectors (Phi 0.03-0.4, 2-17 pillars,
+# mesh_size 2.83-1.41, 13.6k-455k unknowns): ~6.8e3 unknowns per sector pillar at mesh_size
+# 2.83, x2 per sqrt(2) refinement (Phi = 0.03 grows slower: the estimate is conservative);
+# peak RSS 160 MiB + 11.5 kB per unknown (the PARDISO factor dominates).  A flat scene
+# meshes like one pillar.
+DOFS_PER_PILLAR = 6.8e3
+DOFS_REFERENCE_SIZE = 2.83
+BYTES_FIXED_3D = 160 * 2.0**20
+BYTES_PER_DOF_3D = 11.5e3
+# Solves whose estimated peak exceeds this share of the memory available are refused up front.
+MEMORY_SHARE_3D = 0.8
+
+
+def estimate_memory_3d(scene: Scene, mesh_size: float = 1.0, *,
+                       sector_angle: float = math.pi / 6.0, reach_factor: float = 1.0) -> dict:
+    """Peak memory of :func:`solve_fem3d` on ``scene`` (estimated; nothing is meshed).
+
+    Returns
+    -------
+    dict
+        ``bytes`` (peak), ``dofs`` (unknowns) and ``pillars`` (sector pillars meshed).
+
+    Raises
+    ------
+    InputError, ScopeError
+        As :func:`solve_fem3d` for a bad option or a scene it cannot mesh.
+    """
+    _check_options(mesh_size, sector_angle, BLOCK_FACTOR_3D, reach_factor, RTOL_COMPLEMENTARITY)
+    if scene.is_flat:
+        pillars = 0
+    else:
+        p = scene.pillars
+        reach = _reach(scene.lens.radius_m, reach_factor * scene.indentation_m)
+        if reach / p.pitch_m > 3e3:  # beyond ~1e6 sector pillars: no need to list them
+            pillars = int(sector_angle / 2.0 * (reach / p.pitch_m) ** 2 * 2.0 / math.sqrt(3.0))
+        else:
+            pillars = len(sector_pillars(p.pitch_m, p.diameter_m, reach, sector_angle))
+    dofs = DOFS_PER_PILLAR * max(pillars, 1) * (DOFS_REFERENCE_SIZE / mesh_size) ** 2
+    return {"bytes": float(BYTES_FIXED_3D + BYTES_PER_DOF_3D * dofs), "dofs": float(dofs),
+            "pillars": pillars}
+
+
+def _refuse_if_too_large(scene: Scene, mesh_size: float, sector_angle: float,
+                         reach_factor: float) -> None:
+    need = estimate_memory_3d(scene, mesh_size, sector_angle=sector_angle,
+                              reach_factor=reach_factor)
+    free = available_memory()
+    if need["bytes"] > MEMORY_SHARE_3D * free:
+        raise ScopeError(
+            f"mesh_size = {mesh_size:g}: fem-3d would mesh {need['pillars']} pillars in its "
+            f"sector (~{need['dofs']:.3g} unknowns, about {need['bytes'] / 2**30:.3g} GiB), "
+            f"more than {MEMORY_SHARE_3D:.0%} of the {free / 2**30:.3g} GiB available; use a "
+            "larger mesh_size, or the BEM for lattices this wide")
 
 
 def solve_fem3d(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None, progress=None,
@@ -109,6 +163,7 @@ def solve_fem3d(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None, progress
         ``diagnostics["message"]``.
     """
     _check_options(mesh_size, sector_angle, block_factor, reach_factor, tol)
+    _refuse_if_too_large(scene, mesh_size, sector_angle, reach_factor)
     say = progress or (lambda text: None)
     clock = {"start": time.perf_counter()}
     setup = _setup(scene, mesh_size, sector_angle, block_factor, reach_factor, grading or {})

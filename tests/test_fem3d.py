@@ -420,3 +420,19 @@ def test_render_of_the_twelve_images(tmp_path):
     assert ok, message
     assert "von Mises stress (kPa)" in message
     assert (tmp_path / "disk.png").stat().st_size > 20_000
+
+
+# --- memory: estimated up front, refused when it would not fit ----------------------------
+def test_fem3d_memory_estimate_against_a_solve_and_refusal():
+    from fem_reference import estimate_memory_3d, solve_fem3d
+
+    scene = load_scene("paper-fig3-sparse", ["pillars.surface_fraction=0.2"])
+    est = estimate_memory_3d(scene, 2.83)
+    result = solve_fem3d(scene, 2.83)
+    # fitted on the lattice study's sectors: within 30 % of the unknowns actually meshed
+    assert est["pillars"] == len(result.diagnostics["pillars_meshed"])
+    assert est["dofs"] == pytest.approx(result.discretisation["dofs"], rel=0.3)
+    # a 10 m lens on the dense lattice reaches ~1e6 pillars: refused before any meshing
+    huge = load_scene("paper-fig3-dense", ["lens.radius_mm=1e4"])
+    with pytest.raises(ScopeError, match="mesh_size = 2.83: fem-3d would mesh"):
+        solve_fem3d(huge, 2.83)

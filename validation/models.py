@@ -15,10 +15,17 @@ from scenes import ContactResult, Scene
 MODELS: dict[str, tuple[str, str, tuple[str, ...]]] = {
     "bem": ("bem_solver", "solve_dense", ("elements_per_diameter", "contact", "cells")),
     "fem-axisym": ("fem_reference", "solve_axisymmetric", ("mesh_size", "vtu_path")),
-    "bem-fft": ("bem_solver._fft", "solve_fft", ("cells_per_diameter", "device")),
+    "bem-fft": ("bem_solver._fft", "solve_fft", ("cells_per_diameter", "device",
+                                                   "max_iterations")),
     "fem-3d": ("fem_reference", "solve_fem3d", ("mesh_size", "vtu_path")),
     "bem-richardson": ("bem_solver._extrapolated", "solve_dense_extrapolated",
                        ("elements_per_diameter", "cells")),
+    # Closed forms as models (the planner's cheapest candidates).
+    "hertz": ("scenes.closed_form_models", "solve_hertz", ()),
+    "spring": ("scenes.closed_form_models", "solve_spring", ()),
+    # The planner's choice for this scene (default tolerance and quantities); the plan is
+    # recorded in the result's diagnostics["plan"].
+    "auto": ("validation.studies.planner", "solve_auto", ("tolerance", "quantities", "budget")),
 }
 
 

@@ -59,6 +59,9 @@ MODEL_OPTIONS: dict[str, OptionSpec] = {
     "contact": OptionSpec(
         str, choices=("exact", "paper"),
         help="bem: exact complementarity (default) or the paper's contact-radius search"),
+    "max_iterations": OptionSpec(
+        int, 1, None, metavar="K",
+        help="bem-fft: iteration limit of the contact CG (default 20 sqrt(cells) + 500)"),
     "device": OptionSpec(
         str, choices=("cpu", "gpu", "auto"),
         help="bem-fft: where the FFTs run (cpu: numpy, the default; gpu: cupy)"),

@@ -6,10 +6,11 @@ case at a time on the engine (timings are not shared with another case running b
 and records the wall time (median of ``repeats`` runs inside the case, stored with it), the
 peak memory (the resident set's high-water mark during the first run, above where it
 started) and the four compared quantities F_T, sigma_0, a and A.  Finished rungs are cached:
-an interrupted study resumes.  The reference of each quantity is a Richardson extrapolation
-from the three finest rungs of one model (observed order, Celik et al. 2008); among models
-whose extrapolation succeeded, the one with the smallest GCI band is taken.  The error of
-every rung is |f - f_ref| / |f_ref|.
+an interrupted study resumes.  The reference of each quantity cross-checks the models'
+Richardson extrapolations from their three finest rungs (observed order, Celik et al. 2008;
+:func:`reference_values`): pre-asymptotic estimates are not preferred, and when the others
+disagree beyond their bands the reference band covers the disagreement.  The error of every
+rung is |f - f_ref| / |f_ref|.
 
 Outputs: ``tradeoff.csv`` (one row per model and rung), ``tradeoff.json`` (rows,
 references with their orders and bands, scene and versions) and ``tradeoff.png`` (log-log
@@ -173,42 +174,146 @@ def tradeoff(scene, models, cache_dir: Path | None = None, *, engine: Engine | N
             "version": package_version()}
 
 
-def reference_values(rows: list) -> dict:
-    """Per quantity: the Richardson estimate with the smallest band among the models, or the
-    most expensive converged solution when no model's three finest rungs allow an estimate."""
-    from ..verification import gci_three
+# Expected order of each model's error in h (its ladder's cell size): the BEMs' uniform
+# pressure elements give O(h) at the pillar edges (measured 1.0-1.05 on paper-fig3-dense).
+# An observed order further than ORDER_TOL from it, or an asymptotic ratio
+# GCI23 / (r^p GCI12) further than ASYMPTOTIC_RATIO_TOL from 1, marks the estimate as
+# pre-asymptotic.
+EXPECTED_ORDER = {"bem": 1.0, "bem-fft": 1.0}
+ORDER_TOL = 0.3
+ASYMPTOTIC_RATIO_TOL = 0.25
 
+
+def _model_estimate(rows: list, short: str, model: str) -> dict | None:
+    """The Richardson estimates of one model from its finest converged rungs: the observed
+    order's over three (``f_exact``, ``order``, ``band``, ``status``, and the reasons it is
+    pre-asymptotic, empty when it looks asymptotic) and, for a model with an expected order,
+    the two finest extrapolated at that order (``assumed``: Roache's two-grid GCI, Fs = 3).
+    None below three rungs."""
+    from ..verification import gci_three, gci_two
+
+    mine = sorted((r for r in rows if r["model"] == model and r["converged"]),
+                  key=lambda r: r["h"])
+    if len(mine) < 3:
+        return None
+    h, f = [r["h"] for r in mine[:3]], [r[short] for r in mine[:3]]
+    g = gci_three(h, f)
+    est = {"f_exact": g.f_exact, "order": g.order, "band": g.uncertainty, "status": g.status,
+           "asymptotic_ratio": g.asymptotic_ratio, "sizes": g.h, "pre_asymptotic": [],
+           "assumed": None}
+    expected = EXPECTED_ORDER.get(model)
+    if expected is not None and f[0] != f[1]:
+        a = gci_two(h[:2], f[:2], expected)
+        if a.f_exact is not None:
+            est["assumed"] = {"f_exact": a.f_exact, "order": expected, "band": a.uncertainty,
+                              "sizes": a.h}
+    if g.status != "ok" or g.uncertainty is None:
+        return est
+    if expected is not None and abs(g.order - expected) > ORDER_TOL:
+        est["pre_asymptotic"].append(f"observed order {g.order:.2f}, expected {expected:g}")
+    if g.asymptotic_ratio is not None and \
+            abs(g.asymptotic_ratio - 1.0) > ASYMPTOTIC_RATIO_TOL:
+        est["pre_asymptotic"].append(f"GCI23 / (r^p GCI12) = {g.asymptotic_ratio:.2f}")
+    return est
+
+
+def _tiers(per_model: dict) -> tuple[dict, dict, dict]:
+    """The models' estimates in order of trust: observed-order estimates that look
+    asymptotic; for models whose observed order is pre-asymptotic or unobservable (or
+    oscillating), the estimate at their expected order; observed-order estimates that are
+    pre-asymptotic and have no expected order."""
+    asymptotic, assumed, pre = {}, {}, {}
+    for m, e in per_model.items():
+        observed = e["status"] == "ok" and e["band"] is not None
+        if observed and not e["pre_asymptotic"]:
+            asymptotic[m] = e
+        elif e["assumed"] is not None:
+            assumed[m] = e["assumed"]
+        elif observed:
+            pre[m] = e
+    return asymptotic, assumed, pre
+
+
+def _disagreements(estimates: dict) -> list[str]:
+    """Pairs of estimates further apart than their bands combined in quadrature (independent
+    uncertainties; the test ``compare`` applies to BEM against FEM)."""
+    flags, names = [], sorted(estimates)
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            ea, eb = estimates[a], estimates[b]
+            gap = abs(ea["f_exact"] - eb["f_exact"])
+            if gap > math.hypot(ea["band"], eb["band"]):
+                flags.append(f"{a} ({ea['f_exact']:.7g} +- {ea['band']:.2g}) and {b} "
+                             f"({eb['f_exact']:.7g} +- {eb['band']:.2g}) disagree beyond "
+                             "their bands")
+    return flags
+
+
+def reference_values(rows: list) -> dict:
+    """Per quantity: a reference cross-checked between the models' Richardson estimates.
+
+    Each model with three converged rungs gives an estimate (observed order, Richardson value,
+    GCI band).  An estimate whose order is far from the model's expected one
+    (:data:`EXPECTED_ORDER`) or whose asymptotic ratio is far from 1 is pre-asymptotic and
+    not preferred: such a model (or one whose order cannot be observed) enters at its expected
+    order instead, from its two finest rungs with the two-grid band (Fs = 3), after every
+    asymptotic estimate (:func:`_tiers`).  Among the estimates of the most trusted tier
+    present: if they agree (every pair closer than its bands combined in quadrature), the
+    narrowest is the reference; if not, the disagreement is flagged and the reference is the
+    middle of the union of their bands, with a band that covers it.  Every pre-asymptotic
+    estimate and every disagreement between the models' estimates is flagged.  Without any
+    estimate, the most expensive converged solution stands in (no band).
+    """
     out = {}
     models = sorted({r["model"] for r in rows})
+    tier_names = ("asymptotic", "expected order", "pre-asymptotic")
     for short in (q.key for q in QUANTITIES):
-        candidates, per_model = [], {}
+        per_model = {}
         for m in models:
-            mine = sorted((r for r in rows if r["model"] == m and r["converged"]),
-                          key=lambda r: r["h"])
-            if len(mine) < 3:
-                continue
-            g = gci_three([r["h"] for r in mine[:3]], [r[short] for r in mine[:3]])
-            per_model[m] = {"f_exact": g.f_exact, "order": g.order, "band": g.uncertainty,
-                            "status": g.status}
-            if g.status == "ok" and g.uncertainty is not None:
-                candidates.append((g.uncertainty, m, g))
-        if candidates:
-            band, m, g = min(candidates, key=lambda c: c[0])
-            out[short] = {"value": g.f_exact, "model": m, "order": g.order,
-                          "band": band, "status": "richardson",
-                          "sizes": g.h}
+            est = _model_estimate(rows, short, m)
+            if est is not None:
+                per_model[m] = est
+        tiers = _tiers(per_model)
+        flags = [f"{m}: pre-asymptotic ({'; '.join(e['pre_asymptotic'])})"
+                 for m, e in per_model.items() if e["pre_asymptotic"]]
+        observed = {m: e for m, e in per_model.items()
+                    if e["status"] == "ok" and e["band"] is not None}
+        everyone = {m: e for tier in tiers for m, e in tier.items()}
+        for flag in _disagreements(observed) + _disagreements(everyone):
+            if flag not in flags:
+                flags.append(flag)
+        level = next((k for k, tier in enumerate(tiers) if tier), None)
+        if level is not None:
+            pool = tiers[level]
+            if not _disagreements(pool):
+                m = min(pool, key=lambda k: pool[k]["band"])
+                e = pool[m]
+                ref = {"value": e["f_exact"], "model": m, "order": e["order"],
+                       "band": e["band"], "sizes": e["sizes"], "status": "richardson",
+                       "basis": "the narrowest of agreeing estimates"}
+            else:
+                lo = min(e["f_exact"] - e["band"] for e in pool.values())
+                hi = max(e["f_exact"] + e["band"] for e in pool.values())
+                ref = {"value": 0.5 * (lo + hi), "model": "+".join(sorted(pool)),
+                       "order": None, "band": 0.5 * (hi - lo), "sizes": [],
+                       "status": "richardson",
+                       "basis": "the union of disagreeing estimates' bands"}
+            ref["basis"] += f" ({tier_names[level]})"
+            ref["pre_asymptotic"] = level > 0
         else:
             # Sizes h of different models are in different units: take the most expensive
             # converged solution, a unit-free stand-in for the most resolved one.
             done = [r for r in rows if r["converged"]]
             finest = max(done, key=lambda r: r.get("wall_time_s", 0.0)) if done else None
-            out[short] = {"value": finest[short] if finest else 0.0,
-                          "model": finest["model"] if finest else None, "order": None,
-                          "band": None,
-                          "status": "most expensive solution (no Richardson estimate)",
-                          "sizes": [finest["h"]] if finest else []}
+            ref = {"value": finest[short] if finest else 0.0,
+                   "model": finest["model"] if finest else None, "order": None,
+                   "band": None, "status": "most expensive solution (no Richardson estimate)",
+                   "sizes": [finest["h"]] if finest else [], "basis": None,
+                   "pre_asymptotic": None}
+        ref["flags"] = flags
         # Every model's own extrapolation: do the models converge to the same answer?
-        out[short]["per_model"] = per_model
+        ref["per_model"] = per_model
+        out[short] = ref
     return out
 
 

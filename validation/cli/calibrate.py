@@ -1,0 +1,106 @@
+"""``pillar-xval calibrate``: measure the planner's error and cost models
+(:mod:`validation.studies.calibrate`)."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+from ._args import add_engine_arguments, check_out, engine_from_args, print_json
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser(
+        "calibrate", help="measure the planner's error and cost models (convergence ladders, "
+                          "Gecit grid, closed forms, FEM truncation) on seeded scenes",
+        description="Run the calibration studies on the engine (resumable) and write "
+                    "error_models.json, cost_models.json and calibration.json to --out; "
+                    "--install copies the two models into the package's data folder, where "
+                    "`pillar-xval plan` reads them.")
+    p.add_argument("--out", type=Path, default=Path("out") / "calibrate",
+                   help="folder for the data files, the report and the cached cases "
+                        "(default out/calibrate)")
+    p.add_argument("--install", action="store_true",
+                   help="copy error_models.json and cost_models.json into validation/data")
+    p.add_argument("--lattice", type=Path, default=None, metavar="LATTICE_JSON",
+                   help="lattice.json of `pillar-xval lattice`: the Hooke pillar's error in "
+                        "lattices, measured against fem-3d (without it the Gecit grid's "
+                        "single-pillar error stands in)")
+    p.add_argument("--lattice-only", action="store_true",
+                   help="with --lattice: replace only the lattice Hooke table of the installed "
+                        "error_models.json (seconds; the other studies are not re-run)")
+    p.add_argument("--quick", action="store_true",
+                   help="a handful of scenes per study (a smoke test, not a calibration)")
+    p.add_argument("--json", action="store_true",
+                   help="print one JSON document (the files written and the provenance)")
+    add_engine_arguments(p, "recompute cached cases")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from ..studies.calibrate import calibrate, load_lattice, write_data
+    from ..studies.planner_tables import data_dir
+
+    lattice = None if args.lattice is None else load_lattice(args.lattice)
+    check_out(args.out)
+    if args.lattice_only:
+        return _lattice_only(args, lattice)
+    with engine_from_args(args, "calibrate") as engine:
+        doc = calibrate(args.out, engine, quick=args.quick, lattice=lattice)
+    names = write_data(doc, args.out)
+    installed = []
+    if args.install:
+        for name in ("error_models.json", "cost_models.json"):
+            installed.append(str(shutil.copyfile(args.out / name, data_dir() / name)))
+    prov = doc["errors"]["provenance"]
+    if args.json:
+        print_json({"written": [str(args.out / n) for n in names], "installed": installed,
+                    "provenance": prov})
+        return 0
+    print(f"calibration: {len(doc['errors']['tables'])} error tables, "
+          f"{len(doc['costs']['models'])} cost fits from {prov['scenes']} scenes in "
+          f"{prov['wall_time_s']:.0f} s")
+    for t in doc["errors"]["tables"]:
+        loo = ", ".join(f"{q} {_median(v):.2f}" for q, v in t["loo"].items())
+        opt = ",".join(f"{k}={v}" for k, v in t["option"].items())
+        print(f"  {t['kind']:<15}{t['component']:<15}{'/'.join(t['models']):<26}"
+              f"{opt:<24}{'/'.join(t['regimes']):<13}{len(t['points']):>4} pts  "
+              f"LOO median {loo}")
+    for m, f in doc["costs"]["models"].items():
+        print(f"  cost {m:<12} {f['samples']:>4} runs, ln-time residual {f['rms']:.2f}")
+    print(f"written to {args.out}/ ({', '.join(names)})"
+          + (f"; installed {', '.join(installed)}" if installed else ""))
+    return 0
+
+
+def _median(values) -> float:
+    import statistics
+
+    known = [v for v in values if v is not None]
+    return statistics.median(known) if known else float("nan")
+
+
+def _lattice_only(args, lattice) -> int:
+    import json
+
+    from scenes import InputError, write_atomic
+
+    from ..studies.calibrate import _finite, relattice
+    from ..studies.planner_tables import data_dir
+
+    if lattice is None:
+        raise InputError("--lattice-only: needs --lattice LATTICE_JSON")
+    installed = data_dir() / "error_models.json"
+    doc = relattice(json.loads(installed.read_text()), lattice, str(args.lattice))
+    args.out.mkdir(parents=True, exist_ok=True)
+    write_atomic(args.out / "error_models.json",
+                 json.dumps(_finite(doc), indent=1, allow_nan=False))
+    done = [str(args.out / "error_models.json")]
+    if args.install:
+        done.append(str(shutil.copyfile(args.out / "error_models.json", installed)))
+    if args.json:
+        print_json({"written": done, "lattice_rows": len(lattice["rows"])})
+    else:
+        print(f"lattice Hooke table from {args.lattice} ({len(lattice['rows'])} lattices): "
+              + ", ".join(done))
+    return 0

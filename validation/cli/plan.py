@@ -1,0 +1,94 @@
+"""``pillar-xval plan``: which model a scene needs for a tolerance, with predicted errors,
+time and memory (:mod:`validation.studies.planner`)."""
+
+from __future__ import annotations
+
+import json
+
+from pathlib import Path
+
+from scenes import load_scene
+
+from ._args import (add_engine_arguments, add_scene_arguments, check_out, engine_from_args,
+                    integer, number, print_json)
+
+
+def add_parser(sub) -> None:
+    _add_plan(sub)
+    _add_validate(sub)
+
+
+def _add_plan(sub) -> None:
+    p = sub.add_parser(
+        "plan", help="the cheapest model predicted within a tolerance for a scene",
+        description="Predict every candidate model's error per quantity (measured "
+                    "discretisation and model errors), time and memory on this machine, and "
+                    "choose the cheapest within --tolerance for every requested quantity. "
+                    "`solve --model auto` runs the choice.")
+    add_scene_arguments(p)
+    p.add_argument("--tolerance", type=number(0.0, 1.0, open_lo=True), default=0.01,
+                   metavar="REL",
+                   help="relative error allowed on each quantity (default 0.01 = 1 %%)")
+    p.add_argument("--quantities", default="F_T,sigma0", metavar="Q,Q",
+                   help="comma-separated among F_T, sigma0, a, A (default F_T,sigma0)")
+    p.add_argument("--budget", type=number(0.0, None, open_lo=True), default=None,
+                   metavar="SECONDS", help="leave out candidates predicted slower than this")
+    p.add_argument("--json", action="store_true", help="print the plan as one JSON document")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from ..studies.planner import check_request, plan, plan_text
+
+    tolerance, quantities, budget = check_request(args.tolerance, args.quantities, args.budget)
+    scene = load_scene(args.scene, args.overrides)
+    p = plan(scene, tolerance, quantities, budget)
+    if args.json:
+        print_json(p)
+    else:
+        print(plan_text(p))
+    return 0
+
+
+def _add_validate(sub) -> None:
+    p = sub.add_parser(
+        "validate-plan", help="validate the planner on seeded scenes against the toolkit's "
+                              "best references",
+        description="Plan each scene of a seeded set the calibration never saw (the paper's "
+                    "ranges, a stiff substrate, flat scenes), run the plan, the reference "
+                    "and every cheaper candidate on the engine (resumable), and report how "
+                    "often the planned model is within tolerance and within 2x of the "
+                    "cheapest candidate that was.")
+    p.add_argument("--out", type=Path, default=Path("out") / "validate-plan",
+                   help="report folder and cached cases (default out/validate-plan)")
+    p.add_argument("--tolerance", type=number(0.0, 1.0, open_lo=True), default=0.01,
+                   metavar="REL", help="relative error allowed on each quantity (default 0.01)")
+    p.add_argument("--quantities", default="F_T,sigma0", metavar="Q,Q",
+                   help="comma-separated among F_T, sigma0, a, A (default F_T,sigma0)")
+    p.add_argument("--scenes", type=integer(1, 500), default=50, metavar="N",
+                   help="scenes of the paper's family (default 50; plus 6 stiff-substrate "
+                        "and 4 flat ones)")
+    p.add_argument("--json", action="store_true", help="print the totals as one JSON document")
+    add_engine_arguments(p, "recompute cached cases")
+    p.set_defaults(func=run_validate)
+
+
+def run_validate(args) -> int:
+    from ..studies.planner import check_request
+    from ..studies.planner_validation import (summary_text, validate_planner,
+                                              validation_scenes, write_outputs)
+
+    tolerance, quantities, _ = check_request(args.tolerance, args.quantities)
+    check_out(args.out)
+    scenes = validation_scenes(args.scenes)
+    with engine_from_args(args, "validate-plan") as engine:
+        doc = validate_planner(args.out, engine, scenes=scenes, tolerance=tolerance,
+                               quantities=quantities)
+    names = write_outputs(doc, args.out)
+    if args.json:
+        print_json(doc["totals"])
+    else:
+        print(summary_text(doc))
+        print(f"written to {args.out}/ ({', '.join(names)})")
+    t = doc["totals"]
+    return 0 if t["accurate_share"] >= 0.95 else 1

@@ -1,0 +1,101 @@
+"""Seeded scene sets of the calibration and of the planner's validation.
+
+The paper's family ([P] Table 1: R = 2 mm, d = 4 um, h = 2 um, E_l = 1.6 MPa, every
+nu = 0.5) is sampled by a Latin hypercube in log10 Phi over [2.3e-3, 0.82], log10 zeta over
+[0.005, 0.5] um and log10 E_p/E_l over [1e-3, 1e6], with the paper's E_s = E_p; a second,
+smaller sample keeps the substrate at the lens's modulus (E_s = E_l), so that pillars much
+softer than both half-spaces are measured too.  Calibration and validation draw different
+seeds: the validation is out of sample.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from scenes import load_scene
+
+__all__ = ["PAPER_RANGES", "flat_scenes", "gecit_scenes", "lattice_scenes", "punch_scenes"]
+
+BASE = "paper-fig3-sparse"
+E_LENS = 1.6e6
+# [P] Table 1 ranges: log10 of Phi, zeta (um) and E_p / E_l.
+PAPER_RANGES = {"phi": (np.log10(2.3e-3), np.log10(0.82)),
+                "zeta_um": (np.log10(0.005), np.log10(0.5)),
+                "ratio": (-3.0, 6.0)}
+
+
+def _scene(phi: float, zeta_um: float, ratio: float, substrate: str, tag: str):
+    e_p = E_LENS * ratio
+    e_s = e_p if substrate == "pillars" else E_LENS
+    sets = [f"pillars.surface_fraction={phi!r}", f"load.indentation_um={zeta_um!r}",
+            f"pillars.E_Pa={e_p!r}", f"substrate.E_Pa={e_s!r}"]
+    return {"name": tag, "family": f"E_s = {'E_p' if substrate == 'pillars' else 'E_l'}",
+            "phi": phi, "zeta_um": zeta_um, "ratio": ratio, "sets": sets,
+            "scene": load_scene(BASE, sets).replace(name=tag)}
+
+
+def lattice_scenes(n: int, seed: int, substrate: str = "pillars", prefix: str = "s") -> list:
+    """``n`` scenes of the paper's family by a seeded Latin hypercube (see the module
+    docstring); ``substrate`` is ``"pillars"`` (E_s = E_p) or ``"lens"`` (E_s = E_l)."""
+    from scipy.stats import qmc
+
+    u = qmc.LatinHypercube(d=3, seed=seed).random(n)
+    keys = ("phi", "zeta_um", "ratio")
+    out = []
+    for i, row in enumerate(u):
+        lo = np.array([PAPER_RANGES[k][0] for k in keys])
+        hi = np.array([PAPER_RANGES[k][1] for k in keys])
+        phi, zeta, ratio = 10.0 ** (lo + row * (hi - lo))
+        out.append(_scene(float(f"{phi:.4g}"), float(f"{zeta:.4g}"), float(f"{ratio:.4g}"),
+                          substrate, f"{prefix}{i:02d}"))
+    return out
+
+
+def flat_scenes(zeta_over_r=(1.5e-4, 1e-2, 0.1, 0.4)) -> list:
+    """The Hertz preset at several zeta / R (the only length ratio of a flat scene)."""
+    out = []
+    for i, ratio in enumerate(zeta_over_r):
+        zeta_um = ratio * 2000.0
+        sets = [f"load.indentation_um={zeta_um!r}"]
+        out.append({"name": f"flat{i}", "family": "flat", "zeta_um": zeta_um, "sets": sets,
+                    "scene": load_scene("hertz", sets).replace(name=f"flat{i}")})
+    return out
+
+
+def gecit_scenes(ratios=(1e-3, 1e-2, 0.1, 1.0, 10.0, 100.0, 1e3, math.inf),
+                 aspects=(0.25, 0.5, 1.0), substrates=None) -> list:
+    """The Gecit-like study on a full grid of E_p/E_l x E_s/E_l x h/d on the single-pillar
+    preset (``substrates``, as ratios E_s/E_l, default the same as ``ratios``; ``inf`` is a
+    rigid body, which fem-axisym represents exactly where a finite 1e6 contrast can miss its
+    linear residual): rows for :func:`validation.studies.gecit.gecit_study` (``ratio``,
+    ``aspect``, ``scene``).  A full grid, so that the paper's diagonal E_s = E_p and a stiff
+    substrate are both interpolated along measured lines."""
+    def modulus(part, ratio):
+        return f"{part}.rigid=true" if math.isinf(ratio) else f"{part}.E_Pa={E_LENS * ratio!r}"
+
+    out = []
+    for aspect in aspects:
+        for sub in (ratios if substrates is None else substrates):
+            for ratio in ratios:
+                sets = [modulus("pillars", ratio), modulus("substrate", sub),
+                        f"pillars.height_um={4.0 * aspect!r}"]
+                out.append({"ratio": ratio, "aspect": aspect, "substrate_ratio": sub,
+                            "scene": load_scene("single-pillar", sets)})
+    return out
+
+
+def punch_scenes(zetas_um=(0.005, 0.015, 0.05, 0.15, 0.5, 1.5),
+                 ratios=(1e-3, 1e-1, 1.0, 10.0, 1e3, 1e6)) -> list:
+    """Single pillars over zeta and E_p / E_l (both substrates): where the flat punch of the
+    spring model meets the curved lens.  Only the (cheap) dense BEM runs on them."""
+    out = []
+    for substrate in ("pillars", "lens"):
+        for zeta in zetas_um:
+            for ratio in ratios:
+                if substrate == "lens" and ratio == 1.0:
+                    continue  # the same scene as with E_s = E_p
+                s = _scene(2.3e-3, zeta, ratio, substrate, f"p{len(out):02d}")
+                out.append(s)
+    return out

@@ -1,0 +1,110 @@
+"""What the planner knows about a scene before solving it: its regime and the dimensionless
+features its error and cost models are tabulated against.
+
+Regime (thresholds of [P], computed by :mod:`scenes.analytic`):
+
+- ``flat``: no pillars, the Hertz problem;
+- ``single``: Phi < Phi_S, one pillar touches.  Phi_S is the exact threshold of [P]
+  eqs. rSzeta and PhiSrS (outer root; the undeformed lens plus the centre punch's lift
+  reaches the nearest neighbour);
+- ``multi``: a second pillar touches.  Within it, ``hertz-like`` above Phi_H and
+  ``transition`` below.  Phi_H is [P]'s fitted value, 0.306 for hard to 0.38 for soft pillars
+  (Fig. 4a, zeta = 0.3 um), taken linearly in log10(E_p/E_l) between 1e6 and 1e-3 and
+  clamped; [P] finds it falls as zeta/h grows (Fig. 7b), so it labels the regime only: the
+  planner's choice rests on measured errors, never on Phi_H.
+
+Features (every one dimensionless, so tables measured on the paper's scenes apply to any
+scene with the same values):
+
+=============  ==========================================================================
+``w``          share of the half-spaces in the compliance of one pillar in contact,
+               (gamma_l + gamma_s) / gamma*; 1 for rigid pillars (and flat scenes)
+``log_phi_s``  log10(Phi / Phi_S): how deep in the multi-pillar regime (< 0: one pillar)
+``phi``        Phi itself
+``log_sag``    log10(d^2 / (8 R zeta)): lens curvature across a pillar top over zeta
+``log_ep``     log10(E_p / E_l), rigid pillars 12
+``log_es``     log10(E_s / E_l), rigid substrate 12
+``aspect``     h / d
+``log_zeta_r`` log10(zeta / R)
+=============  ==========================================================================
+
+References
+----------
+.. [P] R. Ledesma-Alonso et al., "Stress concentration in periodically rough hertzian
+   contact: Hertz to soft-flat-punch transition" (the seed paper).
+"""
+
+from __future__ import annotations
+
+import math
+
+from scenes import Scene, analytic
+
+__all__ = ["FEATURES", "PHI_H_HARD", "PHI_H_SOFT", "features", "phi_h", "regime"]
+
+# [P] Fig. 4a: Phi_H from 0.306 (hard, E_p/E_l = 1e6) to 0.38 (soft, 1e-3) at zeta = 0.3 um.
+PHI_H_HARD, PHI_H_SOFT = 0.306, 0.38
+LOG_RATIO_RIGID = 12.0  # log10 of a modulus ratio standing for a rigid body
+
+
+def _log_ratio(E: float, E_lens: float) -> float:
+    if math.isinf(E):
+        return LOG_RATIO_RIGID
+    if math.isinf(E_lens):
+        return -LOG_RATIO_RIGID
+    return max(-LOG_RATIO_RIGID, min(LOG_RATIO_RIGID, math.log10(E / E_lens)))
+
+
+def phi_h(scene: Scene) -> float:
+    """[P]'s Hertz-like threshold for the scene's stiffness ratio (see the module docstring)."""
+    x = _log_ratio(scene.pillars.material.E_Pa, scene.lens.material.E_Pa)
+    t = min(1.0, max(0.0, (6.0 - x) / 9.0))  # 0 at E_p/E_l = 1e6, 1 at 1e-3
+    return PHI_H_HARD + t * (PHI_H_SOFT - PHI_H_HARD)
+
+
+def regime(scene: Scene) -> dict:
+    """The scene's regime: ``name`` (flat, single, multi), ``label`` (flat, single pillar,
+    transition, hertz-like), the thresholds and one sentence saying why."""
+    if scene.is_flat:
+        return {"name": "flat", "label": "flat (Hertz problem)", "phi": None, "phi_s": None,
+                "phi_h": None, "why": "no pillars: a sphere on a flat substrate"}
+    phi = scene.pillars.surface_fraction
+    phi_s = analytic.single_pillar_threshold(scene)
+    ph = phi_h(scene)
+    if phi < phi_s:
+        name, label = "single", "single pillar"
+        why = f"Phi = {phi:.4g} < Phi_S = {phi_s:.4g} (eqs. rSzeta, PhiSrS): one pillar touches"
+    elif phi >= ph:
+        name, label = "multi", "hertz-like"
+        why = (f"Phi = {phi:.4g} >= Phi_H = {ph:.3g} ([P] Fig. 4a fit): many pillars touch, "
+               "the lens meets a near-continuum")
+    else:
+        name, label = "multi", "transition"
+        why = f"Phi_S = {phi_s:.4g} <= Phi = {phi:.4g} < Phi_H = {ph:.3g}: several pillars touch"
+    return {"name": name, "label": label, "phi": phi, "phi_s": phi_s, "phi_h": ph, "why": why}
+
+
+def features(scene: Scene, reg: dict | None = None) -> dict:
+    """The features of the module docstring (those that apply: a flat scene has no pillar
+    features)."""
+    reg = reg or regime(scene)
+    E_l = scene.lens.material.E_Pa
+    out = {"log_es": _log_ratio(scene.substrate.E_Pa, E_l),
+           "log_zeta_r": math.log10(scene.indentation_m / scene.lens.radius_m), "w": 1.0}
+    if scene.is_flat:
+        return out
+    p = scene.pillars
+    gamma_star = analytic.effective_compliance(scene)
+    out.update({
+        "w": scene.half_space_compliance / gamma_star if gamma_star > 0 else 1.0,
+        "log_phi_s": math.log10(p.surface_fraction / reg["phi_s"]),
+        "phi": p.surface_fraction,
+        "log_sag": math.log10(p.diameter_m**2 / (8.0 * scene.lens.radius_m
+                                                 * scene.indentation_m)),
+        "log_ep": _log_ratio(p.material.E_Pa, E_l),
+        "aspect": p.height_m / p.diameter_m,
+    })
+    return out
+
+
+FEATURES = ("w", "log_phi_s", "phi", "log_sag", "log_ep", "log_es", "aspect", "log_zeta_r")
