@@ -26,9 +26,9 @@ Each run records whether it converged, its iterations, residual and time, and th
 
 - force balance: the pillar forces add up to F_T (relative 1e-6), F_T > 0 and finite;
 - p >= 0 everywhere (relative to the largest pressure, 1e-9);
-- no interpenetration: at most 1e-6 zeta (the FEMs' mortar contact: 1 % of zeta for
-  fem-axisym, 5 % for fem-3d, at the P2 points next to a contact edge);
-- F increases with zeta and with the stiffness.
+- no interpenetration: at most 1e-6 zeta (the FEMs' mortar contact: 5 % of zeta at the P2
+  points next to a contact edge, see :data:`INTERPENETRATION_TOL`);
+- F increases with zeta and with the stiffness (to :data:`RTOL_MONOTONE`).
 
 A corner ends as ``pass`` (converged, invariants hold), ``fail`` (converged, an invariant
 broken: a bug), ``not converged`` (the model said it could not resolve the scene),
@@ -79,10 +79,19 @@ STIFFER = 1.5
 RTOL_FORCE_BALANCE = 1e-6
 RTOL_NEGATIVE_PRESSURE = 1e-9
 # The FEMs' contact is a mortar (weak) constraint: the weighted gaps hold to the contact
-# residual, the pointwise gap at P2 points beside a contact edge dips below zero by a share of
-# zeta (fem-axisym: < 1 %; fem-3d: 1.2-2.8 % measured at mesh_size 4-1.41, Hertz 2.2 % at 4).
-INTERPENETRATION_TOL = {"fem-axisym": 1e-2, "fem-3d": 5e-2}
+# residual, while the pointwise gap at P2 points beside a contact edge dips below zero by a
+# share of zeta that shrinks slowly with the mesh: fem-axisym up to 1.1 % at mesh_size 2 and
+# 1.5 % at 4 (every fem-axisym solve of the calibration and the planner validation, 838
+# solves), fem-3d 1.2-2.8 % at mesh_size 4-1.41 (the lattice study, Hertz).  Beyond 5 % the
+# contact is under-resolved, which the FEMs do not detect themselves yet: a fail.
+INTERPENETRATION_TOL = {"fem-axisym": 5e-2, "fem-3d": 5e-2}
 INTERPENETRATION_DEFAULT = 1e-6
+# F may not fall by more than this (relative) when zeta or a modulus grows.  Where the
+# stiffened body carries a negligible share of the compliance (pillars 1e6 E_l on a substrate
+# 1e-3 E_l) the true increase is below 1e-9 and round-off decides the sign: fem-3d's solves at
+# that 1e9 modulus contrast carry 2e-6 to 7e-6 of it (measured here: E_p x 1.5 "lowers" F by
+# that much).  1e-5 is far below any increase a model resolves.
+RTOL_MONOTONE = 1e-5
 
 
 def _sets(p: dict) -> list:
@@ -282,7 +291,7 @@ def judge(entry: dict, model: str, base, deeper, stiffer) -> dict:
     checks["no_interpenetration"] = None if pen is None else bool(pen <= tol)
     for key, other in (("F_increases_with_zeta", deeper), ("F_increases_with_E", stiffer)):
         if other.ok and other.result.converged and r.converged:
-            checks[key] = bool(other.result.total_force_N > F * (1.0 - 1e-12))
+            checks[key] = bool(other.result.total_force_N >= F * (1.0 - RTOL_MONOTONE))
         else:
             checks[key] = None
     rec.update(converged=bool(r.converged), iterations=int(r.iterations),
@@ -293,10 +302,11 @@ def judge(entry: dict, model: str, base, deeper, stiffer) -> dict:
                companions={k: status_of_other(o) for k, o in (("deeper", deeper),
                                                               ("stiffer", stiffer))})
     broken = [k for k, v in checks.items() if v is False]
-    if broken:
+    if not r.converged:  # a run that says it did not converge promises no invariant
+        rec.update(status="not converged", reason=d.get("message", "") + (
+            f" (unconverged state breaks: {', '.join(broken)})" if broken else ""))
+    elif broken:
         rec.update(status="fail", reason="broken: " + ", ".join(broken))
-    elif not r.converged:
-        rec.update(status="not converged", reason=d.get("message", ""))
     else:
         rec.update(status="pass", reason="")
     return rec
