@@ -26,7 +26,7 @@ Each run records whether it converged, its iterations, residual and time, and th
 
 - force balance: the pillar forces add up to F_T (relative 1e-6), F_T > 0 and finite;
 - p >= 0 everywhere (relative to the largest pressure, 1e-9);
-- no interpenetration: at most 1e-6 zeta (the FEMs' mortar contact: 5 % of zeta at the P2
+- no interpenetration: at most 1e-6 zeta (the FEMs' mortar contact: 20 % of zeta at the P2
   points next to a contact edge, see :data:`INTERPENETRATION_TOL`);
 - F increases with zeta and with the stiffness (to :data:`RTOL_MONOTONE`).
 
@@ -80,11 +80,10 @@ RTOL_FORCE_BALANCE = 1e-6
 RTOL_NEGATIVE_PRESSURE = 1e-9
 # The FEMs' contact is a mortar (weak) constraint: the weighted gaps hold to the contact
 # residual, while the pointwise gap at P2 points beside a contact edge dips below zero by a
-# share of zeta that shrinks slowly with the mesh: fem-axisym up to 1.1 % at mesh_size 2 and
-# 1.5 % at 4 (every fem-axisym solve of the calibration and the planner validation, 838
-# solves), fem-3d 1.2-2.8 % at mesh_size 4-1.41 (the lattice study, Hertz).  Beyond 5 % the
-# contact is under-resolved, which the FEMs do not detect themselves yet: a fail.
-INTERPENETRATION_TOL = {"fem-axisym": 5e-2, "fem-3d": 5e-2}
+# share of zeta (1-3 % on resolved edges, ~9 % beside a flat punch's singular edge).  The
+# FEMs themselves call a run beyond 20 % under-resolved (not converged:
+# fem_reference MAX_POINTWISE_PENETRATION); a converged run beyond it would be a bug.
+INTERPENETRATION_TOL = {"fem-axisym": 0.2, "fem-3d": 0.2}
 INTERPENETRATION_DEFAULT = 1e-6
 # F may not fall by more than this (relative) when zeta or a modulus grows.  Where the
 # stiffened body carries a negligible share of the compliance (pillars 1e6 E_l on a substrate
