@@ -37,7 +37,7 @@ def outcome(cli, *argv) -> tuple[int, str, str]:
         assert not any(": error:" in ln or ": failure:" in ln for ln in lines), err
         return code, out, ""
     assert len(lines) == 1, (argv, err)
-    assert re.match(rf"pillar-xval( \w+)?: {KIND[code]}: ", lines[0]), (argv, lines[0])
+    assert re.match(rf"pillar-xval( [\w-]+)?: {KIND[code]}: ", lines[0]), (argv, lines[0])
     assert len(lines[0]) < 600
     return code, out, lines[0]
 
@@ -115,6 +115,16 @@ def test_out_is_checked_before_any_solve(fakes, tmp_path, cli):
         assert code == 2 and "is a file, expected a folder" in line
         code, _, line = outcome(cli, command, *scene, *engine, "--out", a_file / "sub" / "dir")
         assert code == 2 and "cannot create the folder" in line
+    assert fakes == [] and a_file.read_text() == "not a folder"
+
+
+@pytest.mark.parametrize("command", ["lattice", "figures", "calibrate", "validate-plan",
+                                     "extremes"])
+def test_out_of_the_studies_is_checked_before_any_solve(fakes, tmp_path, cli, command):
+    a_file = tmp_path / "a-file"
+    a_file.write_text("not a folder")
+    code, _, line = outcome(cli, command, "--executor", "serial", "--out", a_file)
+    assert code == 2 and "is a file, expected a folder" in line, line
     assert fakes == [] and a_file.read_text() == "not a folder"
 
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from scenes import InputError
 
-from ._args import add_engine_arguments, engine_from_args
+from ._args import add_engine_arguments, check_out, engine_from_args
 
 DEFAULT_MODEL = "bem-richardson"
 
@@ -48,6 +48,7 @@ def run(args) -> int:
     if p is not None and not 3 <= p <= 41:
         raise InputError(f"--elements-per-diameter {p}: allowed range is [3, 41]")
     grid = FigureGrid.quick(p or 5) if args.quick else FigureGrid.full(p or 5)
+    check_out(args.out)
     with engine_from_args(args, "figures") as engine:
         doc = run_figures(args.out, grid, model=args.model, engine=engine)
     t = doc["timing"]

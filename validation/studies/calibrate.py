@@ -290,12 +290,12 @@ def lattice_hooke_table(report: dict) -> ErrorTable:
 def with_lattice(tables: list, report: dict) -> list:
     """``tables`` with the lattice study's Hooke table for multi-pillar scenes: the Gecit
     grid's Hooke table keeps the single-pillar regime only."""
-    out = []
-    for t in tables:
-        if t.component == "hooke" and "multi" in t.regimes:
-            t.regimes = [r for r in t.regimes if r != "multi"]
-            t.note = "measured on one pillar; multi-pillar scenes use the lattice study's table"
-        out.append(t)
+    from dataclasses import replace
+
+    out = [replace(t, regimes=[r for r in t.regimes if r != "multi"],
+                   note="measured on one pillar; multi-pillar scenes use the lattice study's "
+                        "table")
+           if t.component == "hooke" and "multi" in t.regimes else t for t in tables]
     lattice = lattice_hooke_table(report)
     lattice.loo = lattice.leave_one_out()
     return out + [lattice]

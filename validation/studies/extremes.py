@@ -20,8 +20,9 @@ at every nu, each nu at the nominal scene, and flat scenes at the corners of E_s
 and zeta / R.
 
 Each model (bem P = 7, bem-fft N = 16 with at most 3000 CG iterations, fem-axisym mesh_size
-2, fem-3d 4, hertz, spring: cheap resolutions, the point is robustness) runs each scene three times: as is, with zeta 5 %
-deeper, and with a stiffer body (E_p x 1.5; E_s x 1.5 for rigid pillars or a flat scene).
+2, fem-3d 4, hertz, spring: cheap resolutions, the point is robustness) runs each scene
+three times: as is, with zeta 5 % deeper, and with a stiffer body (E_p x 1.5; E_s x 1.5 for
+rigid pillars or a flat scene).
 Each run records whether it converged, its iterations, residual and time, and the invariants:
 
 - force balance: the pillar forces add up to F_T (relative 1e-6), F_T > 0 and finite;

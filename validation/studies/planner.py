@@ -10,14 +10,15 @@ planner predicts, per requested quantity,
   the lattice, finite blocks against half-spaces), interpolated likewise;
 
 and adds them with their leave-one-out margins (:mod:`.planner_tables`); its time and memory
-come from the cost fits (:mod:`.planner_costs`).  The choice is the cheapest candidate
-predicted within tolerance for every requested quantity.  When the model error that every
+come from the cost fits (:mod:`.planner_costs`). The choice is the cheapest candidate
+predicted within tolerance for every requested quantity. When the model error that every
 candidate carries exceeds the tolerance (the Hooke pillar's sigma0 in a lattice: 3-60 %,
 measured by the lattice study against fem-3d), none is within tolerance: the plan says so,
 takes the cheapest candidate within tolerance of that unavoidable error and names fem-3d,
-whose elastic pillars remove it.  fem-3d is no candidate itself: validating its choice would
-take fem-3d references on every lattice scene of the validation (hours on this machine).  A candidate that would not
-fit in memory, or exceeds ``budget`` seconds, is left out with the reason.
+whose elastic pillars remove it. fem-3d is no candidate itself: validating its choice would
+take fem-3d references on every lattice scene of the validation (hours on this machine). A
+candidate that would not fit in memory, or exceeds ``budget`` seconds, is left out with the
+reason.
 """
 
 from __future__ import annotations
