@@ -399,8 +399,8 @@ def test_block_truncation_is_measured():
     (measured 0.80 x it at mesh_size 1.41, as in the axisymmetric model); from 1e3 to 1e5
     the force moves by <= 0.08 % (the far-field grading, not the truncation: measured
     +0.14, +0.18, +0.22 % against the closed form)."""
-    scene = load_scene("single-pillar", ["pillars.rigid=true", "lens.radius_mm=1e5",
-                                         "pillars.surface_fraction=1e-7"])
+    scene = load_scene("single-pillar", ["pillars.rigid=true", "substrate.rigid=true",
+                                         "lens.radius_mm=1e5", "pillars.surface_fraction=1e-7"])
     exact = analytic.rigid_punch(scene).force
     f = {b: solve_fem3d(scene, 1.41, block_factor=b) for b in (1e2, 1e3, 1e4, 1e5)}
     measured = f[1e2].total_force_N / f[1e4].total_force_N - 1
