@@ -14,7 +14,7 @@ import numpy as np
 
 from contact import ContactSolution, min_map_residual, solve_dense as solve_contact
 from scenes import ContactResult, PillarForce, Scene, ScopeError, analytic
-from scenes.memory import available_memory
+from scenes.memory import MEMORY_SHARE, memory_short
 
 from ._cells import VARIANTS, cell_pattern
 from ._discretise import Discretisation, discretise, overlap_radius
@@ -31,8 +31,6 @@ BYTES_PER_OPERATOR_ENTRY = 5 * 8.0
 # Work arrays of a solve of any size: blocks of Love coefficients on two threads (measured
 # peaks of 5-40 MB on scenes with under a hundred unknowns).
 BYTES_FIXED = 48 * 2.0**20
-# Solves whose estimated peak exceeds this share of the memory available are refused up front.
-MEMORY_SHARE = 0.8
 
 
 def lens_gap(scene: Scene, x, y):
@@ -177,8 +175,8 @@ def _refuse_if_too_large(scene: Scene, P: int, cells: str, contact: str) -> None
     """ScopeError before any array is built when the solve would not fit in memory (or would
     exceed the dense limit by far)."""
     need = estimate_memory(scene, P, cells, contact)
-    free = available_memory()
-    if need["bytes"] > MEMORY_SHARE * free:
+    free = memory_short(need["bytes"])
+    if free is not None:
         raise ScopeError(
             f"elements_per_diameter = {P}: this scene needs about {need['bytes'] / 2**30:.3g} "
             f"GiB ({need['elements'] + need['outer_elements']:.3g} elements, "

@@ -25,9 +25,9 @@ import numpy as np
 from meshes import build_axisymmetric_mesh, flat_geometry, pillar_geometry
 from contact import solve_dense
 from scenes import ContactResult, InputError, PillarForce, Scene, ScopeError, analytic
-from scenes.memory import available_memory
+from scenes.memory import MEMORY_SHARE, memory_short
 
-from ._contact import contact_radius, mortar_matrix
+from ._contact import contact_radius, mortar_matrix, solve_failures
 from ._fields import cell_stresses, write_vtu
 from ._system import SolveError, assemble
 
@@ -40,15 +40,7 @@ BLOCK_FACTOR = 1e5
 # a half-space is sqrt(R zeta) whatever the materials; 1.5 leaves room for the gap law).
 HERTZ_CANDIDATE = 1.5
 # Verification thresholds for ``converged`` (a miss is reported in the result, not raised).
-RTOL_LINEAR = 1e-8
 RTOL_COMPLEMENTARITY = 1e-8
-# The mortar contact holds the weighted gaps; the pointwise gap at the P2 points beside a
-# contact edge dips below zero by a share of zeta: 1-3 % on smooth or well-resolved edges
-# (fem-axisym: at most 1.5 % over 838 solves at mesh_size 0.5-4; fem-3d: 2.8 % over the
-# lattice study), up to ~9 % beside a flat punch's singular edge at mesh_size 2 (F still
-# within 1e-3 of the closed form), 29-53 % where a contact under 1 um spans one or two
-# elements.  Beyond this share the mesh does not resolve the contact: not converged.
-MAX_POINTWISE_PENETRATION = 0.2
 # Memory model of a solve (measured on single-pillar and hertz at mesh_size 4..0.5): the
 # reduced unknowns grow as mesh_size^-1.9 from about 18k (pillar) or 12.5k (flat) at 1; the
 # sparse LU takes ~650 B per unknown per log(unknowns) (2D fill ~ n log n); the compliance
@@ -58,8 +50,6 @@ DOFS_EXPONENT = 1.9
 CONTACT_POINTS_AT_UNIT_SIZE = 60.0
 BYTES_PER_DOF_LOG = 650.0
 BYTES_FIXED = 40 * 2.0**20
-# Solves whose estimated peak exceeds this share of the memory available are refused up front.
-MEMORY_SHARE = 0.8
 
 
 def estimate_memory(scene: Scene, mesh_size: float = 1.0) -> dict:
@@ -86,8 +76,8 @@ def estimate_memory(scene: Scene, mesh_size: float = 1.0) -> dict:
 
 def _refuse_if_too_large(scene: Scene, mesh_size: float) -> None:
     need = estimate_memory(scene, mesh_size)
-    free = available_memory()
-    if need["bytes"] > MEMORY_SHARE * free:
+    free = memory_short(need["bytes"])
+    if free is not None:
         raise ScopeError(
             f"mesh_size = {mesh_size:g}: this mesh needs about {need['bytes'] / 2**30:.3g} GiB "
             f"(~{need['dofs']:.3g} unknowns), more than {MEMORY_SHARE:.0%} of the "
@@ -196,20 +186,8 @@ def solve_axisymmetric(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None,
     if not np.all(np.isfinite(values)):
         raise SolveError(f"the linear solver returned non-finite values (force {force}, "
                          f"residual {residual})")
-    failures = []
-    if residual >= RTOL_LINEAR:
-        failures.append(f"linear residual {residual:.2e} >= {RTOL_LINEAR:g}")
-    if not sol.converged:
-        failures.append(f"contact: {sol.message}")
-    if force <= 0.0:
-        failures.append(f"no contact force (F = {force:g} N): the mesh does not resolve "
-                        f"zeta = {zeta:g} m")
     penetration = float(max(0.0, -w.min()) / (zeta / ell))
-    if penetration > MAX_POINTWISE_PENETRATION:
-        failures.append(
-            f"the contact is under-resolved: the gap at the P2 points dips {penetration:.1%} "
-            f"of zeta below zero (at most {MAX_POINTWISE_PENETRATION:.0%} where the mesh "
-            "resolves the contact); use a smaller mesh_size")
+    failures = solve_failures(residual, sol, force, zeta, penetration)
     if scene.is_flat and reaches_end:
         failures.append(f"contact reached the end of the candidate zone r = {r_m[-1]:g} m "
                         f"({HERTZ_CANDIDATE} Hertz radii)")

@@ -34,9 +34,9 @@ from meshes import WedgeGeometry, build_wedge_mesh, sector_pillars
 from meshes import SECTORS
 from scenes import ContactResult, InputError, PillarForce, Scene, ScopeError, analytic
 from scenes.lattice import lattice_indices
-from scenes.memory import available_memory
+from scenes.memory import MEMORY_SHARE, memory_short
 
-from ._contact import contact_radius
+from ._contact import contact_radius, solve_failures
 from ._contact3d import contact_area_share, contact_faces, line_profile, preconditioner
 from ._fields3d import cell_stresses, write_vtu3d
 from ._system import SolveError
@@ -47,15 +47,7 @@ MODEL = "fem-3d"
 # contact of radius a_c; the grading makes the large block cost a few shells of elements.
 BLOCK_FACTOR_3D = 1e4
 HERTZ_CANDIDATE = 1.5
-RTOL_LINEAR = 1e-8
 RTOL_COMPLEMENTARITY = 1e-8
-# The mortar contact holds the weighted gaps; the pointwise gap at the P2 points beside a
-# contact edge dips below zero by a share of zeta: 1-3 % on smooth or well-resolved edges
-# (fem-axisym: at most 1.5 % over 838 solves at mesh_size 0.5-4; fem-3d: 2.8 % over the
-# lattice study), up to ~9 % beside a flat punch's singular edge at mesh_size 2 (F still
-# within 1e-3 of the closed form), 29-53 % where a contact under 1 um spans one or two
-# elements.  Beyond this share the mesh does not resolve the contact: not converged.
-MAX_POINTWISE_PENETRATION = 0.2
 MAX_CG_ITERATIONS = 2000
 # Smallest gap between neighbouring pillars, in diameters: at Phi = 0.9 (gap 0.0038 d) the
 # mesh still passes its quality check (q_min 0.047), at Phi = 0.9068 (5.5e-5 d) it fails.
@@ -69,8 +61,6 @@ DOFS_PER_PILLAR = 6.8e3
 DOFS_REFERENCE_SIZE = 2.83
 BYTES_FIXED_3D = 160 * 2.0**20
 BYTES_PER_DOF_3D = 11.5e3
-# Solves whose estimated peak exceeds this share of the memory available are refused up front.
-MEMORY_SHARE_3D = 0.8
 
 
 def estimate_memory_3d(scene: Scene, mesh_size: float = 1.0, *,
@@ -116,12 +106,12 @@ def _refuse_if_too_large(scene: Scene, mesh_size: float, sector_angle: float,
                          reach_factor: float) -> None:
     need = estimate_memory_3d(scene, mesh_size, sector_angle=sector_angle,
                               reach_factor=reach_factor)
-    free = available_memory()
-    if need["bytes"] > MEMORY_SHARE_3D * free:
+    free = memory_short(need["bytes"])
+    if free is not None:
         raise ScopeError(
             f"mesh_size = {mesh_size:g}: fem-3d would mesh {need['pillars']} pillars in its "
             f"sector (~{need['dofs']:.3g} unknowns, about {need['bytes'] / 2**30:.3g} GiB), "
-            f"more than {MEMORY_SHARE_3D:.0%} of the {free / 2**30:.3g} GiB available; use a "
+            f"more than {MEMORY_SHARE:.0%} of the {free / 2**30:.3g} GiB available; use a "
             "larger mesh_size, or the BEM for lattices this wide")
 
 
@@ -259,20 +249,8 @@ def solve_fem3d(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None, progress
     values = [force, a, sigma0, residual, sol.residual, *pressure]
     if not np.all(np.isfinite(values)):
         raise SolveError(f"the solution is not finite (force {force}, residual {residual})")
-    failures = []
-    if residual >= RTOL_LINEAR:
-        failures.append(f"linear residual {residual:.2e} >= {RTOL_LINEAR:g}")
-    if not sol.converged:
-        failures.append(f"contact: {sol.message}")
-    if force <= 0.0:
-        failures.append(f"no contact force (F = {force:g} N): the mesh does not resolve "
-                        f"zeta = {zeta:g} m")
     penetration = float(max(0.0, -w.min()) / (zeta / ell))
-    if penetration > MAX_POINTWISE_PENETRATION:
-        failures.append(
-            f"the contact is under-resolved: the gap at the P2 points dips {penetration:.1%} "
-            f"of zeta below zero (at most {MAX_POINTWISE_PENETRATION:.0%} where the mesh "
-            "resolves the contact); use a smaller mesh_size")
+    failures = solve_failures(residual, sol, force, zeta, penetration)
     if reaches_end:
         failures.append("contact reached the end of the candidate zone")
 

@@ -44,8 +44,34 @@ class PressureSpace:
     offset: int       # first index of this body's p~ in the full vector
 
 
+class ReducedSystem:
+    """What the axisymmetric and the sector systems share: reduced unknowns (``T`` maps them
+    to the full ones), a symmetric diagonal scaling ``scale`` of the factorised matrix
+    ``_Ks``, and each body's pressure space in ``pressures``."""
+
+    @property
+    def n_reduced(self) -> int:
+        return self.T.shape[1]
+
+    def residual(self, x: np.ndarray, rhs: np.ndarray) -> float:
+        """Relative scaled residual ||S (K x - b)|| / ||S b|| of a computed solution."""
+        b = self.scale * rhs
+        return _relative((b - self._Ks @ (x / self.scale))[:, None], b[:, None])
+
+    def full(self, x_reduced: np.ndarray) -> tuple[np.ndarray, dict]:
+        """Full displacement dofs and each body's physical pressure p (E_ref units)."""
+        x = self.T @ x_reduced
+        nu = self.basis_u.N
+        pressure = {}
+        for ps in self.pressures:
+            p = np.zeros(ps.basis.N)
+            p[ps.dofs] = ps.beta * x[ps.offset:ps.offset + len(ps.dofs)]
+            pressure[ps.body] = p
+        return x[:nu], pressure
+
+
 @dataclass
-class AxisymmetricSystem:
+class AxisymmetricSystem(ReducedSystem):
     """Assembled, constrained and factorised system of the elastic bodies.
 
     ``K`` is the saddle-point matrix on the reduced unknowns, T^T K_full T (u then each
@@ -62,10 +88,6 @@ class AxisymmetricSystem:
     contact_r: np.ndarray
     scale: np.ndarray
     lu: object = None
-
-    @property
-    def n_reduced(self) -> int:
-        return self.T.shape[1]
 
     def factorise(self) -> None:
         # Symmetric diagonal scaling: stiff and soft bodies (E ratio up to 1e9) and pressure
@@ -96,22 +118,6 @@ class AxisymmetricSystem:
         rel = _relative(b - self._Ks @ y, b)
         x = self.scale[:, None] * y
         return x.reshape(rhs.shape), rel
-
-    def residual(self, x: np.ndarray, rhs: np.ndarray) -> float:
-        """Relative scaled residual ||S (K x - b)|| / ||S b|| of a computed solution."""
-        b = self.scale * rhs
-        return _relative((b - self._Ks @ (x / self.scale))[:, None], b[:, None])
-
-    def full(self, x_reduced: np.ndarray) -> tuple[np.ndarray, dict]:
-        """Full displacement dofs and each body's physical pressure p (E_ref units)."""
-        x = self.T @ x_reduced
-        nu = self.basis_u.N
-        pressure = {}
-        for ps in self.pressures:
-            p = np.zeros(ps.basis.N)
-            p[ps.dofs] = ps.beta * x[ps.offset:ps.offset + len(ps.dofs)]
-            pressure[ps.body] = p
-        return x[:nu], pressure
 
 
 def _relative(res, b) -> float:

@@ -30,7 +30,7 @@ import scipy.sparse as sp
 from skfem import Basis, ElementTetP1, ElementTetP2, ElementVector
 
 from ._pardiso import Pardiso
-from ._system import SolveError
+from ._system import ReducedSystem, SolveError, _relative
 from .forms.solid3d import (derivative_coupling, gradient_product, mixed_coefficients,
                            pressure_mass)
 
@@ -88,7 +88,7 @@ def rigid_modes(centre_xy, sector_angle: float, tol: float) -> np.ndarray:
 
 
 @dataclass
-class SectorSystem:
+class SectorSystem(ReducedSystem):
     """Assembled, constrained and factorised system of the elastic bodies.
 
     ``K`` is T^T K_full T on the reduced unknowns; ``T`` maps reduced to full unknowns;
@@ -104,10 +104,6 @@ class SectorSystem:
     scale: np.ndarray
     rigid: list
     factor: object = None
-
-    @property
-    def n_reduced(self) -> int:
-        return self.T.shape[1]
 
     def factorise(self) -> None:
         S = sp.diags(self.scale)
@@ -131,26 +127,6 @@ class SectorSystem:
             rel = _relative(b - self._Ks @ y, b)
         return (self.scale[:, None] * y).reshape(rhs.shape), rel
 
-    def residual(self, x: np.ndarray, rhs: np.ndarray) -> float:
-        b = self.scale * rhs
-        return _relative((b - self._Ks @ (x / self.scale))[:, None], b[:, None])
-
-    def full(self, x_reduced: np.ndarray) -> tuple[np.ndarray, dict]:
-        """Full displacement dofs and each body's physical pressure p (E_ref units)."""
-        x = self.T @ x_reduced
-        nu = self.basis_u.N
-        pressure = {}
-        for ps in self.pressures:
-            p = np.zeros(ps.basis.N)
-            p[ps.dofs] = ps.beta * x[ps.offset:ps.offset + len(ps.dofs)]
-            pressure[ps.body] = p
-        return x[:nu], pressure
-
-
-def _relative(res, b) -> float:
-    num = np.linalg.norm(res, axis=0)
-    den = np.maximum(np.linalg.norm(b, axis=0), np.finfo(float).tiny)
-    return float(np.max(num / den))
 
 
 def assemble_sector(mesh, materials: dict, *, sector_angle: float, clamp_pillar_base: bool,

@@ -11,6 +11,8 @@ are bonded by a conforming mesh.
 
 from __future__ import annotations
 
+from contextlib import contextmanager
+
 import numpy as np
 
 from ._geometry import AxisymmetricGeometry, MeshError
@@ -39,31 +41,39 @@ def build_axisymmetric_mesh(geometry: AxisymmetricGeometry) -> AxisymmetricMesh:
     MeshError
         If gmsh fails, a body gets no elements or the mesh fails its quality check.
     """
+    with gmsh_model(f"axisym-{id(geometry)}", str(geometry)) as gmsh:
+        gmsh.option.setNumber("Geometry.AutoCoherence", 0)  # keep the two contact lines apart
+        groups = _build_geometry(gmsh, geometry)
+        _mesh(gmsh, geometry)
+        mesh = _collect(gmsh, geometry, groups)
+    mesh.check()
+    return mesh
+
+
+@contextmanager
+def gmsh_model(name: str, what: str):
+    """A fresh gmsh model named ``name`` (gmsh initialised here unless a caller already did,
+    and finalised, or the model removed, on the way out); a gmsh failure becomes a
+    MeshError naming ``what``."""
     import gmsh
 
     owner = not gmsh.isInitialized()
     if owner:
         # interruptible=False: gmsh must not install a SIGINT handler (threads, pytest).
         gmsh.initialize(interruptible=False)
-    model = f"axisym-{id(geometry)}"
     try:
         gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.option.setNumber("Geometry.AutoCoherence", 0)  # keep the two contact lines apart
-        gmsh.model.add(model)
-        groups = _build_geometry(gmsh, geometry)
-        _mesh(gmsh, geometry)
-        mesh = _collect(gmsh, geometry, groups)
+        gmsh.model.add(name)
+        yield gmsh
     except MeshError:
         raise
     except Exception as exc:  # gmsh raises plain Exception with its own message
-        raise MeshError(f"gmsh could not mesh {geometry}: {exc}") from exc
+        raise MeshError(f"gmsh could not mesh {what}: {exc}") from exc
     finally:
         if owner:
             gmsh.finalize()
         else:
             gmsh.model.remove()
-    mesh.check()
-    return mesh
 
 
 def _build_geometry(gmsh, geo: AxisymmetricGeometry) -> dict:

@@ -19,6 +19,7 @@ import math
 import numpy as np
 
 from ._geometry import MeshError
+from ._gmsh import gmsh_model
 from ._mesh3d import WedgeMesh
 from ._wedge_geometry import WedgeGeometry
 
@@ -44,29 +45,13 @@ def build_wedge_mesh(geometry: WedgeGeometry, *, progress=None) -> WedgeMesh:
     MeshError
         If gmsh fails, a body gets no elements or the mesh fails its checks.
     """
-    import gmsh
-
-    owner = not gmsh.isInitialized()
-    if owner:
-        gmsh.initialize(interruptible=False)
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.model.add(f"wedge-{id(geometry)}")
+    with gmsh_model(f"wedge-{id(geometry)}", "the sector geometry") as gmsh:
         volumes, pairs = _build_geometry(gmsh, geometry)
         groups = _name_groups(gmsh, geometry, volumes)
         if progress:
             progress(f"gmsh: meshing {len(volumes)} volumes")
         _mesh(gmsh, geometry, pairs)
         mesh = _collect(gmsh, geometry, groups)
-    except MeshError:
-        raise
-    except Exception as exc:  # gmsh raises plain Exception with its own message
-        raise MeshError(f"gmsh could not mesh the sector geometry: {exc}") from exc
-    finally:
-        if owner:
-            gmsh.finalize()
-        else:
-            gmsh.model.remove()
     mesh.check()
     return mesh
 

@@ -10,7 +10,10 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["available_memory"]
+__all__ = ["MEMORY_SHARE", "available_memory", "memory_short"]
+
+# A solve may take this share of the memory available now; beyond it a model refuses it.
+MEMORY_SHARE = 0.8
 
 
 def available_memory() -> float:
@@ -27,3 +30,10 @@ def available_memory() -> float:
         return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
     except (ValueError, OSError, AttributeError):
         return float("inf")
+
+
+def memory_short(need_bytes: float) -> float | None:
+    """The bytes available when ``need_bytes`` exceeds :data:`MEMORY_SHARE` of them (the
+    solve must be refused), None when it fits."""
+    free = available_memory()
+    return free if need_bytes > MEMORY_SHARE * free else None

@@ -83,9 +83,9 @@ def _median(values) -> float:
 def _lattice_only(args, lattice) -> int:
     import json
 
-    from scenes import InputError, write_atomic
+    from scenes import InputError
 
-    from ..studies.calibrate import _finite, relattice
+    from ..studies.calibrate import relattice, write_document
     from ..studies.planner_tables import data_dir
 
     if lattice is None:
@@ -93,8 +93,7 @@ def _lattice_only(args, lattice) -> int:
     installed = data_dir() / "error_models.json"
     doc = relattice(json.loads(installed.read_text()), lattice, str(args.lattice))
     args.out.mkdir(parents=True, exist_ok=True)
-    write_atomic(args.out / "error_models.json",
-                 json.dumps(_finite(doc), indent=1, allow_nan=False))
+    write_document(args.out / "error_models.json", doc)
     done = [str(args.out / "error_models.json")]
     if args.install:
         done.append(str(shutil.copyfile(args.out / "error_models.json", installed)))

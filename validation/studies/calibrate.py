@@ -45,7 +45,7 @@ from .planner_tables import DATA_FORMAT, DEFAULT_POLICY, CostFit, ErrorTable
 from .tradeoff import reference_values
 
 __all__ = ["CALIBRATION_SEED", "CANDIDATES", "calibrate", "lattice_hooke_table", "load_lattice",
-           "relattice", "with_lattice", "write_data"]
+           "relattice", "with_lattice", "write_data", "write_document"]
 
 CALIBRATION_SEED = 20240901
 # The planner adds each table's local leave-one-out misfit, times this scale.
@@ -524,8 +524,13 @@ def write_data(doc: dict, out: Path) -> list:
     names = {"error_models.json": doc["errors"], "cost_models.json": doc["costs"],
              "calibration.json": doc["report"]}
     for name, content in names.items():
-        write_atomic(out / name, json.dumps(_finite(content), indent=1, allow_nan=False))
+        write_document(out / name, content)
     return list(names)
+
+
+def write_document(path: Path, content: dict) -> None:
+    """``content`` as JSON at ``path`` (atomic), non-finite numbers as null."""
+    write_atomic(Path(path), json.dumps(_finite(content), indent=1, allow_nan=False))
 
 
 def _finite(obj):

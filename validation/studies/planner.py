@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 
 from scenes import InputError, Scene, ScopeError
-from scenes.memory import available_memory
+from scenes.memory import MEMORY_SHARE, available_memory
 
 from ..ladders import QUANTITIES
 from .planner_features import features, regime
@@ -37,9 +37,6 @@ __all__ = ["DEFAULT_QUANTITIES", "DEFAULT_TOLERANCE", "check_request", "plan", "
 
 DEFAULT_TOLERANCE = 0.01
 DEFAULT_QUANTITIES = ("F_T", "sigma0")
-# Candidates whose predicted memory exceeds this share of the available memory are left out
-# (the models refuse such solves themselves: bem_solver.estimate_memory).
-MEMORY_SHARE = 0.8
 # "Closest" when nothing is within tolerance of the unavoidable error: candidates whose worst
 # error is within this factor of the smallest worst error count as equally close.
 CLOSEST_SLACK = 1.1
