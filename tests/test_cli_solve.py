@@ -146,3 +146,15 @@ def test_progress_lines_of_a_long_solve():
     with SolveProgress("y", stream=quiet, after_s=10.0) as progress:
         progress("meshing")
     assert quiet.getvalue() == ""
+
+
+def test_a_reference_curve_that_does_not_apply_is_left_out(tmp_path, capsys):
+    """A rigid lens has no rigid-punch curve: the report leaves it out, and the finished
+    solve still writes its result (it once exited 2 with 'rigid punch limit needs an elastic
+    lens' and no result.json)."""
+    code = main(["solve", "--model", "fem-axisym", "--scene", "single-pillar",
+                 "--set", "lens.rigid=true", "--json", "--out", str(tmp_path)])
+    assert code == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["converged"] and (tmp_path / "result.json").is_file()
+    assert (tmp_path / "pressure.png").read_bytes()[:4] == b"\x89PNG"

@@ -86,6 +86,10 @@ def test_grid_crosses_axes_and_zips_groups(tmp_path):
     ('scene = "hertz"\n[grid]\n"load.depth_um" = [1, 2]\n[[models]]\nname = "bem"',
      "load.depth_um"),
     ("scene = ", "not valid TOML"),
+    ('scene = "hertz"\nname = "../../etc/evil"\n[[models]]\nname = "bem"', "plain file name"),
+    ('scene = "hertz"\nname = ".."\n[[models]]\nname = "bem"', "plain file name"),
+    ('scene = "hertz"\n[grid]\n"pillars.surface_fraction" = [0.01, 0.01, 0.03]\n'
+     '[[models]]\nname = "bem"', "more than once"),
 ])
 def test_bad_specs_are_refused_with_the_reason(tmp_path, text, message, capsys):
     spec = _write(tmp_path, text)

@@ -213,23 +213,37 @@ def _pressure_map(fig, ax, result: ContactResult, scene) -> None:
                     if cut else ""), fontsize=9)
 
 
+def _limit(limit, scene):
+    """A closed-form limit of ``scene`` to draw as a reference, or None where it does not
+    apply (a rigid lens has no rigid-punch curve, say): a reference curve never turns a
+    finished solve into an error."""
+    from scenes import SceneError
+
+    try:
+        return limit(scene)
+    except SceneError:
+        return None
+
+
 def _closed_form_curves(ax, result: ContactResult, scene, r_end: float) -> float:
     """Hertz, the spring model (pillars) and the paper's Hertz-like curve; returns the
     larger centre pressure (Pa) of the model and of Hertz, to size the pressure axis."""
     from scenes import analytic
 
-    hz = analytic.hertz(scene)
+    hz = _limit(analytic.hertz, scene)
     r_line = np.linspace(0, r_end, 400)
-    ax.plot(r_line * UM, hz.pressure(r_line) * KPA, "b-", lw=1.2, label="Hertz")
-    if scene.pillars is not None:
+    if hz is not None:
+        ax.plot(r_line * UM, hz.pressure(r_line) * KPA, "b-", lw=1.2, label="Hertz")
+    spring = _limit(analytic.spring_model, scene)
+    if spring is not None:
         rp = np.linspace(0, 0.999 * scene.pillars.diameter_m / 2, 200)
-        ax.plot(rp * UM, analytic.spring_model(scene).pressure(rp) * KPA, "g-", lw=1.2,
+        ax.plot(rp * UM, spring.pressure(rp) * KPA, "g-", lw=1.2,
                 label="soft flat punch (spring model)")
     if result.contact_radius_m > 0:
         a, s0 = result.contact_radius_m, result.centre_pressure_Pa
         ax.plot(r_line * UM, s0 * np.sqrt(np.clip(1 - (r_line / a) ** 2, 0, None)) * KPA,
                 "r--", lw=1.2, label=r"Hertz-like ($\sigma_0$, $a$ of the model)")
-    return max(result.centre_pressure_Pa, hz.centre_pressure)
+    return max(result.centre_pressure_Pa, hz.centre_pressure if hz is not None else 0.0)
 
 
 def _element_profile(ax, result: ContactResult, scene) -> None:
@@ -238,7 +252,8 @@ def _element_profile(ax, result: ContactResult, scene) -> None:
     p = np.asarray(f["pressure_Pa"], dtype=float) * KPA
     from scenes import analytic
 
-    r_end = max(analytic.hertz(scene).contact_radius, result.contact_radius_m) * 1.05
+    hz = _limit(analytic.hertz, scene)
+    r_end = max(hz.contact_radius if hz is not None else 0.0, result.contact_radius_m) * 1.05
     # Room for the pillar-top edge peaks, or just above the Hertz dome on a flat substrate.
     top = _closed_form_curves(ax, result, scene, r_end) * (6 if scene.pillars else 1.3) * KPA
     if p.size <= SCATTER_MAX:
@@ -268,15 +283,17 @@ def _top_profile(ax, result: ContactResult, scene) -> None:
     if scene.pillars is not None:
         edge, where = scene.pillars.diameter_m / 2, "pillar top"
         rp = np.linspace(0, 0.999 * edge, 300)
-        ax.plot(rp * UM, analytic.spring_model(scene).pressure(rp) * KPA, "g-.", lw=1.2,
-                label="soft flat punch (spring model)")
-        ax.plot(rp * UM, analytic.rigid_punch(scene).pressure(rp) * KPA, "k--", lw=1.0,
-                label="rigid flat punch")
+        for limit, style, label in ((analytic.spring_model, "g-.", "soft flat punch (spring "
+                                     "model)"), (analytic.rigid_punch, "k--", "rigid flat punch")):
+            curve = _limit(limit, scene)
+            if curve is not None:
+                ax.plot(rp * UM, curve.pressure(rp) * KPA, style, lw=1.2, label=label)
     else:
-        hz = analytic.hertz(scene)
-        edge, where = 1.3 * hz.contact_radius, "contact"
-        rh = np.linspace(0, hz.contact_radius, 300)
-        ax.plot(rh * UM, hz.pressure(rh) * KPA, "b--", lw=1.2, label="Hertz", zorder=3)
+        hz = _limit(analytic.hertz, scene)
+        edge, where = 1.3 * (hz.contact_radius if hz else result.contact_radius_m), "contact"
+        if hz is not None:
+            rh = np.linspace(0, hz.contact_radius, 300)
+            ax.plot(rh * UM, hz.pressure(rh) * KPA, "b--", lw=1.2, label="Hertz", zorder=3)
     ax.plot(r * UM, p * KPA, "-", color="0.15", lw=2.0, label=f"{result.model}")
     inner = (r <= 0.8 * edge) & np.isfinite(p)
     top = max(float(p[inner].max()) if inner.any() else 0.0, result.centre_pressure_Pa)

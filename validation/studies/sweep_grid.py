@@ -74,6 +74,11 @@ class Axis:
             raise InputError("an axis needs at least one key")
         if len(set(lengths.values())) != 1:
             raise InputError(f"zipped keys need equal lengths; got {lengths}")
+        points = [repr(p) for p in zip(*self.values.values())]
+        repeated = sorted({p for p in points if points.count(p) > 1})
+        if repeated:
+            raise InputError(f"{', '.join(self.values)}: value(s) given more than once "
+                             f"({', '.join(repeated)}); each point of the grid is one case")
 
     def __len__(self) -> int:
         return len(next(iter(self.values.values())))
@@ -226,8 +231,12 @@ class Sweep:
             if not isinstance(m, dict) or "name" not in m:
                 raise InputError("sweep spec: every [[models]] table needs a name")
             models.append(ModelSpec(str(m["name"]), {k: v for k, v in m.items() if k != "name"}))
+        name = str(data.get("name", default_name))
+        if name in ("", ".", "..") or Path(name).name != name or "\\" in name or "\0" in name:
+            raise InputError(f"sweep spec: name = {name!r}: the table files' stem must be a plain "
+                             "file name (no folder, not '..'), so the table stays inside --out")
         return cls(scene, tuple(axes), tuple(models), tuple(overrides),
-                   str(data.get("name", default_name)), str(data.get("on_invalid", "error")))
+                   name, str(data.get("on_invalid", "error")))
 
 
 def _is_preset(name: str) -> bool:
