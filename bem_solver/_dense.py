@@ -14,7 +14,7 @@ import numpy as np
 
 from contact import ContactSolution, min_map_residual, solve_dense as solve_contact
 from scenes import ContactResult, PillarForce, Scene, ScopeError, analytic
-from scenes.memory import MEMORY_SHARE, memory_short
+from scenes.memory import memory_short
 
 from ._cells import VARIANTS, cell_pattern
 from ._discretise import Discretisation, discretise, overlap_radius
@@ -175,13 +175,12 @@ def _refuse_if_too_large(scene: Scene, P: int, cells: str, contact: str) -> None
     """ScopeError before any array is built when the solve would not fit in memory (or would
     exceed the dense limit by far)."""
     need = estimate_memory(scene, P, cells, contact)
-    free = memory_short(need["bytes"])
-    if free is not None:
+    short = memory_short(need["bytes"])
+    if short is not None:
         raise ScopeError(
             f"elements_per_diameter = {P}: this scene needs about {need['bytes'] / 2**30:.3g} "
             f"GiB ({need['elements'] + need['outer_elements']:.3g} elements, "
-            f"{need['unknowns']:.3g} unknowns), more than {MEMORY_SHARE:.0%} of the "
-            f"{free / 2**30:.3g} GiB available; use a smaller P, a smaller lens or "
+            f"{need['unknowns']:.3g} unknowns), {short}; use a smaller P, a smaller lens or "
             "indentation, or the FFT model (--model bem-fft)")
     if need["unknowns"] > 2 * MAX_UNKNOWNS:
         raise ScopeError(

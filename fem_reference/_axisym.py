@@ -25,7 +25,7 @@ import numpy as np
 from meshes import build_axisymmetric_mesh, flat_geometry, pillar_geometry
 from contact import solve_dense
 from scenes import ContactResult, InputError, PillarForce, Scene, ScopeError, analytic
-from scenes.memory import MEMORY_SHARE, memory_short
+from scenes.memory import memory_short
 
 from ._contact import contact_radius, mortar_matrix, solve_failures
 from ._fields import cell_stresses, write_vtu
@@ -76,12 +76,11 @@ def estimate_memory(scene: Scene, mesh_size: float = 1.0) -> dict:
 
 def _refuse_if_too_large(scene: Scene, mesh_size: float) -> None:
     need = estimate_memory(scene, mesh_size)
-    free = memory_short(need["bytes"])
-    if free is not None:
+    short = memory_short(need["bytes"])
+    if short is not None:
         raise ScopeError(
             f"mesh_size = {mesh_size:g}: this mesh needs about {need['bytes'] / 2**30:.3g} GiB "
-            f"(~{need['dofs']:.3g} unknowns), more than {MEMORY_SHARE:.0%} of the "
-            f"{free / 2**30:.3g} GiB available; use a larger mesh_size")
+            f"(~{need['dofs']:.3g} unknowns), {short}; use a larger mesh_size")
 
 
 def solve_axisymmetric(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None,

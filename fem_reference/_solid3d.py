@@ -34,7 +34,7 @@ from meshes import WedgeGeometry, build_wedge_mesh, sector_pillars
 from meshes import SECTORS
 from scenes import ContactResult, InputError, PillarForce, Scene, ScopeError, analytic
 from scenes.lattice import lattice_indices
-from scenes.memory import MEMORY_SHARE, memory_short
+from scenes.memory import memory_short
 
 from ._contact import contact_radius, solve_failures
 from ._contact3d import contact_area_share, contact_faces, line_profile, preconditioner
@@ -106,13 +106,12 @@ def _refuse_if_too_large(scene: Scene, mesh_size: float, sector_angle: float,
                          reach_factor: float) -> None:
     need = estimate_memory_3d(scene, mesh_size, sector_angle=sector_angle,
                               reach_factor=reach_factor)
-    free = memory_short(need["bytes"])
-    if free is not None:
+    short = memory_short(need["bytes"])
+    if short is not None:
         raise ScopeError(
             f"mesh_size = {mesh_size:g}: fem-3d would mesh {need['pillars']} pillars in its "
             f"sector (~{need['dofs']:.3g} unknowns, about {need['bytes'] / 2**30:.3g} GiB), "
-            f"more than {MEMORY_SHARE:.0%} of the {free / 2**30:.3g} GiB available; use a "
-            "larger mesh_size, or the BEM for lattices this wide")
+            f"{short}; use a larger mesh_size, or the BEM for lattices this wide")
 
 
 def solve_fem3d(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None, progress=None,

@@ -1,0 +1,49 @@
+"""The memory pre-check obeys the process's own limit, not only the machine's free memory."""
+
+from __future__ import annotations
+
+import resource
+import subprocess
+import sys
+
+import pytest
+
+from scenes.memory import MEMORY_SHARE, memory_limit, memory_short
+
+LIMIT = 2_000_000 * 1024  # ulimit -v 2000000 (KiB), as a user would set it
+
+
+def _limited():
+    resource.setrlimit(resource.RLIMIT_AS, (LIMIT, LIMIT))
+
+
+def _run(code: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          preexec_fn=_limited, timeout=120)
+
+
+def test_the_address_space_limit_binds_under_ulimit():
+    out = _run("from scenes.memory import memory_limit; b, w = memory_limit(); "
+               "print(b); print(w)")
+    assert out.returncode == 0, out.stderr
+    free, what = out.stdout.splitlines()
+    assert "ulimit -v" in what
+    assert 0 < float(free) < LIMIT
+
+
+def test_a_solve_beyond_the_limit_is_refused_before_it_starts():
+    """paper-fig3-dense at P = 27 needs ~2.8 GiB: under ulimit -v 2000000 it once passed the
+    check (the machine had 20 GiB free) and died out of memory after 16 s."""
+    out = _run("import sys; from validation.cli import main; sys.exit(main(['solve', "
+               "'--scene', 'paper-fig3-dense', '--elements-per-diameter', '27']))")
+    assert out.returncode == 2, out.stderr
+    assert "ulimit -v" in out.stderr and "Traceback" not in out.stderr
+
+
+def test_unlimited_process_quotes_the_machine():
+    free, what = memory_limit()
+    if resource.getrlimit(resource.RLIMIT_AS)[0] != resource.RLIM_INFINITY:
+        pytest.skip("this test process runs under an address-space limit")
+    assert free > 0 and what
+    assert memory_short(0.5 * MEMORY_SHARE * free) is None
+    assert what in memory_short(2.0 * free)
