@@ -38,7 +38,7 @@ __all__ = ["COMMANDS", "DEBUG_ENV", "EXIT_INTERNAL_ERROR", "UserError",
 COMMANDS = ("validation.cli.solve", "validation.cli.compare", "validation.cli.converge",
             "validation.cli.gecit", "validation.cli.tradeoff", "validation.cli.sweep",
             "validation.cli.figures", "validation.cli.lattice", "validation.cli.plan",
-            "validation.cli.calibrate", "validation.cli.extremes")
+            "validation.cli.calibrate", "validation.cli.extremes", "validation.cli.check")
 
 # Kept for commands written against it: an error in what the user asked for.
 UserError = InputError

@@ -1,0 +1,54 @@
+"""``pillar-xval check SPEC.toml``: tolerance checks for CI (see
+:mod:`validation.studies.check`).  Exit 0 when every check passes, 1 when one fails, 2 on a
+bad spec."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+from scenes import write_atomic
+
+from ._args import (add_engine_arguments, add_output_arguments, check_out, engine_from_args,
+                    print_json)
+
+
+def add_parser(sub) -> None:
+    """Register ``check`` on the CLI's subparsers."""
+    p = sub.add_parser(
+        "check", help="tolerance checks from a spec file, for CI (table, JSON, JUnit XML)",
+        description="Run the [[check]] tables of SPEC (a model on a scene against another "
+                    "model or a closed form, per quantity, within rtol and its source) on the "
+                    "study engine, print a table and exit 1 if any check fails.")
+    p.add_argument("spec", type=Path, metavar="SPEC.toml", help="the checks (TOML)")
+    add_output_arguments(p, "cases and check.json (default out/check/<spec name>)")
+    p.add_argument("--junit-xml", type=Path, default=None, metavar="FILE",
+                   help="also write a JUnit XML report (one test case per check)")
+    add_engine_arguments(p, "recompute cached cases")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from ..studies.check import junit_xml, load_spec, run_checks, table_text
+
+    specs = load_spec(args.spec)
+    out = check_out(args.out or Path("out") / "check" / args.spec.stem)
+    if args.junit_xml is not None:
+        check_out(args.junit_xml.parent, "--junit-xml's folder")
+    start = time.perf_counter()
+    with engine_from_args(args, "check") as engine:
+        rows = run_checks(specs, out / "cases", engine)
+    seconds = time.perf_counter() - start
+    failed = [r for r in rows if not r["passed"]]
+    doc = {"spec": str(args.spec), "checks": rows, "passed": len(rows) - len(failed),
+           "failed": len(failed)}
+    write_atomic(out / "check.json", json.dumps(doc, indent=2, allow_nan=False))
+    if args.junit_xml is not None:
+        write_atomic(args.junit_xml, junit_xml(rows, args.spec.stem, seconds))
+    if args.json:
+        print_json(doc)
+    else:
+        print(table_text(rows))
+        print(f"{len(rows) - len(failed)} passed, {len(failed)} failed")
+    return 1 if failed else 0
