@@ -136,6 +136,9 @@ def _doubled(text):
     (_set(["case"], 5), "malformed"),
     (_set(["files"], {"fields.vtu": 3}), "companion"),
     (lambda t: "[1, 2]", "not a case record"),
+    (_set(["result", "centre_pressure_Pa"], lambda p: 1.1 * p), "digest"),
+    (_set(["result", "contact_radius_m"], lambda a: 3 * a), "digest"),
+    (_set(["timing", "wall_time_s"], lambda t: t + 1.0), "digest"),
 ])
 def test_corrupt_record_is_recomputed(tmp_path, corrupt, why, capsys):
     case = _bem_case()

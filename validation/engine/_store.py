@@ -8,8 +8,8 @@ Layout of a folder::
     .locks/<key>.lock      held (fcntl.flock) while a process computes the case
     journal.jsonl          one line per start, finish or failure: who computed what
 
-A record is trusted only if it passes :meth:`CaseStore.load`'s checks; anything else is
-recomputed.  Records and companions are written atomically (companions first, the record
+A record is trusted only if it passes :meth:`CaseStore.load`'s checks, the last of which
+is the SHA-256 of its own content; anything else is recomputed.  Records and companions are written atomically (companions first, the record
 last, naming their sizes and SHA-256), so the presence of a valid record means the whole case
 is on disk.  Locks are advisory ``flock`` locks, which the kernel releases when their holder
 dies, even by ``kill -9``: no stale lock survives a crash.
@@ -29,7 +29,8 @@ from scenes import ContactResult, ToolError, write_atomic
 
 from ._case import Case, accepts_vtu, code_version
 
-RECORD_FORMAT = 1
+# 2: the record carries the SHA-256 of its own content (``digest``).
+RECORD_FORMAT = 2
 # Pillar forces are sums over the same cells as the total force: they agree to round-off
 # (measured <= 1e-15 relative on the dense BEM); a doubled or lost force is O(1).
 RTOL_FORCE_SUM = 1e-6
@@ -70,6 +71,14 @@ def _all_finite(obj, path: str = "record") -> str:
             if bad:
                 return bad
     return ""
+
+
+def _digest(record: dict) -> str:
+    """SHA-256 of the record's canonical JSON without its ``digest``: any edit of a value
+    (a pressure scaled by 1.1, a radius by 3) changes it."""
+    body = {k: v for k, v in record.items() if k != "digest"}
+    text = json.dumps(body, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    return hashlib.sha256(text.encode()).hexdigest()
 
 
 def _sha256(path: Path) -> str:
@@ -148,6 +157,8 @@ class CaseStore:
             reason = self._check_companion(case, name, meta)
             if reason:
                 return reason
+        if record.get("digest") != _digest(record):
+            return "content changed after it was written (its digest does not match)"
         return ""
 
     def _check_companion(self, case: Case, name: str, meta: dict) -> str:
@@ -193,6 +204,7 @@ class CaseStore:
                   "result": payload["result"], "timing": payload["timing"], "files": files,
                   "worker": payload.get("worker", {}), "finished": time.time()}
         try:
+            record["digest"] = _digest(record)
             text = json.dumps(record, indent=1, allow_nan=False)
         except ValueError as exc:
             raise ToolError(f"case {case.key}: result holds a non-finite number ({exc})") from None
