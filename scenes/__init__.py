@@ -8,7 +8,7 @@ Units: SI inside the code (m, Pa, N).  Scene files state their units in the key 
 
 from . import analytic, lattice
 from ._checks import LENGTH_RANGE_M, MODULUS_RANGE_PA, PHI_CLOSE_PACKING, POISSON_RANGE
-from ._io import load_scene, preset_names, scene_dict, scene_to_toml
+from ._io import load_scene, preset_names, scene_dict, scene_loader, scene_to_toml
 from ._overrides import apply_overrides
 from ._tables import scene_from_dict
 from ._errors import (EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_NOT_CONVERGED, EXIT_OK,
@@ -44,6 +44,7 @@ __all__ = [
     "preset_names",
     "scene_dict",
     "scene_from_dict",
+    "scene_loader",
     "scene_to_toml",
     "write_atomic",
 ]

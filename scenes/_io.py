@@ -16,6 +16,8 @@ A file without a ``[pillars]`` table is a flat substrate (the Hertz problem).  A
 
 from __future__ import annotations
 
+import copy
+import functools
 import json
 import math
 import os
@@ -32,8 +34,23 @@ MAX_FILE_BYTES = 1 << 20
 
 
 def preset_names() -> list[str]:
+    return list(_preset_names())
+
+
+@functools.lru_cache(maxsize=1)
+def _preset_names() -> tuple[str, ...]:
     folder = resources.files("scenes") / "presets"
-    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
+    return tuple(sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml")))
+
+
+@functools.lru_cache(maxsize=None)
+def _preset_table(name: str) -> dict:
+    """A preset's parsed table, read once: presets are package data (callers copy it)."""
+    origin = f"preset {name}"
+    data = _parse_toml((resources.files("scenes") / "presets" / f"{name}.toml").read_bytes(),
+                       origin)
+    data.setdefault("name", name)
+    return data
 
 
 def _parse_toml(data: bytes, origin: str) -> dict:
@@ -58,12 +75,8 @@ def _read(source) -> tuple[dict, str]:
     if not isinstance(source, (str, os.PathLike)):
         raise SceneError(f"scene = {source!r}: expected a preset name or a file path")
     name = os.fspath(source)
-    if isinstance(source, str) and name in preset_names():
-        origin = f"preset {name}"
-        data = _parse_toml((resources.files("scenes") / "presets" / f"{name}.toml")
-                           .read_bytes(), origin)
-        data.setdefault("name", name)
-        return data, origin
+    if isinstance(source, str) and name in _preset_names():
+        return copy.deepcopy(_preset_table(name)), f"preset {name}"
     origin = name if name.isprintable() else repr(name)
     path = Path(name)
     try:
@@ -96,9 +109,19 @@ def load_scene(source, overrides: list[str] | tuple[str, ...] = ()) -> Scene:
         One line naming the file or preset (or the ``--set``), the key as written, its value
         and the allowed range.
     """
+    return scene_loader(source)(overrides)
+
+
+def scene_loader(source):
+    """``load(overrides) -> Scene`` for a preset or file read once (a sweep loads thousands
+    of points of one scene); errors as :func:`load_scene`'s."""
     data, origin = _read(source)
-    data, provenance = apply_overrides_traced(data, overrides)
-    return scene_from_dict(data, origin, provenance)
+
+    def load(overrides: list[str] | tuple[str, ...] = ()) -> Scene:
+        table, provenance = apply_overrides_traced(data, overrides)
+        return scene_from_dict(table, origin, provenance)
+
+    return load
 
 
 def _in_file_units(si: float, per_si: float) -> str:

@@ -10,7 +10,7 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from scenes import InputError, Scene, SceneError, load_scene
+from scenes import InputError, Scene, SceneError, scene_loader
 
 from ..engine import Case
 from ..options import check_option
@@ -178,10 +178,11 @@ class Sweep:
                 for k, v in opts.items():
                     check_option(k, v, where=f"[[models]] {m.name}: {k} =")
         out, skipped = [], []
+        load = scene_loader(self.scene)  # the scene file is read once, not once per point
         for point in self.points():
             sets = [*self.overrides, *(_override(k, v) for k, v in point.items())]
             try:
-                scene = load_scene(self.scene, sets)
+                scene = load(sets)
             except SceneError as exc:
                 if self.on_invalid == "skip":
                     skipped.append((point, str(exc)))
