@@ -29,7 +29,6 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    from ..engine import default_workers
     from ..report import clear_outputs
     from ..studies.sweep import (Sweep, estimate_cost, run_sweep_cases, table_rows,
                                  write_table)
@@ -41,7 +40,7 @@ def run(args) -> int:
     for point, why in skipped:
         say(f"skipped {point}: {why}")
     if args.dry_run:
-        workers = 1 if args.executor == "serial" else (args.workers or default_workers())
+        workers = engine_from_args(args).parallel  # the options checked as a run checks them
         cache = out / "cases"
         cost = estimate_cost(cases, cache if cache.is_dir() else None, workers)
         if args.json:

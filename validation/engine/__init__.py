@@ -55,7 +55,7 @@ __all__ = [
 def add_engine_arguments(parser, fresh_help: str = "recompute cached cases") -> None:
     """The engine options every study command takes."""
     g = parser.add_argument_group("engine")
-    g.add_argument("--executor", choices=EXECUTORS, default="pool",
+    g.add_argument("--executor", choices=EXECUTORS, default=None,
                    help="where cases run: serial (this process), pool (local processes, the "
                         "default) or dask (--scheduler ADDRESS, or a local cluster)")
     g.add_argument("--workers", type=int, default=None, metavar="N",

@@ -13,6 +13,7 @@ compute each case once between them, and a killed process leaves nothing half-wr
 from __future__ import annotations
 
 import dataclasses
+import os
 import time
 from collections import deque
 from concurrent.futures.process import BrokenProcessPool
@@ -22,7 +23,7 @@ from pathlib import Path
 from scenes import ContactResult, InputError, ToolError
 
 from ._case import Case, compute_case
-from ._executors import EXECUTORS, make_executor
+from ._executors import EXECUTORS, default_workers, make_executor
 from ._progress import Progress
 from ._store import CaseStore
 
@@ -68,6 +69,32 @@ class Outcome:
         return self.result
 
 
+def max_workers() -> int:
+    """Local processes beyond 4 per core only slow a study down (and may exhaust memory)."""
+    return 4 * (os.cpu_count() or 1)
+
+
+def _check_executor(executor: str | None, workers: int | None, scheduler: str | None) -> None:
+    """Refuse executor options that contradict each other, instead of one silently winning."""
+    if executor is not None and executor not in EXECUTORS:
+        raise InputError(f"--executor {executor!r}: allowed: {', '.join(EXECUTORS)}")
+    if scheduler and executor not in (None, "dask"):
+        raise InputError(f"--scheduler {scheduler}: sends cases to a Dask cluster, but "
+                         f"--executor {executor} would run them here; drop one of the two")
+    if workers is None:
+        return
+    if isinstance(workers, bool) or not isinstance(workers, int) or \
+            not 1 <= workers <= max_workers():
+        raise InputError(f"--workers {workers!r}: allowed range is [1, {max_workers()}] "
+                         f"(4 per core on this machine)")
+    if executor == "serial":
+        raise InputError(f"--workers {workers}: --executor serial runs every case in this "
+                         "process; workers are for --executor pool or dask")
+    if scheduler:
+        raise InputError(f"--workers {workers}: the Dask scheduler {scheduler} has its own "
+                         "workers; start more of them there")
+
+
 class Engine:
     """Runs cases (see :meth:`run`) on the executor the user chose.
 
@@ -97,15 +124,12 @@ class Engine:
     def __init__(self, executor: str = "serial", workers: int | None = None,
                  scheduler: str | None = None, fresh: bool = False, label: str = "",
                  quiet: bool = False, bar: bool | None = None):
-        self.executor_name = "dask" if scheduler else executor
+        _check_executor(executor, workers, scheduler)
+        self.executor_name = executor or ("dask" if scheduler else "pool")
         self.workers, self.scheduler = workers, scheduler
         self.fresh, self.label, self.quiet, self.bar = fresh, label, quiet, bar
         self._executor = None
         self._computed: set[str] = set()
-        if self.executor_name not in EXECUTORS:
-            raise InputError(f"--executor {executor!r}: allowed: {', '.join(EXECUTORS)}")
-        if workers is not None and workers < 1:
-            raise InputError(f"--workers {workers}: must be >= 1")
 
     # --- life cycle ---
     def __enter__(self) -> "Engine":
@@ -124,6 +148,13 @@ class Engine:
         if self._executor is None:
             self._executor = make_executor(self.executor_name, self.workers, self.scheduler)
         return self._executor
+
+    @property
+    def parallel(self) -> int:
+        """How many cases run at once here (a remote scheduler's own workers: unknown, 1)."""
+        if self.executor_name == "serial" or self.scheduler:
+            return 1
+        return self.workers or default_workers()
 
     def describe(self) -> str:
         if self.executor_name == "dask":
