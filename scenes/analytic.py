@@ -17,7 +17,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import brentq
 
 from ._scene import PHI_CLOSE_PACKING, Scene, SceneError
 
@@ -171,6 +170,8 @@ def second_pillar_radius(scene: Scene) -> float:
     if len(neg) == 0:
         return lo  # the gap stays open down to r = d: no pitch brings a second pillar in
     k = neg[0]
+    from scipy.optimize import brentq  # here, not at import: scipy.optimize costs 0.5 s
+
     return brentq(gap, radii[k], radii[k - 1], xtol=1e-15 * R, rtol=1e-14)
 
 
