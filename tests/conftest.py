@@ -6,7 +6,7 @@ import types
 import pytest
 
 import fakes as fake_models
-from validation import models
+from validation.registry import models
 from validation.cli import main
 
 

@@ -227,7 +227,7 @@ def test_real_fft_not_converged_is_stamped(tmp_path, cli):
     """The real FFT model, stopped early through the Python API, and its figure."""
     from scenes import load_scene
     from bem_solver import solve_fft
-    from validation.report import pressure_figure
+    from validation.output.report import pressure_figure
 
     result = solve_fft(load_scene("paper-fig3-sparse"), 8, max_iterations=2)
     assert not result.converged and "no convergence" in result.diagnostics["message"]
@@ -300,7 +300,7 @@ def _override(rng: random.Random) -> str:
 @pytest.fixture
 def fake_fft(fakes, monkeypatch):
     """The FFT model faked too (its real solves at the fuzz's resolutions cost minutes)."""
-    from validation import models
+    from validation.registry import models
 
     module = sys.modules["xval_fakes"]
     module.fake_fft = lambda scene, cells_per_diameter=32: module.fake_bem(

@@ -9,7 +9,7 @@ import pytest
 from scenes import analytic, load_scene
 from validation.cli import main
 from validation.engine import Case, Engine, case_key
-from validation.ladders import LADDERS
+from validation.registry.ladders import LADDERS
 from validation.studies.converge import converge_study
 
 def test_ladders_refine_as_documented():
@@ -148,7 +148,7 @@ def test_convergence_figure_of_a_level_that_missed_is_stamped(fakes, tmp_path, m
     import sys
 
     from fakes import fake_bem
-    from validation import plots
+    from validation.output import plots
 
     def stuck_at_23(scene, elements_per_diameter=11, **options):
         result = fake_bem(scene, elements_per_diameter, **options)

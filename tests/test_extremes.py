@@ -9,8 +9,8 @@ import pytest
 
 from scenes import ContactResult, PillarForce, ScopeError, load_scene
 from validation.engine import Case, Outcome
-from validation.studies.extremes import corner_scenes, judge, run_extremes
-from validation.studies.extremes_report import STATUSES, counts, summary_text, write_outputs
+from validation.studies.extremes.run import corner_scenes, judge, run_extremes
+from validation.studies.extremes.report import STATUSES, counts, summary_text, write_outputs
 
 
 def _result(F=1e-6, pressures=(2.0, 1.0, 0.0), pen=0.0, converged=True, forces=None):
@@ -98,7 +98,7 @@ def test_fast_subset_of_the_extremes(tmp_path):
 
 
 def test_fem3d_is_skipped_for_cost_or_refused_on_wide_lattices():
-    from validation.studies.extremes import FEM3D_MAX_DOFS, MODELS, skip_reason
+    from validation.studies.extremes.run import FEM3D_MAX_DOFS, MODELS, skip_reason
 
     scenes = {c["label"]: c["scene"] for c in corner_scenes()}
     opts = MODELS["fem-3d"]

@@ -325,7 +325,7 @@ FORMAL_ORDER = 2.0
 def capped_gci(h, f) -> float:
     """Uncertainty (unit of f) of the finest of three solutions: the GCI with the observed
     order capped at FORMAL_ORDER, or the conservative fallback when no order is observed."""
-    from validation.verification import FS_THREE_GRIDS, gci_three, gci_two
+    from validation.analysis.verification import FS_THREE_GRIDS, gci_three, gci_two
 
     g = gci_three(h, f)
     if g.order is None:
@@ -340,7 +340,7 @@ def test_rigid_pillars_against_dense_bem():
     their Richardson estimates of F_T must agree within the two GCIs (plus the FEM block's
     truncation estimate)."""
     from bem_solver import solve_dense
-    from validation.verification import gci_three
+    from validation.analysis.verification import gci_three
 
     scene = load_scene("paper-fig3-sparse", [*SMALL_LATTICE[:2], "pillars.rigid=true",
                                              "substrate.rigid=true"])
@@ -412,7 +412,7 @@ def test_block_truncation_is_measured():
 
 @pytest.mark.slow
 def test_render_of_the_twelve_images(tmp_path):
-    from validation.render3d import render_sector
+    from validation.output.render3d import render_sector
 
     scene = load_scene("paper-fig3-sparse", SMALL_LATTICE)
     solve_fem3d(scene, 2.83, vtu_path=tmp_path / "sector.vtu")

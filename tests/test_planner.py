@@ -14,11 +14,11 @@ from bem_solver import discretise, estimate_memory, solve_dense
 from scenes import InputError, ScopeError, analytic, load_scene
 from scenes.closed_form_models import solve_hertz, solve_spring
 from validation.cli import main
-from validation.studies.planner import plan, plan_text
-from validation.studies.planner_features import features, regime
-from validation.studies.planner_tables import CostFit, ErrorTable, PlannerData, load_data
+from validation.planner.plan import plan, plan_text
+from validation.planner.features import features, regime
+from validation.planner.tables import CostFit, ErrorTable, PlannerData, load_data
 from validation.studies.tradeoff import reference_values
-from validation.verification import gci_three
+from validation.analysis.verification import gci_three
 
 # The dense BEM converges at order ~1 (tests/test_bem_limits.py): Richardson over
 # P = 21, 41, 81 leaves ~0.1 % on a single pillar, ~0.01 % on a flat scene.
@@ -315,7 +315,7 @@ def test_planned_spring_is_within_tolerance_of_the_elastic_pillar():
 
     scene = load_scene("single-pillar", ["pillars.rigid=true"])
     p = plan(scene)
-    from validation.models import run_model
+    from validation.registry.models import run_model
 
     planned = run_model(p["choice"]["model"], scene, **p["choice"]["options"])
     fem = solve_axisymmetric(scene, 1.0)
@@ -348,7 +348,7 @@ SHARE_ACCURATE = 0.95
 @pytest.mark.slow
 def test_planner_validation(tmp_path):
     from validation.engine import Engine
-    from validation.studies.planner_validation import summary_text, validate_planner
+    from validation.studies.calibrate.validate import summary_text, validate_planner
 
     with Engine("pool", workers=2, quiet=True) as engine:
         doc = validate_planner(tmp_path, engine)

@@ -8,7 +8,7 @@ import json
 import pytest
 
 from scenes import load_scene
-from validation.ladders import LADDERS, Ladder
+from validation.registry.ladders import LADDERS, Ladder
 from validation.studies.tradeoff import reference_values, tradeoff, write_outputs
 
 
@@ -48,7 +48,7 @@ def test_reference_falls_back_to_the_most_expensive_solution():
 
 
 def test_every_registered_ladder_names_a_model():
-    from validation.models import MODELS
+    from validation.registry.models import MODELS
 
     for name, ladder in LADDERS.items():
         assert name in MODELS
@@ -100,7 +100,7 @@ def refusing_model(scene, **kwargs):
 
 
 def test_a_model_that_refuses_the_scene_is_skipped(monkeypatch):
-    import validation.models as models
+    import validation.registry.models as models
 
     monkeypatch.setitem(models.MODELS, "refuser", (__name__, "refusing_model", ("n",)))
     ladders = {"refuser": _ladder("n", (1, 2)),
@@ -112,7 +112,7 @@ def test_a_model_that_refuses_the_scene_is_skipped(monkeypatch):
 
 
 def test_pareto_front_is_the_set_nothing_beats():
-    from validation.plots import pareto_front
+    from validation.output.plots import pareto_front
 
     points = [(1.0, 0.1), (2.0, 0.2), (2.0, 0.05), (3.0, 0.05), (4.0, 0.01), (0.5, 0.5)]
     # (2, 0.2) is beaten by (1, 0.1); (3, 0.05) by (2, 0.05); the rest are each best so far
@@ -123,7 +123,7 @@ def test_tradeoff_figure_marks_the_front_labels_rungs_and_crosses_misses(tmp_pat
                                                                           monkeypatch):
     import matplotlib.pyplot as plt
 
-    from validation import plots
+    from validation.output import plots
 
     rows = [{"model": "bem", "option": "elements_per_diameter", "level": n, "h": 1 / n,
              "wall_time_s": 0.01 * n, "converged": n != 9, "err_F_T": 1.0 / n**2,

@@ -107,7 +107,7 @@ def _table(rows: list, reference: float | None) -> str:
 
 
 def main(argv=None) -> int:
-    from validation.verification import gci_three, gci_two
+    from validation.analysis.verification import gci_three, gci_two
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", required=True, type=Path)

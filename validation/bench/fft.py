@@ -281,7 +281,7 @@ def _plot(path: Path, scaling: list, side: list) -> None:
     for ax in (ax_t, ax_m):
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
-    from validation.report import save_figure
+    from validation.output.report import save_figure
 
     save_figure(fig, path, 120)
 

@@ -39,7 +39,7 @@ from scenes import (EXIT_BAD_INPUT, EXIT_NOT_CONVERGED, EXIT_TOOL_FAILURE, Input
                     preset_names)
 
 from ..engine import add_engine_arguments, engine_from_args
-from ..options import MODEL_OPTIONS, family_options, flag
+from ..registry.options import MODEL_OPTIONS, family_options, flag
 
 __all__ = [
     "DEBUG_ENV", "EXIT_INTERNAL_ERROR", "Parser", "Renamed", "add_choice_arguments",
@@ -213,7 +213,7 @@ def refuse_inapplicable(args, models, dests=None) -> None:
     ``dests`` are the argparse destinations to check (default: every option of
     :data:`validation.options.MODEL_OPTIONS`); an option counts as given when it is not None.
     The registry :data:`validation.models.MODELS` says which options each model takes."""
-    from ..models import MODELS
+    from ..registry.models import MODELS
 
     dests = dests or tuple(MODEL_OPTIONS)
     takes = {m: set(MODELS[m][2]) for m in models if m in MODELS}

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from scenes import load_scene
 
-from ..ladders import LADDERS
+from ..registry.ladders import LADDERS
 from ._args import (Renamed, add_engine_arguments, add_levels_argument, add_model_argument,
                     add_output_arguments, add_refinement_arguments, add_scene_arguments,
                     check_out, engine_from_args, not_converged, print_json,
@@ -38,7 +38,7 @@ def run(args) -> int:
     """Study, write the report folder, print the table; exit 1 if a level did not converge."""
     from ..studies.converge import (OUTPUTS, check_ladder, converge_study, study_table,
                                     write_report)
-    from ..report import clear_outputs
+    from ..output.report import clear_outputs
 
     refuse_inapplicable(args, [args.model])
     option = LADDERS[args.model].option

@@ -34,7 +34,7 @@ def run(args) -> int:
     from scenes import InputError
 
     from ..studies.extremes import MODELS, run_extremes
-    from ..studies.extremes_report import counts, summary_text, write_outputs
+    from ..studies.extremes.report import counts, summary_text, write_outputs
 
     models = [m.strip() for m in args.models.split(",") if m.strip()]
     bad = [m for m in models if m not in MODELS]

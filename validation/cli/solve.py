@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from scenes import load_scene
 
-from ..models import model_names
+from ..registry.models import model_names
 from ._args import (add_choice_arguments, add_model_argument, add_output_arguments,
                     add_refinement_arguments, add_scene_arguments, check_out, not_converged,
                     print_json, refuse_inapplicable)
@@ -33,7 +33,7 @@ def add_parser(sub) -> None:
 
 def model_options(args) -> dict:
     """The model options the user gave (None: the model's default)."""
-    from ..options import MODEL_OPTIONS
+    from ..registry.options import MODEL_OPTIONS
 
     return {k: getattr(args, k) for k in MODEL_OPTIONS if getattr(args, k, None) is not None}
 
@@ -43,14 +43,14 @@ def run(args) -> int:
     scene = load_scene(args.scene, args.overrides)
     options = model_options(args)
     if args.out is not None:
-        from ..report import clear_outputs
+        from ..output.report import clear_outputs
 
         check_out(args.out)
         clear_outputs(args.out, OUTPUTS)
         options["vtu_path"] = args.out / "fields.vtu"  # models with volume fields write them
     result = _solve(args.model, scene, options)
     if args.out is not None:
-        from ..report import write_solve_report
+        from ..output.report import write_solve_report
 
         write_solve_report(result, args.out)
     if args.json:
@@ -68,7 +68,7 @@ def run(args) -> int:
 def _solve(model: str, scene, options: dict):
     """Run the model, with progress lines inside a long solve when the model reports them."""
     from ..engine import SolveProgress, accepts_progress, accepts_vtu, solver_of
-    from ..models import MODELS
+    from ..registry.models import MODELS
 
     accepted = MODELS[model][2]
     kwargs = {k: v for k, v in options.items() if k in accepted}

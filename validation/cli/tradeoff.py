@@ -7,7 +7,7 @@ from pathlib import Path
 
 from scenes import load_scene
 
-from ..ladders import LADDERS
+from ..registry.ladders import LADDERS
 from ._args import (add_engine_arguments, add_models_argument, add_output_arguments,
                     add_refinement_arguments, add_scene_arguments, check_out,
                     engine_from_args, integer, not_converged, number, print_json,
@@ -19,7 +19,7 @@ EXPENSIVE = ("fem-3d",)
 
 
 def _models_with_ladders() -> list[str]:
-    from ..models import MODELS
+    from ..registry.models import MODELS
 
     return [m for m in LADDERS if m in MODELS]
 
@@ -61,7 +61,7 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     from ..studies.tradeoff import OUTPUTS, check_options, pareto_table, tradeoff, write_outputs
-    from ..report import clear_outputs
+    from ..output.report import clear_outputs
 
     names = args.models or _default_models()
     refuse_inapplicable(args, names)

@@ -134,7 +134,7 @@ def solver_of(model: str):
     """The function of a registered model."""
     from scenes import InputError
 
-    from ..models import MODELS, model_names
+    from ..registry.models import MODELS, model_names
 
     if model not in MODELS:
         raise InputError(f"--model {model!r}: unknown; available: {', '.join(model_names())}")
@@ -251,7 +251,7 @@ def compute_case(spec: dict) -> dict:
     if mine != spec["code_version"]:
         raise ToolError(f"worker {socket.gethostname()} runs code {mine}, the study expects "
                         f"{spec['code_version']}: install the same toolkit on every worker")
-    from ..models import MODELS
+    from ..registry.models import MODELS
 
     scene = Scene.from_dict(spec["scene"])
     solver = solver_of(spec["model"])

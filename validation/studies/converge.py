@@ -11,9 +11,9 @@ from pathlib import Path
 from scenes import InputError, Scene, write_atomic
 
 from ..engine import Case, Engine, Outcome
-from ..ladders import QUANTITIES, ladder_for, quantity_values
-from ..options import MODEL_OPTIONS, check_option, flag
-from ..verification import study
+from ..registry.ladders import QUANTITIES, ladder_for, quantity_values
+from ..registry.options import MODEL_OPTIONS, check_option, flag
+from ..analysis.verification import study
 
 # The report folder's files, report (converge.json) last: its presence means a whole report.
 OUTPUTS = ("levels.csv", "gci.csv", "convergence.png", "converge.json")
@@ -148,7 +148,7 @@ def gci_csv(data: dict) -> str:
 
 def write_report(data: dict, out: Path) -> list[str]:
     """:data:`OUTPUTS` in ``out`` (converge.json last); returns their names."""
-    from ..plots import plot_convergence
+    from ..output.plots import plot_convergence
 
     doc = {k: v for k, v in data.items() if k != "results"}
     write_atomic(out / "levels.csv", levels_csv(doc))

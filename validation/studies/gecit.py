@@ -28,9 +28,9 @@ from pathlib import Path
 from scenes import InputError, load_scene, write_atomic
 
 from ..engine import Case, Engine
-from ..ladders import ladder_for
-from ..options import check_option
-from ..profiles import EDGE_SKIP, EDGE_WINDOW, edge_exponent, outer_load_fraction, plateau_ratio
+from ..registry.ladders import ladder_for
+from ..registry.options import check_option
+from ..analysis.profiles import EDGE_SKIP, EDGE_WINDOW, edge_exponent, outer_load_fraction, plateau_ratio
 from .converge import check_ladder, study_levels
 
 # The paper's convention (Table 1: E_p = E_s): every scene of the study has it.
@@ -254,7 +254,7 @@ def report_doc(doc: dict, extra_meta: dict | None = None) -> dict:
 
 def write_report(doc: dict, out: Path, extra_meta: dict | None = None) -> list[str]:
     """:data:`OUTPUTS` in ``out``, gecit.json last (its presence means a whole report)."""
-    from ..plots import plot_gecit, plot_gecit_profiles
+    from ..output.plots import plot_gecit, plot_gecit_profiles
 
     rows = doc["rows"]
     write_atomic(out / "gecit.csv", rows_csv(rows))

@@ -29,8 +29,8 @@ import numpy as np
 from scenes import InputError, Scene, lattice, load_scene
 
 from ..engine import Case, Engine
-from ..ladders import QUANTITIES, quantity_values
-from ..verification import study
+from ..registry.ladders import QUANTITIES, quantity_values
+from ..analysis.verification import study
 
 PHIS = (0.03, 0.1, 0.2, 0.4)
 RATIOS = (0.1, 1.0, 10.0, 1e6)
@@ -278,7 +278,7 @@ def plot_lattice(report: dict, path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ..report import save_figure, stamp_not_converged
+    from ..output.report import save_figure, stamp_not_converged
 
     rows = [r for r in report["rows"] if r.get("quantities")]
     ratios = sorted({r["ratio"] for r in rows})

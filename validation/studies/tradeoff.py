@@ -36,7 +36,7 @@ from scenes import InputError, write_atomic
 from scenes.result import package_version
 
 from ..engine import Case, Engine
-from ..ladders import LADDERS, QUANTITIES
+from ..registry.ladders import LADDERS, QUANTITIES
 
 # Models that solve the same equations share a reference; a model with other physics (the
 # elastic pillar of the FEM against the Hooke pillar of the BEM) is measured against its own,
@@ -71,7 +71,7 @@ def check_options(models, ladders=None, *, coarsest: dict | None = None,
                   max_time: float = 600.0) -> dict:
     """Every model's rungs ({model: [values]}); InputError (one line, naming the option)
     for anything a study could only refuse after solving."""
-    from ..options import check_option, flag
+    from ..registry.options import check_option, flag
 
     ladders = ladders or LADDERS
     if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
@@ -113,7 +113,7 @@ def tradeoff(scene, models, cache_dir: Path | None = None, *, engine: Engine | N
     several pillars in contact) is skipped with its reason; a model stops climbing after a
     rung slower than ``max_time`` seconds.
     """
-    from ..models import MODELS
+    from ..registry.models import MODELS
 
     ladders = ladders or LADDERS
     plan = check_options(models, ladders, coarsest=coarsest, levels=levels, repeats=repeats,
@@ -190,7 +190,7 @@ def _model_estimate(rows: list, short: str, model: str) -> dict | None:
     pre-asymptotic, empty when it looks asymptotic) and, for a model with an expected order,
     the two finest extrapolated at that order (``assumed``: Roache's two-grid GCI, Fs = 3).
     None below three rungs."""
-    from ..verification import gci_three, gci_two
+    from ..analysis.verification import gci_three, gci_two
 
     mine = sorted((r for r in rows if r["model"] == model and r["converged"]),
                   key=lambda r: r["h"])
@@ -332,7 +332,7 @@ def write_outputs(doc: dict, out: Path) -> None:
     for row in doc["rows"]:
         writer.writerow({k: ("" if row.get(k) is None else row.get(k)) for k in CSV_COLUMNS})
     write_atomic(out / "tradeoff.csv", buf.getvalue())
-    from ..plots import plot_tradeoff
+    from ..output.plots import plot_tradeoff
 
     plot_tradeoff(doc, out / "tradeoff.png")
     write_atomic(out / "tradeoff.json", json.dumps(doc, indent=2, allow_nan=False))

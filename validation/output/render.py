@@ -1,6 +1,6 @@
 """Off-screen pyvista render of the axisymmetric FEM stress field, revolved about the axis.
 
-The render runs in a child process (``python -m validation.render VTU PNG ROI_M [STAMP]``): a
+The render runs in a child process (``python -m validation.output.render VTU PNG ROI_M [STAMP]``): a
 headless machine without an OpenGL context can abort inside VTK, and that must cost the report
 one picture, never the whole run.  The picture is drawn in micrometres with a length scale
 (a ruler) and the von Mises stress in kPa on its colour bar.
@@ -26,7 +26,7 @@ def render_stress(vtu_path: Path, png_path: Path, roi_m: float, *, stamp: str = 
     the region around the axis and the contact that is shown; ``stamp`` (e.g. "NOT
     CONVERGED") is written in red on the picture.
     """
-    return render_in_child("validation.render", [str(vtu_path), str(png_path),
+    return render_in_child("validation.output.render", [str(vtu_path), str(png_path),
                                                 repr(float(roi_m)), stamp], png_path, timeout_s)
 
 
@@ -138,7 +138,7 @@ def _render(vtu: str, png: str, roi_m: float, stamp: str = "") -> str:
     return f"rendered {name} ({sub.n_cells} cells revolved{scale}) to {png}"
 
 
-if __name__ == "__main__":  # python -m validation.render VTU PNG ROI_M [STAMP]
+if __name__ == "__main__":  # python -m validation.output.render VTU PNG ROI_M [STAMP]
     if len(sys.argv) in (4, 5):
         import shutil
 
@@ -149,4 +149,4 @@ if __name__ == "__main__":  # python -m validation.render VTU PNG ROI_M [STAMP]
         print(_render(sys.argv[1], sys.argv[2], float(sys.argv[3]),
                       sys.argv[4] if len(sys.argv) == 5 else ""))
     else:
-        sys.exit("usage: python -m validation.render VTU PNG ROI_M [STAMP]")
+        sys.exit("usage: python -m validation.output.render VTU PNG ROI_M [STAMP]")

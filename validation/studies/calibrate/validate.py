@@ -32,13 +32,13 @@ from pathlib import Path
 
 from scenes import write_atomic
 
-from ..engine import Case, Engine
-from ..ladders import LADDERS, quantity_values
-from ..verification import gci_three
-from .calibrate_scenes import flat_scenes, lattice_scenes
-from .planner import DEFAULT_QUANTITIES, DEFAULT_TOLERANCE, plan
-from .planner_tables import PlannerData
-from .tradeoff import reference_values
+from ...engine import Case, Engine
+from ...registry.ladders import LADDERS, quantity_values
+from ...analysis.verification import gci_three
+from .scenes import flat_scenes, lattice_scenes
+from ...planner.plan import DEFAULT_QUANTITIES, DEFAULT_TOLERANCE, plan
+from ...planner.tables import PlannerData
+from ..tradeoff import reference_values
 
 __all__ = ["VALIDATION_SEED", "summary_text", "validate_planner", "validation_scenes",
            "write_outputs"]

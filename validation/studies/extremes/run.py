@@ -49,7 +49,7 @@ import numpy as np
 
 from scenes import InputError, load_scene
 
-from ..engine import Case, Engine, Outcome
+from ...engine import Case, Engine, Outcome
 
 __all__ = ["MODELS", "corner_scenes", "run_extremes"]
 

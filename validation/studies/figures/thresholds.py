@@ -31,8 +31,8 @@ from scipy.optimize import brentq
 
 from scenes import PHI_CLOSE_PACKING, analytic
 
-from ..engine import Case, Engine
-from .figures_scenes import table1_scene
+from ...engine import Case, Engine
+from .scenes import table1_scene
 
 __all__ = ["analytic_thresholds", "bisect_single_pillar", "rim_contact_radius",
            "single_pillar_threshold_rim"]

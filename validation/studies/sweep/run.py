@@ -52,8 +52,8 @@ from pathlib import Path
 
 from scenes import Scene, apply_overrides, scene_dict, write_atomic
 
-from ..engine import Case, CaseStore, Engine, Outcome
-from .sweep_grid import (Axis, ModelSpec, Sweep, SweepCase, _override, crossed, linear, log,
+from ...engine import Case, CaseStore, Engine, Outcome
+from .grid import (Axis, ModelSpec, Sweep, SweepCase, _override, crossed, linear, log,
                          zipped)
 
 __all__ = ["Axis", "ModelSpec", "Sweep", "SweepCase", "crossed", "estimate_cost",

@@ -12,8 +12,8 @@ from pathlib import Path
 
 from scenes import InputError, Scene, SceneError, load_scene
 
-from ..engine import Case
-from ..options import check_option
+from ...engine import Case
+from ...registry.options import check_option
 
 _RANGE_KEYS = {"linear", "log", "num"}
 
@@ -158,7 +158,7 @@ class Sweep:
     def cases(self) -> tuple[list[SweepCase], list[tuple[dict, str]]]:
         """(cases, skipped points with the reason).  A point the scene refuses raises an
         InputError naming the point, unless ``on_invalid = "skip"``."""
-        from ..models import MODELS, model_names
+        from ...registry.models import MODELS, model_names
 
         for m in self.models:
             if m.name not in MODELS:

@@ -10,7 +10,7 @@ import numpy as np
 
 from scenes import write_atomic
 
-from .figures_fits import PAPER_AREA_EXPONENT, PAPER_EXPONENT
+from .fits import PAPER_AREA_EXPONENT, PAPER_EXPONENT
 
 __all__ = ["write_report"]
 

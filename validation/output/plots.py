@@ -1,7 +1,7 @@
 """Figures of the studies (matplotlib, Agg): convergence, pressure profiles, the Gecit-like
 study and the time-accuracy trade-off.  Units as units (µm, kPa, µN); a figure whose data
 include a solve that missed its tolerance is stamped NOT CONVERGED
-(:func:`validation.report.stamp_not_converged`).  The 3D render is :mod:`validation.render`.
+(:func:`validation.report.stamp_not_converged`).  The 3D render is :mod:`validation.output.render`.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.ticker import NullFormatter
 
-from .ladders import QUANTITIES
+from ..registry.ladders import QUANTITIES
 from .report import KPA, pyplot, save_figure, stamp_not_converged
 
 _MARKERS = "osd^v<>p"

@@ -25,7 +25,7 @@ MODELS: dict[str, tuple[str, str, tuple[str, ...]]] = {
     "spring": ("scenes.closed_form_models", "solve_spring", ()),
     # The planner's choice for this scene (default tolerance and quantities); the plan is
     # recorded in the result's diagnostics["plan"].
-    "auto": ("validation.studies.planner", "solve_auto", ("tolerance", "quantities", "budget")),
+    "auto": ("validation.planner.plan", "solve_auto", ("tolerance", "quantities", "budget")),
 }
 
 

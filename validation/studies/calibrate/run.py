@@ -35,14 +35,14 @@ import numpy as np
 from scenes import write_atomic
 from scenes.result import package_version
 
-from ..engine import Case, Engine, code_version
-from ..ladders import LADDERS, QUANTITIES, quantity_values
-from ..verification import gci_three
-from .calibrate_scenes import flat_scenes, gecit_scenes, lattice_scenes, punch_scenes
-from .planner_costs import size_terms
-from .planner_features import features, regime
-from .planner_tables import DATA_FORMAT, DEFAULT_POLICY, CostFit, ErrorTable
-from .tradeoff import reference_values
+from ...engine import Case, Engine, code_version
+from ...registry.ladders import LADDERS, QUANTITIES, quantity_values
+from ...analysis.verification import gci_three
+from .scenes import flat_scenes, gecit_scenes, lattice_scenes, punch_scenes
+from ...planner.costs import size_terms
+from ...planner.features import features, regime
+from ...planner.tables import DATA_FORMAT, DEFAULT_POLICY, CostFit, ErrorTable
+from ..tradeoff import reference_values
 
 __all__ = ["CALIBRATION_SEED", "CANDIDATES", "calibrate", "lattice_hooke_table", "load_lattice",
            "relattice", "with_lattice", "write_data", "write_document"]
@@ -263,7 +263,7 @@ def lattice_hooke_table(report: dict) -> ErrorTable:
     study's Richardson estimates (bem-fft against fem-3d), on its Phi x E_p/E_l grid
     (E_s = E_l, zeta = 0.3 um).  A quantity whose FEM estimate did not converge is left out
     at that point."""
-    from .lattice import LatticePoint
+    from ..lattice import LatticePoint
 
     points, errors = [], {q: [] for q in QKEYS}
     for row in report["rows"]:
@@ -461,7 +461,7 @@ def calibrate(out: Path, engine: Engine | None = None, *, n_lattice: int = 40,
                          for e in punches]
         flat = [c for b in batches + punch_batches for c in b]
         outcomes = engine.run(flat, cache, label="calibrate")
-        from .gecit import gecit_study
+        from ..gecit import gecit_study
 
         # The Hooke BEM refined as for single-pillar references (P = 23, 47, 95): from 11 its
         # centre pressure is pre-asymptotic by ~0.5 % on stiff pillars.

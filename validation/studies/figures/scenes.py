@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 from scenes import load_scene
 
-from .sweep import ModelSpec, Sweep, crossed, log, zipped
+from ..sweep import ModelSpec, Sweep, crossed, log, zipped
 
 BASE_SCENE = "paper-fig3-sparse"
 LENS_E_PA = 1.6e6

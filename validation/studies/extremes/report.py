@@ -77,7 +77,7 @@ def heatmap(doc: dict, path: Path) -> None:
     from matplotlib.colors import ListedColormap
     from matplotlib.patches import Patch
 
-    from ..report import save_figure
+    from ...output.report import save_figure
 
     models, corners = doc["models"], [c["label"] for c in doc["corners"]]
     by = {(r["corner"], r["model"]): STATUSES.index(r["status"]) for r in doc["records"]}

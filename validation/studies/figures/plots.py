@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..report import save_figure
+from ...output.report import save_figure
 
 UM, KPA = 1e6, 1e-3
 CONVENTION = "Table 1, E_s = E_p"

@@ -12,10 +12,10 @@ import numpy as np
 
 from scenes import Material, Scene, analytic, write_atomic
 
-from . import figures_plots as plots
-from .figures_fits import master_curve
-from .figures_scenes import in_um as _um
-from .figures_scenes import pillar_height
+from . import plots
+from .fits import master_curve
+from .scenes import in_um as _um
+from .scenes import pillar_height
 
 __all__ = ["write_figures"]
 
@@ -33,7 +33,7 @@ def _csv(path: Path, header: list[str], rows) -> Path:
 def write_figures(out: Path, doc: dict, pairs: dict) -> list[Path]:
     """Figs. 3-8 as PNG + CSV in ``out`` from the study's document and its (case, outcome)
     pairs (Fig. 3 reads the pressure maps kept with its cases); returns the paths."""
-    from .figures_maps import ElementMap, quadrant_extent
+    from .maps import ElementMap, quadrant_extent
 
     paths = []
     rows, t = doc["rows"], doc["thresholds"]

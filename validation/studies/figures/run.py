@@ -28,15 +28,15 @@ from threadpoolctl import threadpool_limits
 
 from scenes import Scene, write_atomic
 
-from ..engine import Case, Engine
-from .figures_files import write_figures
-from .figures_fits import (exponent_profile, fit_area_exponent, fit_common_exponent,
+from ...engine import Case, Engine
+from .files import write_figures
+from .fits import (exponent_profile, fit_area_exponent, fit_common_exponent,
                            fit_thresholds, hertz_band_entry, master_curve, reduced_area,
                            reduced_pressure)
-from .figures_scenes import (FIG3_ZETA_UM, FigureGrid, expected_pillars, figure_sweeps,
+from .scenes import (FIG3_ZETA_UM, FigureGrid, expected_pillars, figure_sweeps,
                              pillar_height, table1_scene)
-from .figures_scenes import in_um as _um
-from .figures_thresholds import analytic_thresholds, bisect_single_pillar
+from .scenes import in_um as _um
+from .thresholds import analytic_thresholds, bisect_single_pillar
 
 __all__ = ["DENSE_MODELS", "HERTZ_BAND", "run_figures"]
 
@@ -150,7 +150,7 @@ def run_figures(out: Path, grid: FigureGrid | None = None, *, model: str = "bem-
     dict
         Everything written to ``figures.json``, plus ``paths`` (the files written).
     """
-    from .figures_report import write_report
+    from .report import write_report
 
     t_start = time.perf_counter()
     out = Path(out)

@@ -1,6 +1,6 @@
 """Measured error tables and cost fits: the data the planner reads, and how it reads them.
 
-The data files (``validation/data/error_models.json``, ``cost_models.json``) are written by
+The data files (``validation/planner/data/error_models.json``, ``cost_models.json``) are written by
 ``pillar-xval calibrate`` and shipped with the package.  Everything model-specific is data:
 a new model, a new rung or a new study adds candidates, tables and fits, not code.
 
@@ -258,7 +258,7 @@ class CostFit:
 
     def predict(self, scene, options: dict) -> tuple[float, float]:
         """(wall time s, peak memory bytes) of the model with ``options`` on ``scene``."""
-        from .planner_costs import size_terms
+        from .costs import size_terms
 
         value = options.get(self.option) if self.option else None
         terms, estimate = size_terms(self.size, scene, value)
@@ -289,7 +289,7 @@ class PlannerData:
 
 
 def data_dir() -> Path:
-    return Path(str(resources.files("validation") / "data"))
+    return Path(str(resources.files("validation.planner") / "data"))
 
 
 def load_data(folder: str | Path | None = None) -> PlannerData:
@@ -300,7 +300,7 @@ def load_data(folder: str | Path | None = None) -> PlannerData:
         costs = json.loads((folder / "cost_models.json").read_text())
     except FileNotFoundError as exc:
         raise InputError(f"planner data: {exc.filename} is missing; run "
-                         "`pillar-xval calibrate --out validation/data` (make calibrate)") \
+                         "`pillar-xval calibrate --out validation/planner/data` (make calibrate)") \
             from None
     for doc, name in ((errors, "error_models.json"), (costs, "cost_models.json")):
         if doc.get("format") != DATA_FORMAT:

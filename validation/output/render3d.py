@@ -7,8 +7,8 @@ substrate are shown coloured by the von Mises stress (kPa); the lens, which woul
 them, is shown only over the far half of the disk and lifted by a pillar height, so the
 stressed pillar tops and the lens bottom are both in view.  A ruler gives the length scale.
 
-Runs in a child process (``python -m validation.render3d VTU PNG [STAMP]``), like the axisymmetric
-render of :mod:`validation.render`: VTK's off-screen context stays out of the caller.
+Runs in a child process (``python -m validation.output.render3d VTU PNG [STAMP]``), like the axisymmetric
+render of :mod:`validation.output.render`: VTK's off-screen context stays out of the caller.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ def render_sector(vtu_path, png_path, *, stamp: str = "",
     returns (ok, message).  ``stamp`` (e.g. "NOT CONVERGED") is written in red on it."""
     from .render import render_in_child
 
-    return render_in_child("validation.render3d", [str(vtu_path), str(png_path), stamp],
+    return render_in_child("validation.output.render3d", [str(vtu_path), str(png_path), stamp],
                            png_path, timeout_s)
 
 
@@ -115,7 +115,7 @@ def _render(vtu: str, png: str, stamp: str = "") -> str:
     return f"rendered von Mises stress (kPa), {shown} surfaces, to {png}"
 
 
-if __name__ == "__main__":  # python -m validation.render3d VTU PNG [STAMP]
+if __name__ == "__main__":  # python -m validation.output.render3d VTU PNG [STAMP]
     if len(sys.argv) in (3, 4):
         import shutil
 
@@ -125,4 +125,4 @@ if __name__ == "__main__":  # python -m validation.render3d VTU PNG [STAMP]
             pyvista.start_xvfb()
         print(_render(sys.argv[1], sys.argv[2], sys.argv[3] if len(sys.argv) == 4 else ""))
     else:
-        sys.exit("usage: python -m validation.render3d VTU PNG [STAMP]")
+        sys.exit("usage: python -m validation.output.render3d VTU PNG [STAMP]")
