@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from contact import ContactSolution, min_map_residual, solve_dense as solve_contact
+from contact import ContactSolution, min_map_residual, solve_active_set as solve_contact
 from scenes import ContactResult, PillarForce, Scene, ScopeError, analytic
 from scenes.memory import MEMORY_SHARE, memory_short
 

@@ -23,7 +23,7 @@ import time
 import numpy as np
 
 from meshes import build_axisymmetric_mesh, flat_geometry, pillar_geometry
-from contact import solve_dense
+from contact import solve_active_set
 from scenes import ContactResult, InputError, PillarForce, Scene, ScopeError, analytic
 from scenes.memory import MEMORY_SHARE, memory_short
 
@@ -166,7 +166,7 @@ def solve_axisymmetric(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None,
     gap = analytic.lens_gap(R, r_m) / ell
     weight = D.sum(axis=0)  # integral of psi_j r dr: turns weighted gaps into mean gaps
     say("contact")
-    sol = solve_dense(C, D.T @ (gap - zeta / ell), scale=zeta / ell, weights=weight,
+    sol = solve_active_set(C, D.T @ (gap - zeta / ell), scale=zeta / ell, weights=weight,
                       tol=RTOL_COMPLEMENTARITY)
     lam, rounds = sol.pressure, sol.iterations
     f = D @ lam

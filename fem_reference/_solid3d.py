@@ -31,7 +31,7 @@ import numpy as np
 
 from contact import constrained_cg
 from meshes import WedgeGeometry, build_wedge_mesh, sector_pillars
-from meshes import SECTORS
+from meshes import MESH_SIZE_RANGE_3D, SECTORS
 from scenes import ContactResult, InputError, PillarForce, Scene, ScopeError, analytic
 from scenes.lattice import lattice_indices
 from scenes.memory import MEMORY_SHARE, memory_short
@@ -358,7 +358,7 @@ def _check_options(mesh_size, sector_angle, block_factor, reach_factor, tol) -> 
         if not ok:
             raise InputError(f"{name} = {value!r}: allowed range is [{low:g}, {high:g}]{why}")
 
-    number("mesh_size", mesh_size, 0.05, 4.0)
+    number("mesh_size", mesh_size, *MESH_SIZE_RANGE_3D)
     number("block_factor", block_factor, 100.0, 1e7)
     number("reach_factor", reach_factor, 1.0, 10.0,
            " (below 1, pillars within the undeformed reach of the lens would be left out)")

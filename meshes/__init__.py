@@ -11,16 +11,19 @@ The 3D builder meshes a sector 0 <= theta <= alpha of the lattice centred on pil
 reach, substrate block, with per-pillar groups (``contact_pillar_{n}_{m}``, ...).
 """
 
-from ._geometry import (BODIES, AxisymmetricGeometry, GeometryError, MeshError, flat_geometry,
-                        pillar_geometry)
+from ._geometry import (BODIES, MESH_SIZE_RANGE, AxisymmetricGeometry, GeometryError, MeshError,
+                        flat_geometry, pillar_geometry)
 from ._gmsh import build_axisymmetric_mesh
 from ._mesh import MIN_QUALITY, AxisymmetricMesh
 from ._mesh3d import MIN_QUALITY_3D, WedgeMesh
-from ._wedge_geometry import SECTORS, SectorPillar, WedgeGeometry, sector_pillars
+from ._wedge_geometry import (MESH_SIZE_RANGE_3D, SECTORS, SectorPillar, WedgeGeometry,
+                             sector_pillars)
 from ._wedge_gmsh import build_wedge_mesh
 
 __all__ = [
     "BODIES",
+    "MESH_SIZE_RANGE",
+    "MESH_SIZE_RANGE_3D",
     "MIN_QUALITY",
     "MIN_QUALITY_3D",
     "SECTORS",

@@ -14,6 +14,9 @@ from dataclasses import dataclass
 from scenes import InputError, ToolError
 
 BODIES = ("lens", "pillar", "substrate")
+# The allowed mesh_size (the factor on every element size) of the axisymmetric meshes; the
+# toolkit's --mesh-size range for fem-axisym reads it (validation.registry).
+MESH_SIZE_RANGE = (0.02, 4.0)
 
 
 class MeshError(ToolError):
@@ -109,8 +112,10 @@ class AxisymmetricGeometry:
             raise GeometryError(
                 f"block_size_m = {self.block_size_m:g} m: more than 1e8 x the focus radius "
                 f"{self.focus_radius_m:g} m exceeds double-precision geometry")
-        if self.mesh_size > 4.0 or self.mesh_size < 0.02:
-            raise GeometryError(f"mesh_size = {self.mesh_size:g}: allowed range is [0.02, 4]")
+        lo, hi = MESH_SIZE_RANGE
+        if self.mesh_size > hi or self.mesh_size < lo:
+            raise GeometryError(f"mesh_size = {self.mesh_size:g}: allowed range is "
+                                f"[{lo:g}, {hi:g}]")
 
     @property
     def has_pillar(self) -> bool:

@@ -15,12 +15,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ._geometry import BODIES, MeshError
+from ._geometry import BODIES, GeometryError
 
 SQRT3 = math.sqrt(3.0)
 
 # Sector angles whose two bounding planes are both mirror planes of the hexagonal lattice.
 SECTORS = (math.pi / 6.0, math.pi / 3.0, math.pi / 2.0)
+# The allowed mesh_size of the 3D sector meshes; the toolkit's --mesh-size range for fem-3d
+# reads it (validation.registry).
+MESH_SIZE_RANGE_3D = (0.05, 4.0)
 
 
 @dataclass(frozen=True)
@@ -87,39 +90,41 @@ class WedgeGeometry:
     def __post_init__(self):
         def positive(name, value):
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise MeshError(f"{name} = {value!r}: must be a finite number > 0")
+                raise GeometryError(f"{name} = {value!r}: must be a finite number > 0")
 
         for name in ("focus_radius_m", "block_size_m", "mesh_size", "elements_across_contact",
                      "edge_ratio", "growth"):
             positive(name, getattr(self, name))
         if not any(math.isclose(self.sector_angle, s, rel_tol=1e-12) for s in SECTORS):
-            raise MeshError(f"sector_angle = {self.sector_angle!r}: allowed values are pi/6, "
+            raise GeometryError(f"sector_angle = {self.sector_angle!r}: allowed values are pi/6, "
                             "pi/3 and pi/2 (both planes must be mirror planes of the lattice)")
         bodies = tuple(self.bodies)
         unknown = [b for b in bodies if b not in BODIES]
         if unknown or not bodies:
-            raise MeshError(f"bodies = {bodies!r}: choose a non-empty subset of {BODIES}")
+            raise GeometryError(f"bodies = {bodies!r}: choose a non-empty subset of {BODIES}")
         object.__setattr__(self, "bodies", bodies)
         object.__setattr__(self, "pillars", tuple(self.pillars))
         if self.pillar_height_m is None:
             if "pillar" in bodies or self.pillars:
-                raise MeshError("pillars given but pillar_height_m is None")
+                raise GeometryError("pillars given but pillar_height_m is None")
             if self.contact_radius_m is None:
-                raise MeshError("the flat geometry needs contact_radius_m (candidate zone)")
+                raise GeometryError("the flat geometry needs contact_radius_m (candidate zone)")
             positive("contact_radius_m", self.contact_radius_m)
         else:
             positive("pillar_height_m", self.pillar_height_m)
             if not self.pillars:
-                raise MeshError("pillar_height_m given but no pillar lies in the sector")
-        if self.mesh_size > 4.0 or self.mesh_size < 0.05:
-            raise MeshError(f"mesh_size = {self.mesh_size:g}: allowed range is [0.05, 4]")
+                raise GeometryError("pillar_height_m given but no pillar lies in the sector")
+        lo, hi = MESH_SIZE_RANGE_3D
+        if self.mesh_size > hi or self.mesh_size < lo:
+            raise GeometryError(f"mesh_size = {self.mesh_size:g}: allowed range is "
+                                f"[{lo:g}, {hi:g}]")
         inner = self.extent_m
         if self.block_size_m < 4.0 * inner:
-            raise MeshError(
+            raise GeometryError(
                 f"block_size_m = {self.block_size_m:g} m: must be >= 4 x {inner:g} m (the "
                 "reach of the pillars or the contact zone); use L >= 1e3 x the contact radius")
         if self.block_size_m > 1e8 * self.focus_radius_m:
-            raise MeshError(f"block_size_m = {self.block_size_m:g} m: more than 1e8 x the "
+            raise GeometryError(f"block_size_m = {self.block_size_m:g} m: more than 1e8 x the "
                             f"focus radius {self.focus_radius_m:g} m")
 
     @property

@@ -300,13 +300,12 @@ def _override(rng: random.Random) -> str:
 @pytest.fixture
 def fake_fft(fakes, monkeypatch):
     """The FFT model faked too (its real solves at the fuzz's resolutions cost minutes)."""
-    from validation.registry import models
+    from fakes import register
 
     module = sys.modules["xval_fakes"]
     module.fake_fft = lambda scene, cells_per_diameter=32: module.fake_bem(
         scene, elements_per_diameter=cells_per_diameter)
-    monkeypatch.setitem(models.MODELS, "bem-fft", ("xval_fakes", "fake_fft",
-                                                   ("cells_per_diameter",)))
+    register(monkeypatch, "bem-fft", "xval_fakes:fake_fft", ("cells_per_diameter",))
     return fakes
 
 

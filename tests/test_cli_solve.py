@@ -104,7 +104,7 @@ def test_solve_hands_the_model_a_progress_callback(monkeypatch, capsys):
     import sys
     import types
 
-    from validation.registry import models
+    from fakes import register
 
     seen = []
 
@@ -117,8 +117,7 @@ def test_solve_hands_the_model_a_progress_callback(monkeypatch, capsys):
     module = types.ModuleType("xval_slow")
     module.slow_model = slow_model
     monkeypatch.setitem(sys.modules, "xval_slow", module)
-    monkeypatch.setitem(models.MODELS, "bem", ("xval_slow", "slow_model",
-                                               ("elements_per_diameter",)))
+    register(monkeypatch, "bem", "xval_slow:slow_model", ("elements_per_diameter",))
     assert main(["solve", "--scene", "hertz", "--json"]) == 0
     assert callable(seen[0])
     json.loads(capsys.readouterr().out)

@@ -245,7 +245,7 @@ def test_result_schema_and_vtu(tmp_path):
 
 
 def test_registered_model_runs():
-    from validation.registry.models import run_model
+    from validation.registry import run_model
 
     res = run_model("fem-axisym", load_scene("hertz"), mesh_size=2.0, elements_per_diameter=9)
     assert res.model == "fem-axisym" and res.discretisation["mesh_size"] == 2.0

@@ -315,7 +315,7 @@ def test_planned_spring_is_within_tolerance_of_the_elastic_pillar():
 
     scene = load_scene("single-pillar", ["pillars.rigid=true"])
     p = plan(scene)
-    from validation.registry.models import run_model
+    from validation.registry import run_model
 
     planned = run_model(p["choice"]["model"], scene, **p["choice"]["options"])
     fem = solve_axisymmetric(scene, 1.0)

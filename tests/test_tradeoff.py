@@ -8,7 +8,7 @@ import json
 import pytest
 
 from scenes import load_scene
-from validation.registry.ladders import LADDERS, Ladder
+from validation.registry import Ladder, OptionSpec, ladders
 from validation.studies.tradeoff import reference_values, tradeoff, write_outputs
 
 
@@ -48,13 +48,13 @@ def test_reference_falls_back_to_the_most_expensive_solution():
 
 
 def test_every_registered_ladder_names_a_model():
-    from validation.registry.models import MODELS
+    from validation.registry import MODELS
 
-    for name, ladder in LADDERS.items():
+    for name, ladder in ladders().items():
         assert name in MODELS
         sizes = [ladder.size(level) for level in ladder.rungs]
         assert sizes == sorted(sizes, reverse=True)  # coarse to fine
-        assert ladder.option in MODELS[name][2]
+        assert ladder.option in MODELS[name].options
 
 
 def test_tradeoff_writes_csv_json_png(tmp_path):
@@ -100,9 +100,9 @@ def refusing_model(scene, **kwargs):
 
 
 def test_a_model_that_refuses_the_scene_is_skipped(monkeypatch):
-    import validation.registry.models as models
+    from fakes import register
 
-    monkeypatch.setitem(models.MODELS, "refuser", (__name__, "refusing_model", ("n",)))
+    register(monkeypatch, "refuser", f"{__name__}:refusing_model", options={"n": OptionSpec(int)})
     ladders = {"refuser": _ladder("n", (1, 2)),
                "bem-fft": _ladder("cells_per_diameter", (8, 12, 16))}
     doc = tradeoff(load_scene("single-pillar"), ["refuser", "bem-fft"], repeats=1,

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from bem_solver import discretise, full_operator, lens_gap, solve_dense
-from contact import solve_dense as solve_contact
+from contact import solve_active_set as solve_contact
 from scenes import load_scene, write_atomic
 from validation.output.report import figure_png
 

@@ -32,16 +32,13 @@ from scenes.result import package_version
 
 from ._args import DEBUG_ENV, EXIT_INTERNAL_ERROR, Parser, add_scene_arguments, one_line
 
-__all__ = ["COMMANDS", "DEBUG_ENV", "EXIT_INTERNAL_ERROR", "UserError",
-           "add_scene_arguments", "build_parser", "main"]
+__all__ = ["COMMANDS", "DEBUG_ENV", "EXIT_INTERNAL_ERROR", "add_scene_arguments",
+           "build_parser", "main"]
 
 COMMANDS = ("validation.cli.solve", "validation.cli.compare", "validation.cli.converge",
             "validation.cli.gecit", "validation.cli.tradeoff", "validation.cli.sweep",
             "validation.cli.figures", "validation.cli.lattice", "validation.cli.plan",
             "validation.cli.calibrate", "validation.cli.extremes")
-
-# Kept for commands written against it: an error in what the user asked for.
-UserError = InputError
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.ticker import NullFormatter
 
-from ..registry.ladders import QUANTITIES
+from ..registry import QUANTITIES
 from .report import KPA, pyplot, save_figure, stamp_not_converged
 
 _MARKERS = "osd^v<>p"

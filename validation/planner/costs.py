@@ -1,11 +1,12 @@
 """Sizes of a solve, known before it runs: what the planner's cost fits are written in.
 
-A cost fit (:class:`.planner_tables.CostFit`, data) names a ``size`` function of this module
-and the model option it reads; the function returns the fit's terms (natural logs of counts)
-and a memory estimate in bytes.  The dense BEM and fem-axisym estimate their own memory
-(``bem_solver.estimate_memory``, ``fem_reference.estimate_memory``, the same functions that
-refuse a scene too large for the machine); the FFT grid's is a fitted line in its padded
-points.  A model added later names one of these sizes in its fit, or adds one here.
+A cost fit (:class:`.tables.CostFit`, data) names a ``size`` function of this module and the
+model option it reads (a model's declaration says which: ``Model.cost``); the function returns
+the fit's terms (natural logs of counts) and a memory estimate in bytes.  The dense BEM and
+fem-axisym estimate their own memory (``bem_solver.estimate_memory``,
+``fem_reference.estimate_memory``, the same functions that refuse a scene too large for the
+machine); the FFT grid's memory is a fitted line in its padded points (``calibrate``).  A model
+added later names one of these sizes in its cost law, or adds one here.
 """
 
 from __future__ import annotations
@@ -16,27 +17,25 @@ from scenes import Scene
 
 __all__ = ["SIZES", "fft_grid", "size_terms"]
 
-# Bytes per padded FFT point: kernel spectrum, work buffers and the CG vectors (fitted by
-# calibrate when the fit provides "memory": {"per_point": ...}; this is the fallback).
-FFT_BYTES_PER_POINT = 200.0
-
-
 def fft_grid(scene: Scene, cells_per_diameter: int) -> dict:
-    """Candidate cells and padded FFT points of the FFT BEM (``bem_solver._fft_grid``'s rules:
-    cells of side d/N on the pillar tops within the overlap radius; flat: 2 sqrt(R zeta)/N
-    over 1.25 Hertz radii; the padded grid doubles the bounding box of the kept cells)."""
+    """Candidate cells and padded FFT points of the FFT BEM, estimated without building its
+    grid (``bem_solver._fft_grid.build_grid``, the solve's own first step; the cost fits are
+    written in this estimate): the grid's own cell size and flat candidate radius;
+    on pillars, the pillar tops' share Phi of the disk where the lens can touch (at least the
+    centre pillar's top); the padded grid doubles the bounding box of the kept cells."""
+    from bem_solver._fft_grid import FLAT_CANDIDATE_RATIO, cell_size
+
     N = int(cells_per_diameter)
     R, zeta = scene.lens.radius_m, scene.indentation_m
     r_geo = math.sqrt(max(2.0 * R * zeta - zeta * zeta, 0.0))
+    L = cell_size(scene, N)
     if scene.is_flat:
-        L = 2.0 * math.sqrt(R * zeta) / N
-        r_c = min(r_geo, 1.25 * math.sqrt(R * zeta) + 2.0 * L)
+        r_c = min(r_geo, FLAT_CANDIDATE_RATIO * math.sqrt(R * zeta) + 2.0 * L)
         cells = math.pi * (r_c / L) ** 2
         box = 2.0 * r_c / L
     else:
         d, e, phi = (scene.pillars.diameter_m, scene.pillars.pitch_m,
                      scene.pillars.surface_fraction)
-        L = d / N
         cells = max(math.pi * N * N / 4.0, phi * math.pi * (r_geo / L) ** 2)
         # Only the centre pillar lies within reach when the nearest one starts beyond it.
         box = N if e - d / 2.0 > r_geo else 2.0 * (r_geo + d / 2.0) / L

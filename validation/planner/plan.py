@@ -28,7 +28,7 @@ import math
 from scenes import InputError, Scene, ScopeError
 from scenes.memory import MEMORY_SHARE, available_memory
 
-from ..registry.ladders import QUANTITIES
+from ..registry import QUANTITIES
 from .features import features, regime
 from .tables import PlannerData, load_data
 
@@ -274,7 +274,7 @@ def solve_auto(scene: Scene, tolerance: float = DEFAULT_TOLERANCE,
                quantities=DEFAULT_QUANTITIES, budget: float | None = None):
     """Run the planner's choice on ``scene``; the result records the plan in
     ``diagnostics["plan"]``.  ScopeError when no candidate can run the scene."""
-    from ..registry.models import run_model
+    from ..registry import run_model
 
     p = plan(scene, tolerance, quantities, budget)
     if p["choice"] is None:

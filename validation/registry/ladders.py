@@ -1,9 +1,9 @@
-"""What every study refines and what it measures: one ladder per model, one quantity list.
+"""What every study refines and what it measures: :class:`Ladder` (a field of a model's
+declaration, :mod:`.models`) and the compared :data:`QUANTITIES`.
 
 ``converge``, ``compare`` and ``gecit`` climb a model's ladder geometrically from its
-``coarsest`` rung by ``factor`` per level (:meth:`Ladder.value`); ``tradeoff`` walks its
-``rungs``, a gentler sequence that samples the cost curve.  Both come from the same entry, so a
-model joins every study by one line in :data:`LADDERS`.
+``coarsest`` rung by ``factor`` per level (:meth:`Ladder.value`); ``tradeoff``, ``calibrate``
+and the planner walk its ``rungs``, a gentler sequence that samples the cost curve.
 """
 
 from __future__ import annotations
@@ -78,35 +78,3 @@ class Ladder:
     def options_at(self, value) -> dict:
         """Model options with the refined option at ``value``."""
         return {**self.fixed, self.option: value}
-
-
-LADDERS: dict[str, Ladder] = {
-    # BEM: square elements across a pillar (or Hertz contact) diameter, 11, 23, 47, ...;
-    # 'covered' cells carry the true disk area, so the sequence converges smoothly.
-    "bem": Ladder("elements_per_diameter", 11, 2.0, "odd", -1.0, (5, 7, 9, 11, 15, 21),
-                  {"cells": "covered"}, "element side / diameter = 1/P"),
-    # Dense BEM at P and 2P - 1, Richardson-extrapolated: coarse levels 5, 11, 23, ...
-    "bem-richardson": Ladder("elements_per_diameter", 5, 2.0, "odd", -1.0, (5, 7, 9, 11),
-                             {"cells": "covered"},
-                             "coarse element side / diameter = 1/P (fine level 2P - 1)"),
-    # FFT BEM: grid cells across a pillar diameter, 32, 64, 128, ...
-    "bem-fft": Ladder("cells_per_diameter", 32, 2.0, "int", -1.0, (8, 12, 16, 24, 32, 48, 64),
-                      {}, "cell side / diameter = 1/N"),
-    # FEM: the mesh builder's single size parameter scales every element size.
-    "fem-axisym": Ladder("mesh_size", 1.0, 0.5, "float", 1.0, (4.0, 2.0, 1.0, 0.5), {},
-                         "mesh_size (relative)"),
-    # 3D FEM: ratio sqrt(2) per level (each halving of the size multiplies the unknowns by ~8);
-    # 2.83, 2, 1.41 fit this machine on the paper's densest scene (validation/bench/fem3d.py).
-    "fem-3d": Ladder("mesh_size", 2 * 2**0.5, 2 ** -0.5, "float", 1.0, (4.0, 2.83, 2.0, 1.41), {},
-                     "mesh_size (relative)"),
-}
-
-
-def ladder_for(model: str) -> Ladder:
-    """The refinement ladder of ``model``; InputError (one line) for a model without one."""
-    from scenes import InputError
-
-    if model not in LADDERS:
-        raise InputError(f"--model {model!r}: no refinement ladder; known: "
-                         f"{', '.join(sorted(LADDERS))}")
-    return LADDERS[model]

@@ -26,7 +26,7 @@ import numpy as np
 from scenes import Scene, analytic, write_atomic
 
 from ..engine import Engine
-from ..registry.ladders import QUANTITIES, ladder_for, quantity_values
+from ..registry import QUANTITIES, ladder_for, quantity_values
 from ..analysis.profiles import profile_at
 from ..analysis.verification import study
 from .converge import check_ladder, level_cases, study_levels

@@ -11,8 +11,7 @@ from pathlib import Path
 from scenes import InputError, Scene, write_atomic
 
 from ..engine import Case, Engine, Outcome
-from ..registry.ladders import QUANTITIES, ladder_for, quantity_values
-from ..registry.options import MODEL_OPTIONS, check_option, flag
+from ..registry import QUANTITIES, check_option, flag, get_model, ladder_for, quantity_values
 from ..analysis.verification import study
 
 # The report folder's files, report (converge.json) last: its presence means a whole report.
@@ -29,18 +28,19 @@ def check_ladder(model: str, levels: int, coarsest: float | None = None,
     if isinstance(levels, bool) or not isinstance(levels, int) or not lo <= levels <= hi:
         raise InputError(f"{levels_flag} {levels!r}: allowed range is [{lo}, {hi}]")
     name = flag(ladder.option)
+    spec = get_model(model).options[ladder.option]
     if coarsest is not None:
-        check_option(ladder.option, coarsest)
+        check_option(ladder.option, coarsest, spec=spec)
     values = [ladder.value(k, coarsest) for k in range(levels)]
     for k, value in enumerate(values):
         try:
-            check_option(ladder.option, value)
+            check_option(ladder.option, value, spec=spec)
         except InputError:
             start = f"{name} {coarsest:g}" if coarsest is not None else \
                 f"{model}'s default {name} {ladder.coarsest:g}"
             raise InputError(
                 f"{start} with {levels_flag} {levels}: level {k + 1} would be "
-                f"{ladder.option} = {value:g}, outside {MODEL_OPTIONS[ladder.option].allowed()} "
+                f"{ladder.option} = {value:g}, outside {spec.allowed()} "
                 f"(fewer levels, or another coarsest level)") from None
     return values
 

@@ -28,8 +28,7 @@ from pathlib import Path
 from scenes import InputError, load_scene, write_atomic
 
 from ..engine import Case, Engine
-from ..registry.ladders import ladder_for
-from ..registry.options import check_option
+from ..registry import check_option, get_model, ladder_for
 from ..analysis.profiles import EDGE_SKIP, EDGE_WINDOW, edge_exponent, outer_load_fraction, plateau_ratio
 from .converge import check_ladder, study_levels
 
@@ -77,7 +76,7 @@ def check_fit_options(edge_window, edge_nodes, edge_skip, bem_levels,
         raise InputError(f"--edge-nodes {edge_nodes}: allowed range is >= 3")
     if edge_skip < 0:
         raise InputError(f"--edge-skip {edge_skip}: allowed range is >= 0")
-    check_option("mesh_size", mesh_size)
+    check_option("mesh_size", mesh_size, spec=get_model(FEM).options["mesh_size"])
     check_ladder(BEM, bem_levels, elements_per_diameter, lo=1)
 
 

@@ -29,7 +29,7 @@ import numpy as np
 from scenes import InputError, Scene, lattice, load_scene
 
 from ..engine import Case, Engine
-from ..registry.ladders import QUANTITIES, quantity_values
+from ..registry import QUANTITIES, quantity_values
 from ..analysis.verification import study
 
 PHIS = (0.03, 0.1, 0.2, 0.4)

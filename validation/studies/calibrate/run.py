@@ -2,8 +2,8 @@
 
 Every number comes from studies run on the engine (resumable, cached in ``OUT/cases``):
 
-- convergence ladders (the rungs of :data:`validation.ladders.LADDERS`) of the dense and FFT
-  BEM on a seeded Latin-hypercube sample of the paper's scenes (and a stiff-substrate one),
+- convergence ladders (the rungs of each candidate model's ladder, :mod:`validation.registry`)
+  of the dense and FFT BEM on a seeded Latin-hypercube sample of the paper's scenes (and a stiff-substrate one),
   fem-axisym's ladder where one pillar touches, all three on flat scenes.  The discretisation
   error of a rung is measured against a converged reference of the same physics: the Hooke
   pillar's is ``tradeoff``'s cross-checked Richardson estimate from both BEMs
@@ -36,7 +36,7 @@ from scenes import write_atomic
 from scenes.result import package_version
 
 from ...engine import Case, Engine, code_version
-from ...registry.ladders import LADDERS, QUANTITIES, quantity_values
+from ...registry import MODELS, QUANTITIES, candidates, quantity_values
 from ...analysis.verification import gci_three
 from .scenes import flat_scenes, gecit_scenes, lattice_scenes, punch_scenes
 from ...planner.costs import size_terms
@@ -51,15 +51,6 @@ CALIBRATION_SEED = 20240901
 # The planner adds each table's local leave-one-out misfit, times this scale.
 POLICY = dict(DEFAULT_POLICY)
 QKEYS = [q.key for q in QUANTITIES]
-# Which candidates may run in which regime, and why not elsewhere (the models' own scopes).
-SCOPES = {
-    "bem": (("flat", "single", "multi"), ""),
-    "bem-fft": (("flat", "single", "multi"), ""),
-    "fem-axisym": (("flat", "single"), "refuses scenes where a second pillar touches"),
-    "hertz": (("flat", "multi"), "one pillar touches: no continuum"),
-    "spring": (("single",), "a second pillar touches, or the scene is flat"),
-}
-NUMERICAL = ("bem", "bem-fft", "fem-axisym")
 # Features of the discretisation tables, per regime.
 DISC_FEATURES = {"flat": ["log_zeta_r"], "single": ["w", "log_sag"],
                  "multi": ["w", "log_phi_s", "phi"]}
@@ -70,41 +61,28 @@ SINGLE_REFERENCE_RUNGS = (23, 47, 95)
 TRUNCATION_BLOCKS = (1e3, 1e4, 1e5)
 
 
-def candidates() -> list:
-    """Every candidate of the planner: each rung of each model's ladder, the closed forms."""
-    out = []
-    for model in NUMERICAL:
-        ladder = LADDERS[model]
-        regimes, scope = SCOPES[model]
-        for value in ladder.rungs:
-            short = {"elements_per_diameter": "P", "cells_per_diameter": "N",
-                     "mesh_size": "mesh"}.get(ladder.option, ladder.option)
-            out.append({"model": model, "options": ladder.options_at(value),
-                        "label": f"{model} {short}={value:g}", "regimes": list(regimes),
-                        "scope": scope, "closed_form": False})
-    for model in ("spring", "hertz"):
-        regimes, scope = SCOPES[model]
-        out.append({"model": model, "options": {}, "label": model, "regimes": list(regimes),
-                    "scope": scope, "closed_form": True})
-    return out
-
-
+# Every candidate of the planner (each rung of each candidate model's ladder, the closed
+# forms), with the regimes of its declaration.
 CANDIDATES = candidates()
+# Every candidate without elastic pillars carries the Hooke pillar's error (the closed forms
+# too: the spring is a Hooke pillar, the Hertz-like limit is fitted on Hooke lattices).
+HOOKE_MODELS = [m.name for m in MODELS.values()
+                if m.candidate and m.physics != "elastic-pillar"]
 
 
 def _cases_of(entry: dict) -> list:
     """The cases one calibration scene needs, by its regime."""
     reg = regime(entry["scene"])["name"]
-    cases = [Case(m, entry["scene"], LADDERS[m].options_at(v), tag=f"{entry['name']} {m}")
-             for m in ("bem", "bem-fft") for v in LADDERS[m].rungs]
+    models = [m for m in MODELS.values() if m.candidate and reg in m.scopes]
+    cases = [Case(m.name, entry["scene"], m.ladder.options_at(v),
+                  tag=f"{entry['name']} {m.name}")
+             for m in models if m.ladder is not None for v in m.ladder.rungs]
     if reg in ("flat", "single"):
-        cases += [Case("fem-axisym", entry["scene"], LADDERS["fem-axisym"].options_at(v),
-                       tag=f"{entry['name']} fem") for v in LADDERS["fem-axisym"].rungs]
         # One pillar is cheap: the Hooke reference gets the dense BEM refined further.
-        cases += [Case("bem", entry["scene"], LADDERS["bem"].options_at(v),
+        cases += [Case("bem", entry["scene"], MODELS["bem"].ladder.options_at(v),
                        tag=f"{entry['name']} bem ref") for v in SINGLE_REFERENCE_RUNGS]
-    cases += [Case(m, entry["scene"], {}, tag=f"{entry['name']} {m}")
-              for m in ("hertz", "spring") if reg in SCOPES[m][0]]
+    cases += [Case(m.name, entry["scene"], {}, tag=f"{entry['name']} {m.name}")
+              for m in models if m.ladder is None]
     return cases
 
 
@@ -113,7 +91,7 @@ def _row(outcome) -> dict | None:
     if not outcome.ok:
         return None
     case, result = outcome.case, outcome.result
-    ladder = LADDERS.get(case.model)
+    ladder = MODELS[case.model].ladder
     value = case.options.get(ladder.option) if ladder else None
     return {"model": case.model, "value": value, "h": ladder.size(value) if ladder else None,
             "converged": bool(result.converged), "wall_time_s": outcome.timing["wall_time_s"],
@@ -176,9 +154,9 @@ def _disc_tables(records: list) -> list:
         if cand["closed_form"]:
             continue
         model = cand["model"]
-        option = LADDERS[model].option
+        option = MODELS[model].ladder.option
         value = cand["options"][option]
-        for reg in SCOPES[model][0]:
+        for reg in MODELS[model].scopes:
             feats = DISC_FEATURES[reg]
             points, errors = [], {q: [] for q in QKEYS}
             for rec in records:
@@ -232,14 +210,13 @@ def _gecit_table(rows: list, scenes: list) -> ErrorTable:
         errors["F_T"].append(row["err_F_T"])
         errors["sigma0"].append(row["err_sigma0"])
     return ErrorTable(
-        "model", ["bem", "bem-fft", "spring", "hertz"], ["single", "multi"],
+        "model", HOOKE_MODELS, ["single", "multi"],
         ["log_ep", "log_es", "aspect"], points, errors, component="hooke",
         source="gecit: Hooke-spring BEM (Richardson) against the elastic-pillar FEM",
         note="measured on one pillar; applied to every pillar of a lattice until a lattice "
              "study (fem-3d) measures it there")
 
 
-HOOKE_MODELS = ["bem", "bem-fft", "hertz"]
 
 
 def load_lattice(path) -> dict:
@@ -278,7 +255,8 @@ def lattice_hooke_table(report: dict) -> ErrorTable:
                 and math.isfinite(bem)
             errors[q].append((bem - fem) / fem if ok else None)
     return ErrorTable(
-        "model", list(HOOKE_MODELS), ["multi"], ["phi", "log_ep"], points, errors,
+        "model", [m for m in HOOKE_MODELS if "multi" in MODELS[m].scopes], ["multi"],
+        ["phi", "log_ep"], points, errors,
         component="hooke",
         source="lattice: Hooke-pillar bem-fft (Richardson) against the elastic-pillar fem-3d "
                "(Richardson)",
@@ -373,24 +351,16 @@ def _truncation(cache: Path, scene_names=("single-pillar", "hertz")) -> list:
     return out
 
 
-# Cost laws: time = sum_k c_k n^p_k (see planner_tables.CostFit): start-up, then assembly
-# and dense factorisation for the dense BEM; FFTs per iteration times iterations that grow
-# about as sqrt(n) for the FFT BEM; a sparse LU for the FEM.
-COST_LAWS = {"bem": ("dense-unknowns", "elements_per_diameter", "log_unknowns", [0, 2, 3],
-                     {"kind": "estimate"}),
-             "bem-fft": ("fft-grid", "cells_per_diameter", "log_points", [0, 1, 1.5], None),
-             "fem-axisym": ("fem-dofs", "mesh_size", "log_dofs", [0, 1, 1.5],
-                            {"kind": "estimate"}),
-             "hertz": ("none", None, None, [0], None), "spring": ("none", None, None, [0], None)}
-
-
 def _cost_fits(samples: list) -> dict:
-    """One fit per model of :data:`COST_LAWS` (nonnegative coefficients, least squares in
-    ln(time)), and the FFT's memory per padded point."""
+    """One fit per model with a cost law (its declaration's ``cost``: time =
+    sum_k c_k n^p_k, :class:`validation.planner.tables.CostFit`; nonnegative coefficients,
+    least squares in ln(time)), and the FFT's memory per padded point."""
     from scipy.optimize import least_squares
 
     fits = {}
-    for model, (size, option, term, powers, memory) in COST_LAWS.items():
+    for model, law in ((m.name, m.cost) for m in MODELS.values() if m.cost is not None):
+        size, term, powers, memory = law.size, law.term, list(law.powers), law.memory
+        option = _cost_option(model)
         mine = [s for s in samples if s["model"] == model and s["wall_time_s"] > 0]
         if not mine:
             continue
@@ -422,12 +392,19 @@ def _cost_fits(samples: list) -> dict:
     return fits
 
 
+def _cost_option(model: str) -> str | None:
+    """The option a model's cost law reads: its ladder's."""
+    ladder = MODELS[model].ladder
+    return ladder.option if ladder is not None else None
+
+
 def _cost_samples(outcomes: list) -> list:
     out = []
     for o in outcomes:
         if not o.ok:
             continue
-        size, option = COST_LAWS.get(o.case.model, ("none", None))[:2]
+        law = MODELS[o.case.model].cost
+        size, option = (law.size, _cost_option(o.case.model)) if law else ("none", None)
         value = o.case.options.get(option) if option else None
         terms, _ = size_terms(size, o.case.scene, value)
         out.append({"model": o.case.model, "terms": terms,
@@ -455,7 +432,7 @@ def calibrate(out: Path, engine: Engine | None = None, *, n_lattice: int = 40,
     gecit = gecit_scenes((1e-3, 1.0, math.inf), (0.5,), (1.0,)) if quick else gecit_scenes()
     try:
         batches = [_cases_of(e) for e in sample]
-        punch_batches = [[Case("bem", e["scene"], LADDERS["bem"].options_at(v),
+        punch_batches = [[Case("bem", e["scene"], MODELS["bem"].ladder.options_at(v),
                                tag=f"{e['name']} bem") for v in SINGLE_REFERENCE_RUNGS]
                          + [Case("spring", e["scene"], {}, tag=f"{e['name']} spring")]
                          for e in punches]

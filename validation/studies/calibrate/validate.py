@@ -33,7 +33,7 @@ from pathlib import Path
 from scenes import write_atomic
 
 from ...engine import Case, Engine
-from ...registry.ladders import LADDERS, quantity_values
+from ...registry import MODELS, quantity_values
 from ...analysis.verification import gci_three
 from .scenes import flat_scenes, lattice_scenes
 from ...planner.plan import DEFAULT_QUANTITIES, DEFAULT_TOLERANCE, plan
@@ -48,10 +48,6 @@ RUN_FACTOR = 3.0
 RUN_ALWAYS_S = 0.5   # candidates predicted faster than this always run
 TIME_FACTOR = 2.0
 TIME_FLOOR = 0.05
-REFERENCE_RUNGS = {"single": {"fem-axisym": (2.0, 1.0, 0.5)},
-                   "multi": {"bem": (11, 15, 21), "bem-fft": (32, 48, 64)},
-                   "flat": {"bem": (11, 15, 21), "bem-fft": (32, 48, 64),
-                            "fem-axisym": (2.0, 1.0, 0.5)}}
 REFERENCE_TEXT = {
     "single": "elastic pillar: fem-axisym Richardson (mesh_size 2, 1, 0.5)",
     "multi": "Hooke pillars: dense + FFT BEM Richardson, cross-checked (the Hooke error "
@@ -74,8 +70,8 @@ def _case(model, scene, options, tag) -> Case:
 def _scene_cases(entry: dict, p: dict) -> tuple[list, list]:
     """(reference cases, candidate cases) of one scene."""
     reg = p["regime"]["name"]
-    ref = [_case(m, entry["scene"], LADDERS[m].options_at(v), f"{entry['name']} ref")
-           for m, values in REFERENCE_RUNGS[reg].items() for v in values]
+    ref = [_case(m.name, entry["scene"], m.ladder.options_at(v), f"{entry['name']} ref")
+           for m in MODELS.values() for v in m.reference_rungs.get(reg, ())]
     planned = p["choice"]["time_s"] if p["choice"] else 0.0
     limit = max(RUN_FACTOR * planned, RUN_ALWAYS_S)
     cands = [_case(c["model"], entry["scene"], c["options"], f"{entry['name']} {c['label']}")
@@ -90,7 +86,7 @@ def _reference(reg: str, outcomes: list, quantities) -> dict:
     for o in outcomes:
         if not o.ok or not o.result.converged:
             continue
-        ladder = LADDERS[o.case.model]
+        ladder = MODELS[o.case.model].ladder
         value = o.case.options[ladder.option]
         rows.append({"model": o.case.model, "h": ladder.size(value), "converged": True,
                      "wall_time_s": o.timing["wall_time_s"], **quantity_values(o.result)})

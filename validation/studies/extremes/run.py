@@ -28,7 +28,8 @@ Each run records whether it converged, its iterations, residual and time, and th
 - force balance: the pillar forces add up to F_T (relative 1e-6), F_T > 0 and finite;
 - p >= 0 everywhere (relative to the largest pressure, 1e-9);
 - no interpenetration: at most 1e-6 zeta (the FEMs' mortar contact: 20 % of zeta at the P2
-  points next to a contact edge, see :data:`INTERPENETRATION_TOL`);
+  points next to a contact edge: models declared with ``weak_contact``, see
+  :func:`interpenetration_tol`);
 - F increases with zeta and with the stiffness (to :data:`RTOL_MONOTONE`).
 
 A corner ends as ``pass`` (converged, invariants hold), ``fail`` (converged, an invariant
@@ -50,8 +51,9 @@ import numpy as np
 from scenes import InputError, load_scene
 
 from ...engine import Case, Engine, Outcome
+from ...registry import MODELS
 
-__all__ = ["MODELS", "corner_scenes", "run_extremes"]
+__all__ = ["corner_scenes", "model_options", "run_extremes"]
 
 BASE = "paper-fig3-sparse"
 E_LENS, D_UM, H_UM = 1.6e6, 4.0, 2.0
@@ -61,15 +63,6 @@ NOMINAL = {"Ep": 1.0, "Es": 1.0, "Phi": 0.03, "zeta": 0.15, "R": 2.0, "nu": 0.5}
 NUS = (0.0, 0.3, 0.4999)
 # Flat scenes: zeta / R at its shallow end (held at 1.5 nm at least) and near its limit 1/2.
 FLAT_ZETA_R = (1e-6, 0.4)
-# The models and the (cheap) resolution each runs at.
-# bem-fft's CG gets 3000 iterations here (its default, 20 sqrt(cells) + 500, reaches 14000 on
-# the widest corners: an hour of a stagnating solve where a robustness check needs a verdict).
-MODELS = {"bem": {"elements_per_diameter": 7},
-          "bem-fft": {"cells_per_diameter": 16, "max_iterations": 3000},
-          "fem-axisym": {"mesh_size": 2.0}, "fem-3d": {"mesh_size": 4.0}, "hertz": {},
-          "spring": {}}
-# The fast subset (tests) meshes the FEM coarser: it checks robustness, not accuracy.
-QUICK_OPTIONS = {"fem-axisym": {"mesh_size": 4.0}}
 # fem-3d runs where its estimated unknowns at mesh_size 4 stay below this (~30 s, 2 GiB on two
 # cores); wider lattices (a 1 m lens, Phi = 0.9 at a deep zeta: 100-1e6 sector pillars) are
 # "skipped" with the estimate: three runs each would take hours on this machine.  Those that
@@ -79,12 +72,7 @@ ZETA_STEP = 1.05
 STIFFER = 1.5
 RTOL_FORCE_BALANCE = 1e-6
 RTOL_NEGATIVE_PRESSURE = 1e-9
-# The FEMs' contact is a mortar (weak) constraint: the weighted gaps hold to the contact
-# residual, while the pointwise gap at P2 points beside a contact edge dips below zero by a
-# share of zeta (1-3 % on resolved edges, ~9 % beside a flat punch's singular edge).  The
-# FEMs themselves call a run beyond 20 % under-resolved (not converged:
-# fem_reference MAX_POINTWISE_PENETRATION); a converged run beyond it would be a bug.
-INTERPENETRATION_TOL = {"fem-axisym": 0.2, "fem-3d": 0.2}
+# Interpenetration allowed to a model with a strong contact constraint (share of zeta).
 INTERPENETRATION_DEFAULT = 1e-6
 # F may not fall by more than this (relative) when zeta or a modulus grows.  Where the
 # stiffened body carries a negligible share of the compliance (pillars 1e6 E_l on a substrate
@@ -92,6 +80,29 @@ INTERPENETRATION_DEFAULT = 1e-6
 # that 1e9 modulus contrast carry 2e-6 to 7e-6 of it (measured here: E_p x 1.5 "lowers" F by
 # that much).  1e-5 is far below any increase a model resolves.
 RTOL_MONOTONE = 1e-5
+
+
+def model_options(quick: bool = False) -> dict[str, dict]:
+    """The models that run here and the cheap options of each (their declarations'
+    ``robustness``; ``robustness_quick`` in the fast subset, where one is declared)."""
+    return {m.name: (m.robustness_quick if quick and m.robustness_quick is not None
+                     else m.robustness)
+            for m in MODELS.values() if m.robustness is not None}
+
+
+def interpenetration_tol(model: str) -> float:
+    """The pointwise interpenetration (share of zeta) a converged run of ``model`` may show.
+
+    A model with weak (mortar) contact, the FEMs, holds the weighted gaps to its contact
+    residual, while the pointwise gap at the P2 points beside a contact edge dips below zero
+    by a share of zeta (1-3 % on resolved edges, ~9 % beside a flat punch's singular edge).
+    The FEMs themselves call a run beyond ``fem_reference._contact.MAX_POINTWISE_PENETRATION``
+    under-resolved (not converged); a converged run beyond it would be a bug."""
+    if model in MODELS and MODELS[model].weak_contact:
+        from fem_reference._contact import MAX_POINTWISE_PENETRATION
+
+        return MAX_POINTWISE_PENETRATION
+    return INTERPENETRATION_DEFAULT
 
 
 def _sets(p: dict) -> list:
@@ -200,13 +211,12 @@ def _cases(entry: dict, quick: bool = False) -> list:
     entry["stiffened"] = which
     entry["skipped"] = {}
     out = []
-    for model, options in MODELS.items():
-        options = QUICK_OPTIONS.get(model, options) if quick else options
+    for model, options in model_options(quick).items():
         why = skip_reason(model, _deeper(entry["scene"]), options)
         if why:
             entry["skipped"][model] = why
             continue
-        fields = model in ("bem", "bem-fft", "fem-axisym")
+        fields = MODELS[model].keeps_fields
         out += [Case(model, entry["scene"], options, fields=fields,
                      tag=f"{entry['label']}: {model}"),
                 Case(model, _deeper(entry["scene"]), options,
@@ -287,7 +297,7 @@ def judge(entry: dict, model: str, base, deeper, stiffer) -> dict:
     checks["pressure_nonnegative"] = None if pmin is None else bool(
         pmin >= -RTOL_NEGATIVE_PRESSURE)
     pen = _interpenetration(r)
-    tol = INTERPENETRATION_TOL.get(model, INTERPENETRATION_DEFAULT)
+    tol = interpenetration_tol(model)
     checks["no_interpenetration"] = None if pen is None else bool(pen <= tol)
     for key, other in (("F_increases_with_zeta", deeper), ("F_increases_with_E", stiffer)):
         if other.ok and other.result.converged and r.converged:
@@ -325,7 +335,7 @@ def run_extremes(out: Path, engine: Engine | None = None, *, quick: bool = False
     """Run (or resume) every model on every corner; returns the records and the scenes."""
     t0 = time.perf_counter()
     entries = corner_scenes(quick)
-    chosen = [m for m in MODELS if models is None or m in models]
+    chosen = [m for m in model_options() if models is None or m in models]
     all_cases = []
     for e in entries:
         all_cases += [c for c in _cases(e, quick) if c.model in chosen]

@@ -13,7 +13,7 @@ from pathlib import Path
 from scenes import InputError, Scene, SceneError, load_scene
 
 from ...engine import Case
-from ...registry.options import check_option
+from ...registry import check_option
 
 _RANGE_KEYS = {"linear", "log", "num"}
 
@@ -158,20 +158,20 @@ class Sweep:
     def cases(self) -> tuple[list[SweepCase], list[tuple[dict, str]]]:
         """(cases, skipped points with the reason).  A point the scene refuses raises an
         InputError naming the point, unless ``on_invalid = "skip"``."""
-        from ...registry.models import MODELS, model_names
+        from ...registry import MODELS, model_names
 
         for m in self.models:
             if m.name not in MODELS:
                 raise InputError(f"[[models]] name = {m.name!r}: unknown; available: "
                                  f"{', '.join(model_names())}")
-            bad = sorted(set(m.options) - set(MODELS[m.name][2]) - {"vtu_path"})
-            if bad or "vtu_path" in m.options:
-                raise InputError(f"[[models]] {m.name}: unknown option(s) "
-                                 f"{', '.join(bad or ['vtu_path'])}; allowed: "
-                                 f"{', '.join(o for o in MODELS[m.name][2] if o != 'vtu_path')}")
+            declared = MODELS[m.name].options
+            bad = sorted(set(m.options) - set(declared))
+            if bad:
+                raise InputError(f"[[models]] {m.name}: unknown option(s) {', '.join(bad)}; "
+                                 f"allowed: {', '.join(declared)}")
             for opts in m.option_sets():  # values the model would refuse, before any solve
                 for k, v in opts.items():
-                    check_option(k, v, where=f"[[models]] {m.name}: {k} =")
+                    check_option(k, v, where=f"[[models]] {m.name}: {k} =", spec=declared[k])
         out, skipped = [], []
         for point in self.points():
             sets = [*self.overrides, *(_override(k, v) for k, v in point.items())]

@@ -47,14 +47,13 @@ from __future__ import annotations
 
 import csv
 import io
-import math
 from pathlib import Path
 
-from scenes import Scene, apply_overrides, scene_dict, write_atomic
+from scenes import InputError, Scene, apply_overrides, scene_dict, write_atomic
 
 from ...engine import Case, CaseStore, Engine, Outcome
 from .grid import (Axis, ModelSpec, Sweep, SweepCase, _override, crossed, linear, log,
-                         zipped)
+                   zipped)
 
 __all__ = ["Axis", "ModelSpec", "Sweep", "SweepCase", "crossed", "estimate_cost",
            "estimate_seconds", "linear", "log", "run_sweep", "run_sweep_cases", "scene_columns",
@@ -71,31 +70,27 @@ RESULT_COLUMNS = ("total_force_N", "centre_pressure_Pa", "contact_radius_m",
 
 
 # --- cost --------------------------------------------------------------------------------
-def _pillars_touching(scene: Scene) -> float:
-    """Rough count of pillars in contact: Phi times the area 1.5 pi R zeta over a pillar top
-    (1.5 R zeta lies between the rigid overlap R zeta and the elastic 2 R zeta)."""
-    if scene.pillars is None:
-        return 0.0
-    r_top = scene.pillars.diameter_m / 2.0
-    area = 1.5 * scene.lens.radius_m * scene.indentation_m
-    return max(1.0, scene.pillars.surface_fraction * area / r_top**2)
+# A case whose model has no measured cost fit (fem-3d, auto), or that its fit cannot size.
+UNMEASURED_SECONDS = 1.0
 
 
 def estimate_seconds(case: Case) -> float:
-    """A rough single-core wall time (s) of a case, from a few solves measured on this
-    2-core machine; a stand-in until the planner's measured cost models exist."""
-    scene, o = case.scene, case.options
-    touching = max(1.0, _pillars_touching(scene))
-    if case.model == "bem":
-        p = o.get("elements_per_diameter", 11)
-        elements = 1.07 * touching * math.pi / 4 * p * p
-        return 0.01 + 2e-5 * elements + 5e-9 * elements**2
-    if case.model == "bem-fft":
-        n = o.get("cells_per_diameter", 32)
-        return 0.01 + 3.5e-5 * 1.5 * touching * math.pi / 4 * n * n
-    if case.model == "fem-axisym":
-        return 1.1 * float(o.get("mesh_size", 1.0)) ** -2.5
-    return 1.0
+    """The predicted wall time (s) of a case: the planner's cost fit of its model, measured
+    by ``pillar-xval calibrate`` on this machine (the model's default resolution where the
+    case gives none); :data:`UNMEASURED_SECONDS` without a fit."""
+    from ...planner.tables import load_data
+    from ...registry import get_model
+
+    fit = load_data().costs.get(case.model)
+    if fit is None:
+        return UNMEASURED_SECONDS
+    options = dict(case.options)
+    if fit.option and options.get(fit.option) is None:
+        options[fit.option] = get_model(case.model).default(fit.option)
+    try:
+        return fit.predict(case.scene, options)[0]
+    except (InputError, ValueError, TypeError):
+        return UNMEASURED_SECONDS
 
 
 def estimate_cost(cases: list[SweepCase], folder: Path | None, workers: int) -> dict:
