@@ -16,7 +16,7 @@ import ctypes
 import numpy as np
 import scipy.sparse as sp
 
-from ._system import SolveError
+from ._reduced import SolveError
 
 
 class Pardiso:

@@ -11,14 +11,14 @@ The 3D builder meshes a sector 0 <= theta <= alpha of the lattice centred on pil
 reach, substrate block, with per-pillar groups (``contact_pillar_{n}_{m}``, ...).
 """
 
-from ._geometry import (BODIES, MESH_SIZE_RANGE, AxisymmetricGeometry, GeometryError, MeshError,
-                        flat_geometry, pillar_geometry)
-from ._gmsh import build_axisymmetric_mesh
-from ._mesh import MIN_QUALITY, AxisymmetricMesh
-from ._mesh3d import MIN_QUALITY_3D, WedgeMesh
-from ._wedge_geometry import (MESH_SIZE_RANGE_3D, SECTORS, SectorPillar, WedgeGeometry,
+from ._common import BODIES, GeometryError, MeshError
+from .axisym.geometry import MESH_SIZE_RANGE, AxisymmetricGeometry, flat_geometry, pillar_geometry
+from .axisym.gmsh import build_axisymmetric_mesh
+from .axisym.mesh import MIN_QUALITY, AxisymmetricMesh
+from .wedge.geometry import (MESH_SIZE_RANGE_3D, SECTORS, SectorPillar, WedgeGeometry,
                              sector_pillars)
-from ._wedge_gmsh import build_wedge_mesh
+from .wedge.gmsh import build_wedge_mesh
+from .wedge.mesh import MIN_QUALITY_3D, WedgeMesh
 
 __all__ = [
     "BODIES",

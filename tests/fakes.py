@@ -6,7 +6,8 @@ import math
 
 import numpy as np
 
-from scenes import ContactResult, PillarForce, analytic
+from outcome import ContactResult, PillarForce
+from scenes import analytic
 
 CALLS: list[tuple] = []
 

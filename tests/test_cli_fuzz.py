@@ -17,7 +17,7 @@ import sys
 import pytest
 
 from scenes import ToolError, load_scene, preset_names, scene_to_toml
-from scenes.result import package_version
+from outcome import package_version
 
 # The one line of each outcome (progress lines on stderr start with "[").
 KIND = {1: "not converged", 2: "error", 3: "failure", 4: "internal error", 130: "interrupted"}

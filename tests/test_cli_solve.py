@@ -5,7 +5,7 @@ import json
 
 import pytest
 
-from scenes import ContactResult
+from outcome import ContactResult
 from validation.cli import main
 
 

@@ -7,7 +7,8 @@ import json
 
 import pytest
 
-from scenes import ContactResult, PillarForce, ScopeError, load_scene
+from outcome import ContactResult, PillarForce
+from scenes import ScopeError, load_scene
 from validation.engine import Case, Outcome
 from validation.studies.extremes.run import corner_scenes, judge, run_extremes
 from validation.studies.extremes.report import STATUSES, counts, summary_text, write_outputs

@@ -12,8 +12,8 @@ import shutil
 
 import pytest
 
-from scenes import ContactResult, analytic, load_scene
-from validation.cli import main
+from outcome import ContactResult
+from scenes import analytic, load_scene
 from validation.engine import Case, Engine, case_key
 from validation.registry import (MODELS, Ladder, Model, OptionSpec, check_option, get_model,
                                  ladders, option_vocabulary, run_model)
@@ -109,8 +109,8 @@ def solve_toy(scene, stiffness: float = 1.0, pillars: str = "hooke"):
     force = hz.force * stiffness * (0.5 if pillars == "elastic" else 1.0)
     return ContactResult(
         model="toy", scene=scene.to_dict(), discretisation={"stiffness": stiffness},
-        total_force_N=force, centre_pressure_Pa=hz.centre_pressure, contact_radius_m=hz.contact_radius,
-        real_contact_area_m2=hz.contact_area, pillars_in_contact=0, pillar_forces=[],
+        total_force_N=force, centre_pressure_Pa=hz.centre_pressure,
+        contact_radius_m=hz.contact_radius, real_contact_area_m2=hz.contact_area, pillars_in_contact=0, pillar_forces=[],
         converged=True, iterations=1, wall_time_s=0.0)
 
 

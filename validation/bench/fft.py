@@ -176,7 +176,7 @@ def main(argv=None) -> int:
 
 def write_report(out: Path, scaling: list, side: list, meta: dict) -> str:
     """Write bench_fft.json and bench_fft.png into ``out``; return the printed table."""
-    from scenes import write_atomic
+    from outcome import write_atomic
 
     lines = ["scaling (bem-fft, scene %s, elastic pillars)" % meta["scene"],
              f"{'N':>4} {'cells':>9} {'grid':>9} {'time s':>8} {'iter':>5} {'FFTs':>5} "

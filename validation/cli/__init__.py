@@ -27,10 +27,11 @@ import os
 import sys
 import warnings
 
-from scenes import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_TOOL_FAILURE, InputError, ToolError
-from scenes.result import package_version
+from outcome import package_version
+from scenes import InputError, ToolError
 
-from ._args import DEBUG_ENV, EXIT_INTERNAL_ERROR, Parser, add_scene_arguments, one_line
+from ._args import DEBUG_ENV, Parser, add_scene_arguments, one_line
+from ._exit import EXIT_BAD_INPUT, EXIT_INTERNAL_ERROR, EXIT_INTERRUPTED, EXIT_TOOL_FAILURE
 
 __all__ = ["COMMANDS", "DEBUG_ENV", "EXIT_INTERNAL_ERROR", "add_scene_arguments",
            "build_parser", "main"]

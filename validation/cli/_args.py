@@ -35,8 +35,8 @@ import re
 import sys
 from pathlib import Path
 
-from scenes import (EXIT_BAD_INPUT, EXIT_NOT_CONVERGED, EXIT_TOOL_FAILURE, InputError,
-                    preset_names)
+from ._exit import EXIT_BAD_INPUT, EXIT_INTERNAL_ERROR, EXIT_NOT_CONVERGED, EXIT_TOOL_FAILURE
+from scenes import InputError, preset_names
 
 from ..engine import add_engine_arguments, engine_from_args
 from ..registry import family_options, flag, option_vocabulary
@@ -50,10 +50,7 @@ __all__ = [
     "study_status",
 ]
 
-# An exception that none of the failure policy's kinds covers is a bug of the toolkit: one
-# line and this status (exit statuses 0-3 and 130: scenes._errors).  --debug, or this variable
-# set to anything but "" or "0", shows its traceback instead.
-EXIT_INTERNAL_ERROR = 4
+# Set to anything but "" or "0": an internal error shows its traceback (as --debug does).
 DEBUG_ENV = "PILLAR_XVAL_DEBUG"
 
 _INTEGER = re.compile(r"[+-]?[0-9]+")
@@ -105,7 +102,8 @@ def number(lo: float | None = None, hi: float | None = None, *, open_lo: bool = 
 
 
 def option_type(name: str):
-    """The strict argparse type of a model option (:func:`validation.registry.option_vocabulary`)."""
+    """The strict argparse type of a model option (its spec in
+    :func:`validation.registry.option_vocabulary`)."""
     spec = option_vocabulary()[name]
     if spec.kind is int:
         return integer(spec.lo, spec.hi)

@@ -5,13 +5,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from scenes import EXIT_BAD_INPUT, EXIT_TOOL_FAILURE
-
 from ..analysis.profiles import EDGE_SKIP, EDGE_WINDOW
 from ..studies.gecit import ASPECTS, CONVENTION, RATIOS
 from ._args import (Renamed, add_engine_arguments, add_output_arguments,
                     add_refinement_arguments, add_scene_arguments, check_out,
                     engine_from_args, integer, number, print_json, study_status)
+from ._exit import EXIT_BAD_INPUT, EXIT_TOOL_FAILURE
 
 FEM_MESH_SIZE = 0.5
 

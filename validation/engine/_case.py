@@ -7,8 +7,8 @@ How the code enters the key
 :func:`code_version` and the model's own code (:func:`model_code`).  The code version is the
 package version followed by the first 12 hex digits of a SHA-256 over the source and data
 files (``*.py``, ``*.toml``, ``*.json``, with their relative paths) of
-:data:`COMPUTING_PACKAGES`, what decides every result: the physics (``scenes``, ``contact``,
-``bem_solver``, ``fem_reference``, ``meshes``), the model registry (``validation.registry``:
+:data:`COMPUTING_PACKAGES`, what decides every result: the physics (``outcome``, ``scenes``, ``contact``,
+``bem_solver``, ``closed_forms``, ``meshes``, ``fem_reference``), the model registry (``validation.registry``:
 which options reach a solver) and this module (how a case runs).  A model that computes with
 more (``auto``: the planner, ``validation.planner``, and its data) declares it in its
 ``code`` (:class:`validation.registry.Model`), and its keys hash that too, so a recalibration
@@ -34,14 +34,15 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from scenes import ContactResult, Scene, ToolError
-from scenes.result import package_version
+from outcome import ContactResult
+from scenes import Scene, ToolError
+from outcome import package_version
 
 from ._progress import SolveProgress
 
 # The packages and modules whose source decides every result (module docstring).
-COMPUTING_PACKAGES = ("scenes", "contact", "bem_solver", "fem_reference", "meshes",
-                      "validation.registry", "validation.engine._case")
+COMPUTING_PACKAGES = ("outcome", "scenes", "contact", "bem_solver", "closed_forms", "meshes",
+                      "fem_reference", "validation.registry", "validation.engine._case")
 # The files of a package that enter its digest: source, and the data it reads.
 SOURCE_SUFFIXES = (".py", ".toml", ".json")
 

@@ -1,13 +1,14 @@
 """Off-screen pyvista render of a 3D sector solution unfolded to the whole disk.
 
-The VTU of :func:`fem_reference.solve_fem3d` holds one sector 0 <= theta <= alpha; its images
+The VTU of :func:`fem_reference.solid3d.solve` holds one sector 0 <= theta <= alpha; its images
 under the mirror group of the sector (rotations by 2 j alpha and the same after the
 reflection y -> -y: 12 images for the pi/6 wedge) cover the disk.  The pillars and the
 substrate are shown coloured by the von Mises stress (kPa); the lens, which would hide
 them, is shown only over the far half of the disk and lifted by a pillar height, so the
 stressed pillar tops and the lens bottom are both in view.  A ruler gives the length scale.
 
-Runs in a child process (``python -m validation.output.render3d VTU PNG [STAMP]``), like the axisymmetric
+Runs in a child process (``python -m validation.output.render3d VTU PNG [STAMP]``), like the
+axisymmetric
 render of :mod:`validation.output.render`: VTK's off-screen context stays out of the caller.
 """
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scenes import ContactResult, write_atomic
+from outcome import ContactResult, write_atomic
 
 UM, KPA = 1e6, 1e-3  # display units: micrometres and kilopascals per SI unit
 # Above this many elements a scatter of sigma(r) is a grey blob: draw its density instead.

@@ -4,7 +4,7 @@ A cost fit (:class:`.tables.CostFit`, data) names a ``size`` function of this mo
 model option it reads (a model's declaration says which: ``Model.cost``); the function returns
 the fit's terms (natural logs of counts) and a memory estimate in bytes.  The dense BEM and
 fem-axisym estimate their own memory (``bem_solver.estimate_memory``,
-``fem_reference.estimate_memory``, the same functions that refuse a scene too large for the
+``fem_reference.axisym.estimate_memory``, the same functions that refuse a scene too large for the
 machine); the FFT grid's memory is a fitted line in its padded points (``calibrate``).  A model
 added later names one of these sizes in its cost law, or adds one here.
 """
@@ -57,7 +57,7 @@ def _fft(scene, value):
 
 
 def _fem(scene, value):
-    from fem_reference import estimate_memory
+    from fem_reference.axisym import estimate_memory
 
     est = estimate_memory(scene, float(value))
     return {"log_dofs": math.log(est["dofs"])}, est["bytes"]

@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 
 from scenes import InputError, Scene, ScopeError
-from scenes.memory import MEMORY_SHARE, available_memory
+from outcome.memory import MEMORY_SHARE, available_memory
 
 from ..registry import QUANTITIES
 from .features import features, regime

@@ -14,17 +14,17 @@ vocabulary, :func:`option_vocabulary`), :func:`ladders`, :func:`candidates` (the
 
 from __future__ import annotations
 
-from scenes import ContactResult, InputError, Scene
+from outcome import ContactResult
+from scenes import InputError, Scene
 
 from .ladders import QUANTITIES, Ladder, Quantity, quantity_values
 from .model import CostLaw, Model
 from .models import DECLARED
 from .options import OptionSpec, check_option, flag
 
-__all__ = ["MODELS", "QUANTITIES", "CostLaw", "Ladder", "Model",
-           "OptionSpec", "Quantity", "candidates", "check_option", "family_options", "flag",
-           "get_model", "ladder_for", "ladders", "model_names", "option_vocabulary", "quantity_values",
-           "run_model"]
+__all__ = ["MODELS", "QUANTITIES", "CostLaw", "Ladder", "Model", "OptionSpec", "Quantity",
+           "candidates", "check_option", "family_options", "flag", "get_model", "ladder_for",
+           "ladders", "model_names", "option_vocabulary", "quantity_values", "run_model"]
 
 # Every model by its --model name, in declaration order (tests register fakes here).
 MODELS: dict[str, Model] = {m.name: m for m in DECLARED}

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from scenes import ContactResult
+from outcome import ContactResult
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,8 @@ import inspect
 from dataclasses import dataclass, field
 from typing import Callable
 
-from scenes import ContactResult, Scene
+from outcome import ContactResult
+from scenes import Scene
 
 from .ladders import Ladder
 from .options import OptionSpec

@@ -59,7 +59,7 @@ DECLARED = (
         # the widest corners, an hour of a stagnating solve where a verdict is wanted.
         robustness={"cells_per_diameter": 16, "max_iterations": 3000}, keeps_fields=True),
     Model(
-        "fem-axisym", "fem_reference:solve_axisymmetric",
+        "fem-axisym", "fem_reference.axisym:solve",
         "axisymmetric FEM with one elastic pillar (scikit-fem, Taylor-Hood P2/P1)",
         options={"mesh_size": MESH_SIZE},
         # The mesh builder's single size parameter scales every element size.
@@ -74,7 +74,7 @@ DECLARED = (
         robustness={"mesh_size": 2.0}, robustness_quick={"mesh_size": 4.0},
         keeps_fields=True, weak_contact=True),
     Model(
-        "fem-3d", "fem_reference:solve_fem3d",
+        "fem-3d", "fem_reference.solid3d:solve",
         "3D FEM of the lattice's pi/6 wedge with elastic pillars (PARDISO, constrained CG)",
         options={"mesh_size": MESH_SIZE_3D},
         # Ratio sqrt(2) per level (each halving of the size multiplies the unknowns by ~8);
@@ -87,12 +87,12 @@ DECLARED = (
         expensive=True),
     # Closed forms as models: the planner's cheapest candidates.
     Model(
-        "hertz", "scenes.closed_form_models:solve_hertz",
+        "hertz", "closed_forms:solve_hertz",
         "Hertz on the substrate (flat), or the Hertz-like limit of a dense lattice",
         scopes=("flat", "multi"), scope_note="one pillar touches: no continuum",
         cost=_NO_COST, robustness={}),
     Model(
-        "spring", "scenes.closed_form_models:solve_spring",
+        "spring", "closed_forms:solve_spring",
         "the paper's soft-flat-punch (spring) model of one pillar",
         scopes=("single",), scope_note="a second pillar touches, or the scene is flat",
         cost=_NO_COST, robustness={}),

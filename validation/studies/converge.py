@@ -8,7 +8,8 @@ import io
 import json
 from pathlib import Path
 
-from scenes import InputError, Scene, write_atomic
+from scenes import InputError, Scene
+from outcome import write_atomic
 
 from ..engine import Case, Engine, Outcome
 from ..registry import QUANTITIES, check_option, flag, get_model, ladder_for, quantity_values

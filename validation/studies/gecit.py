@@ -25,11 +25,13 @@ import math
 import time
 from pathlib import Path
 
-from scenes import InputError, load_scene, write_atomic
+from scenes import InputError, load_scene
+from outcome import write_atomic
 
 from ..engine import Case, Engine
 from ..registry import check_option, get_model, ladder_for
-from ..analysis.profiles import EDGE_SKIP, EDGE_WINDOW, edge_exponent, outer_load_fraction, plateau_ratio
+from ..analysis.profiles import (EDGE_SKIP, EDGE_WINDOW, edge_exponent, outer_load_fraction,
+                                 plateau_ratio)
 from .converge import check_ladder, study_levels
 
 # The paper's convention (Table 1: E_p = E_s): every scene of the study has it.

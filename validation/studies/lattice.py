@@ -351,7 +351,7 @@ def write_report(report: dict, out) -> list[str]:
     import json
     from pathlib import Path
 
-    from scenes import write_atomic
+    from outcome import write_atomic
 
     out = Path(out)
     write_atomic(out / "lattice.csv", rows_csv(report))

@@ -1,7 +1,8 @@
 """What each model's accuracy costs in time and memory.
 
 For every model whose declaration has a ladder (:mod:`validation.registry`), the study solves
-the scene on each of the ladder's ``rungs``, one case at a time on the engine (timings are not shared with another case running beside them),
+the scene on each of the ladder's ``rungs``, one case at a time on the engine (timings are not
+shared with another case running beside them),
 and records the wall time (median of ``repeats`` runs inside the case, stored with it), the
 peak memory (the resident set's high-water mark during the first run, above where it
 started) and the four compared quantities F_T, sigma_0, a and A.  Finished rungs are cached:
@@ -30,8 +31,9 @@ import math
 import tempfile
 from pathlib import Path
 
-from scenes import InputError, write_atomic
-from scenes.result import package_version
+from scenes import InputError
+from outcome import write_atomic
+from outcome import package_version
 
 from ..engine import Case, Engine
 from ..registry import QUANTITIES
@@ -254,7 +256,8 @@ def reference_values(rows: list) -> dict:
 
     Each model with three converged rungs gives an estimate (observed order, Richardson value,
     GCI band).  An estimate whose order is far from the model's expected one
-    (its declaration's ``expected_order``) or whose asymptotic ratio is far from 1 is pre-asymptotic and
+    (its declaration's ``expected_order``) or whose asymptotic ratio is far from 1 is
+    pre-asymptotic and
     not preferred: such a model (or one whose order cannot be observed) enters at its expected
     order instead, from its two finest rungs with the two-grid band (Fs = 3), after every
     asymptotic estimate (:func:`_tiers`).  Among the estimates of the most trusted tier

@@ -3,7 +3,8 @@
 Every number comes from studies run on the engine (resumable, cached in ``OUT/cases``):
 
 - convergence ladders (the rungs of each candidate model's ladder, :mod:`validation.registry`)
-  of the dense and FFT BEM on a seeded Latin-hypercube sample of the paper's scenes (and a stiff-substrate one),
+  of the dense and FFT BEM on a seeded Latin-hypercube sample of the paper's scenes (and a
+  stiff-substrate one),
   fem-axisym's ladder where one pillar touches, all three on flat scenes.  The discretisation
   error of a rung is measured against a converged reference of the same physics: the Hooke
   pillar's is ``tradeoff``'s cross-checked Richardson estimate from both BEMs
@@ -32,8 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
-from scenes import write_atomic
-from scenes.result import package_version
+from outcome import write_atomic
+from outcome import package_version
 
 from ...engine import Case, Engine, code_version
 from ...registry import MODELS, QUANTITIES, candidates, quantity_values
@@ -327,7 +328,7 @@ def _truncation(cache: Path, scene_names=("single-pillar", "hertz")) -> list:
     f(L) = f_inf + k / L over the three widest (mesh_size 1).  Kept in ``cache`` for the
     code version that computed it (the block size is not a registered option, so these
     solves run here rather than on the engine)."""
-    from fem_reference import BLOCK_FACTOR, solve_axisymmetric
+    from fem_reference.axisym import BLOCK_FACTOR, solve
 
     from scenes import load_scene
 
@@ -337,7 +338,7 @@ def _truncation(cache: Path, scene_names=("single-pillar", "hertz")) -> list:
     out = []
     for name in scene_names:
         scene = load_scene(name)
-        vals = {b: quantity_values(solve_axisymmetric(scene, 1.0, block_factor=b))
+        vals = {b: quantity_values(solve(scene, 1.0, block_factor=b))
                 for b in TRUNCATION_BLOCKS}
         inv = np.array([1.0 / b for b in TRUNCATION_BLOCKS])
         errors = {}

@@ -30,7 +30,7 @@ import json
 import time
 from pathlib import Path
 
-from scenes import write_atomic
+from outcome import write_atomic
 
 from ...engine import Case, Engine
 from ...registry import MODELS, quantity_values

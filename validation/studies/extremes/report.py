@@ -8,7 +8,7 @@ import io
 import json
 from pathlib import Path
 
-from scenes import write_atomic
+from outcome import write_atomic
 
 __all__ = ["STATUSES", "counts", "heatmap", "summary_text", "write_outputs"]
 

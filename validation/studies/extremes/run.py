@@ -99,7 +99,7 @@ def interpenetration_tol(model: str) -> float:
     The FEMs themselves call a run beyond ``fem_reference._contact.MAX_POINTWISE_PENETRATION``
     under-resolved (not converged); a converged run beyond it would be a bug."""
     if model in MODELS and MODELS[model].weak_contact:
-        from fem_reference._contact import MAX_POINTWISE_PENETRATION
+        from fem_reference._driver import MAX_POINTWISE_PENETRATION
 
         return MAX_POINTWISE_PENETRATION
     return INTERPENETRATION_DEFAULT
@@ -193,10 +193,10 @@ def skip_reason(model: str, scene, options: dict) -> str | None:
     or None.  A scene the model cannot take at all is left to the model to refuse."""
     if model != "fem-3d":
         return None
-    from fem_reference import estimate_memory_3d
+    from fem_reference.solid3d import estimate_memory
 
     try:
-        est = estimate_memory_3d(scene, options["mesh_size"])
+        est = estimate_memory(scene, options["mesh_size"])
     except InputError:
         return None
     if est["dofs"] <= FEM3D_MAX_DOFS:

@@ -10,7 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from scenes import Material, Scene, analytic, write_atomic
+from scenes import Material, Scene, analytic
+from outcome import write_atomic
 
 from . import plots
 from .fits import master_curve

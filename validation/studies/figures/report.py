@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scenes import write_atomic
+from outcome import write_atomic
 
 from .fits import PAPER_AREA_EXPONENT, PAPER_EXPONENT
 

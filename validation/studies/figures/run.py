@@ -26,7 +26,8 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from scenes import Scene, write_atomic
+from scenes import Scene
+from outcome import write_atomic
 
 from ...engine import Case, Engine
 from .files import write_figures

@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ._geometry import BODIES, GeometryError
+from .._common import BODIES, GeometryError
 
 SQRT3 = math.sqrt(3.0)
 

@@ -1,7 +1,8 @@
 """How much memory a solve may take on this machine.
 
 Models estimate the peak memory of a solve from the scene before building anything
-(``bem_solver.estimate_memory``, ``fem_reference.estimate_memory``) and refuse a scene that
+(``bem_solver.estimate_memory``, ``fem_reference.axisym.estimate_memory``,
+``fem_reference.solid3d.estimate_memory``) and refuse a scene that
 would not fit with a :class:`~scenes.ScopeError` naming the estimate, instead of dying of a
 memory error minutes later.
 """

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._geometry import MeshError
+from .._common import MeshError
 
 # Mean-ratio floor, q = 12 (3 V)^(2/3) / sum(l^2) (1 for a regular tetrahedron).  gmsh's
 # optimised Delaunay meshes of these graded sectors measured q_min 0.17-0.3; below 0.02 an

@@ -18,20 +18,14 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 from skfem import Basis, ElementTriP1, ElementTriP2, ElementVector
 
-from scenes import ToolError
-
-from .forms.axisymmetric import (divergence_coupling, mixed_coefficients, pressure_mass,
-                                 shear_stiffness)
+from .._reduced import ReducedSystem, SolveError, relative_residual
+from ..forms.axisymmetric import (divergence_coupling, mixed_coefficients, pressure_mass,
+                                  shear_stiffness)
 
 
 # Quadrature degree: exact for the polynomial r-weighted terms (degree <= 3 for P2); the hoop
 # term u_r v_r / r is rational near the axis (see the measured effect in the tests).
 INTORDER = 4
-
-
-class SolveError(ToolError):
-    """A tool underneath failed: the sparse factorisation, or an inconsistency in the
-    assembled system (a non-convergence is reported in the result, never raised)."""
 
 
 @dataclass
@@ -42,32 +36,6 @@ class PressureSpace:
     beta: float       # p = beta * p~ (see forms.axisymmetric.mixed_coefficients)
     mu: float
     offset: int       # first index of this body's p~ in the full vector
-
-
-class ReducedSystem:
-    """What the axisymmetric and the sector systems share: reduced unknowns (``T`` maps them
-    to the full ones), a symmetric diagonal scaling ``scale`` of the factorised matrix
-    ``_Ks``, and each body's pressure space in ``pressures``."""
-
-    @property
-    def n_reduced(self) -> int:
-        return self.T.shape[1]
-
-    def residual(self, x: np.ndarray, rhs: np.ndarray) -> float:
-        """Relative scaled residual ||S (K x - b)|| / ||S b|| of a computed solution."""
-        b = self.scale * rhs
-        return _relative((b - self._Ks @ (x / self.scale))[:, None], b[:, None])
-
-    def full(self, x_reduced: np.ndarray) -> tuple[np.ndarray, dict]:
-        """Full displacement dofs and each body's physical pressure p (E_ref units)."""
-        x = self.T @ x_reduced
-        nu = self.basis_u.N
-        pressure = {}
-        for ps in self.pressures:
-            p = np.zeros(ps.basis.N)
-            p[ps.dofs] = ps.beta * x[ps.offset:ps.offset + len(ps.dofs)]
-            pressure[ps.body] = p
-        return x[:nu], pressure
 
 
 @dataclass
@@ -111,19 +79,13 @@ class AxisymmetricSystem(ReducedSystem):
         y = np.column_stack([self.lu.solve(col) for col in b.T])
         for _ in range(2):
             res = b - self._Ks @ y
-            rel = _relative(res, b)
+            rel = relative_residual(res, b)
             if rel < 1e-13:
                 break
             y += np.column_stack([self.lu.solve(col) for col in res.T])
-        rel = _relative(b - self._Ks @ y, b)
+        rel = relative_residual(b - self._Ks @ y, b)
         x = self.scale[:, None] * y
         return x.reshape(rhs.shape), rel
-
-
-def _relative(res, b) -> float:
-    num = np.linalg.norm(res, axis=0)
-    den = np.maximum(np.linalg.norm(b, axis=0), np.finfo(float).tiny)
-    return float(np.max(num / den))
 
 
 def assemble(mesh, materials: dict, *, rigid_pillar_on_substrate: bool,

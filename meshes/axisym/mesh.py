@@ -11,7 +11,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._geometry import AxisymmetricGeometry, MeshError
+from .geometry import AxisymmetricGeometry
+from .._common import MeshError
 
 # Shape-quality floor q = 4 sqrt(3) A / sum(l^2) (1 for an equilateral triangle); gmsh's
 # Frontal-Delaunay gives q > 0.5 on these graded meshes, 0.1 means a near-degenerate element.
@@ -167,7 +168,7 @@ class AxisymmetricMesh:
         """Write the mesh with meshio (format from the suffix: .msh, .vtu, .xdmf, ...)."""
         from pathlib import Path
 
-        from scenes import atomic_path
+        from outcome import atomic_path
 
         path = Path(path)
         mesh = self.to_meshio()

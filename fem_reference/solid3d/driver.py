@@ -32,20 +32,21 @@ import numpy as np
 from contact import constrained_cg
 from meshes import WedgeGeometry, build_wedge_mesh, sector_pillars
 from meshes import MESH_SIZE_RANGE_3D, SECTORS
-from scenes import ContactResult, InputError, PillarForce, Scene, ScopeError, analytic
+from outcome import ContactResult, PillarForce
+from scenes import InputError, Scene, ScopeError, analytic
 from scenes.lattice import lattice_indices
-from scenes.memory import MEMORY_SHARE, memory_short
+from outcome.memory import MEMORY_SHARE, memory_short
 
-from ._contact import contact_radius, solve_failures
-from ._contact3d import contact_area_share, contact_faces, line_profile, preconditioner
-from ._fields3d import cell_stresses, write_vtu3d
-from ._system import SolveError
-from ._system3d import assemble_sector
+from .._driver import contact_radius, solve_failures
+from .contact import contact_area_share, contact_faces, line_profile, preconditioner
+from .fields import cell_stresses, write_vtu3d
+from .._reduced import SolveError
+from .system import assemble_sector
 
 MODEL = "fem-3d"
 # Block radius and height over the focus radius: the truncation ~ 2 a_c / (pi L) for a
 # contact of radius a_c; the grading makes the large block cost a few shells of elements.
-BLOCK_FACTOR_3D = 1e4
+BLOCK_FACTOR = 1e4
 HERTZ_CANDIDATE = 1.5
 RTOL_COMPLEMENTARITY = 1e-8
 MAX_CG_ITERATIONS = 2000
@@ -63,9 +64,9 @@ BYTES_FIXED_3D = 160 * 2.0**20
 BYTES_PER_DOF_3D = 11.5e3
 
 
-def estimate_memory_3d(scene: Scene, mesh_size: float = 1.0, *,
+def estimate_memory(scene: Scene, mesh_size: float = 1.0, *,
                        sector_angle: float = math.pi / 6.0, reach_factor: float = 1.0) -> dict:
-    """Peak memory of :func:`solve_fem3d` on ``scene`` (estimated; nothing is meshed).
+    """Peak memory of :func:`solve` on ``scene`` (estimated; nothing is meshed).
 
     Returns
     -------
@@ -75,9 +76,9 @@ def estimate_memory_3d(scene: Scene, mesh_size: float = 1.0, *,
     Raises
     ------
     InputError, ScopeError
-        As :func:`solve_fem3d` for a bad option or a scene it cannot mesh.
+        As :func:`solve` for a bad option or a scene it cannot mesh.
     """
-    _check_options(mesh_size, sector_angle, BLOCK_FACTOR_3D, reach_factor, RTOL_COMPLEMENTARITY)
+    _check_options(mesh_size, sector_angle, BLOCK_FACTOR, reach_factor, RTOL_COMPLEMENTARITY)
     if scene.is_flat:
         pillars = 0
     else:
@@ -104,7 +105,7 @@ def _check_packing(p) -> None:
 
 def _refuse_if_too_large(scene: Scene, mesh_size: float, sector_angle: float,
                          reach_factor: float) -> None:
-    need = estimate_memory_3d(scene, mesh_size, sector_angle=sector_angle,
+    need = estimate_memory(scene, mesh_size, sector_angle=sector_angle,
                               reach_factor=reach_factor)
     free = memory_short(need["bytes"])
     if free is not None:
@@ -115,8 +116,8 @@ def _refuse_if_too_large(scene: Scene, mesh_size: float, sector_angle: float,
             "larger mesh_size, or the BEM for lattices this wide")
 
 
-def solve_fem3d(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None, progress=None,
-                sector_angle: float = math.pi / 6.0, block_factor: float = BLOCK_FACTOR_3D,
+def solve(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None, progress=None,
+                sector_angle: float = math.pi / 6.0, block_factor: float = BLOCK_FACTOR,
                 reach_factor: float = 1.0, tol: float = RTOL_COMPLEMENTARITY,
                 grading: dict | None = None) -> ContactResult:
     """Solve ``scene`` with the 3D finite-element model of the lattice sector.

@@ -31,7 +31,7 @@ import scipy.sparse as sp
 from scipy.spatial import cKDTree
 from skfem import Basis, BilinearForm, ElementTriP1, ElementTriP2, MeshTri
 
-from ._system import SolveError
+from .._reduced import SolveError
 
 
 @BilinearForm

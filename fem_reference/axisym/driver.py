@@ -24,12 +24,15 @@ import numpy as np
 
 from meshes import build_axisymmetric_mesh, flat_geometry, pillar_geometry
 from contact import solve_active_set
-from scenes import ContactResult, InputError, PillarForce, Scene, ScopeError, analytic
-from scenes.memory import MEMORY_SHARE, memory_short
+from outcome import ContactResult, PillarForce
+from scenes import InputError, Scene, ScopeError, analytic
+from outcome.memory import MEMORY_SHARE, memory_short
 
-from ._contact import contact_radius, mortar_matrix, solve_failures
-from ._fields import cell_stresses, write_vtu
-from ._system import SolveError, assemble
+from .._driver import contact_radius, solve_failures
+from .contact import mortar_matrix
+from .fields import cell_stresses, write_vtu
+from .._reduced import SolveError
+from .system import assemble
 
 MODEL = "fem-axisym"
 # Block side over the focus radius: truncation ~ 2a/(pi L) = 6e-6 at 1e5 (measured 0.8x that);
@@ -53,7 +56,7 @@ BYTES_FIXED = 40 * 2.0**20
 
 
 def estimate_memory(scene: Scene, mesh_size: float = 1.0) -> dict:
-    """Peak memory of :func:`solve_axisymmetric` on ``scene`` (estimated, nothing built).
+    """Peak memory of :func:`solve` on ``scene`` (estimated, nothing built).
 
     Returns
     -------
@@ -84,7 +87,7 @@ def _refuse_if_too_large(scene: Scene, mesh_size: float) -> None:
             f"{free / 2**30:.3g} GiB available; use a larger mesh_size")
 
 
-def solve_axisymmetric(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None,
+def solve(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None,
                        block_factor: float = BLOCK_FACTOR, progress=None) -> ContactResult:
     """Solve ``scene`` with the axisymmetric finite-element model.
 

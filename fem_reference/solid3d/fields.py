@@ -15,7 +15,7 @@ import numpy as np
 
 from meshes import BODIES
 
-from .forms.solid3d import stress, von_mises
+from ..forms.solid3d import stress, von_mises
 
 
 def cell_stresses(system, u: np.ndarray, pressure: dict, E_ref: float) -> dict:
@@ -58,7 +58,7 @@ def write_vtu3d(path, points_m: np.ndarray, tets: np.ndarray, displacement_m: np
 
     import meshio
 
-    from scenes import atomic_path, write_atomic
+    from outcome import atomic_path, write_atomic
 
     path = Path(path)
     out = meshio.Mesh(points_m.T, [("tetra", tets.T)],

@@ -29,10 +29,10 @@ import numpy as np
 import scipy.sparse as sp
 from skfem import Basis, ElementTetP1, ElementTetP2, ElementVector
 
-from ._pardiso import Pardiso
-from ._system import ReducedSystem, SolveError, _relative
-from .forms.solid3d import (derivative_coupling, gradient_product, mixed_coefficients,
-                           pressure_mass)
+from .._pardiso import Pardiso
+from .._reduced import ReducedSystem, SolveError, relative_residual
+from ..forms.solid3d import (derivative_coupling, gradient_product, mixed_coefficients,
+                             pressure_mass)
 
 # Quadrature: P2 gradients are P1, their products P2: degree 2 is exact on straight tets.
 INTORDER = 2
@@ -119,12 +119,12 @@ class SectorSystem(ReducedSystem):
         y = self.factor.solve(b)
         if refine == 0:  # inside the contact iterations: the caller checks at the end
             return (self.scale[:, None] * y).reshape(rhs.shape), float("nan")
-        rel = _relative(b - self._Ks @ y, b)
+        rel = relative_residual(b - self._Ks @ y, b)
         for _ in range(refine):
             if rel < 1e-12:
                 break
             y += self.factor.solve(b - self._Ks @ y)
-            rel = _relative(b - self._Ks @ y, b)
+            rel = relative_residual(b - self._Ks @ y, b)
         return (self.scale[:, None] * y).reshape(rhs.shape), rel
 
 

@@ -18,10 +18,10 @@ import math
 
 import numpy as np
 
-from ._geometry import MeshError
-from ._gmsh import gmsh_model
-from ._mesh3d import WedgeMesh
-from ._wedge_geometry import WedgeGeometry
+from .._common import MeshError
+from .._session import gmsh_model
+from .mesh import WedgeMesh
+from .geometry import WedgeGeometry
 
 IDENTITY = [1.0, 0, 0, 0, 0, 1.0, 0, 0, 0, 0, 1.0, 0, 0, 0, 0, 1.0]
 # Geometric tolerance for classifying faces, in focus-radius units.

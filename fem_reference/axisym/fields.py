@@ -15,7 +15,7 @@ import numpy as np
 
 from meshes import BODIES
 
-from .forms.axisymmetric import stress, von_mises
+from ..forms.axisymmetric import stress, von_mises
 
 
 def cell_stresses(system, u: np.ndarray, pressure: dict, E_ref: float) -> dict:
@@ -62,7 +62,7 @@ def write_vtu(path, mesh, displacement_m: np.ndarray, cells: dict, metadata: dic
 
     import meshio
 
-    from scenes import atomic_path, write_atomic
+    from outcome import atomic_path, write_atomic
 
     path = Path(path)
     pts = np.vstack([mesh.points, np.zeros(mesh.points.shape[1])]).T

@@ -1,5 +1,5 @@
 """Closed forms as models: ``solve_hertz`` and ``solve_spring`` return a
-:class:`~scenes.result.ContactResult` like every numerical model, so the study engine,
+:class:`~outcome.ContactResult` like every numerical model, so the study engine,
 ``compare`` and the planner treat them alike.
 
 - ``hertz``: the lens on a continuum ([J] sec. 4.2; [P] eq. S0Hertz) with
@@ -31,11 +31,9 @@ import time
 
 import numpy as np
 
-from . import analytic
-from ._errors import ScopeError
-from ._scene import Scene
-from .lattice import pillars_within
-from .result import ContactResult, PillarForce
+from outcome import ContactResult, PillarForce
+from scenes import Scene, ScopeError, analytic
+from scenes.lattice import pillars_within
 
 __all__ = ["HERTZ_MODEL", "SPRING_MODEL", "solve_hertz", "solve_spring"]
 

@@ -11,22 +11,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from scenes import InputError, ToolError
+from .._common import BODIES, GeometryError
 
-BODIES = ("lens", "pillar", "substrate")
 # The allowed mesh_size (the factor on every element size) of the axisymmetric meshes; the
 # toolkit's --mesh-size range for fem-axisym reads it (validation.registry).
 MESH_SIZE_RANGE = (0.02, 4.0)
-
-
-class MeshError(ToolError):
-    """gmsh failed, or a mesh fails its checks: a failure of the tool underneath (exit 3);
-    the message says which check."""
-
-
-class GeometryError(MeshError, InputError):
-    """A geometry parameter outside its allowed range: bad input (exit 2), found before gmsh
-    runs; the message names the parameter."""
 
 
 @dataclass(frozen=True)

@@ -11,12 +11,12 @@ are bonded by a conforming mesh.
 
 from __future__ import annotations
 
-from contextlib import contextmanager
-
 import numpy as np
 
-from ._geometry import AxisymmetricGeometry, MeshError
-from ._mesh import AxisymmetricMesh
+from .._common import MeshError
+from .._session import gmsh_model
+from .geometry import AxisymmetricGeometry
+from .mesh import AxisymmetricMesh
 
 
 def build_axisymmetric_mesh(geometry: AxisymmetricGeometry) -> AxisymmetricMesh:
@@ -48,32 +48,6 @@ def build_axisymmetric_mesh(geometry: AxisymmetricGeometry) -> AxisymmetricMesh:
         mesh = _collect(gmsh, geometry, groups)
     mesh.check()
     return mesh
-
-
-@contextmanager
-def gmsh_model(name: str, what: str):
-    """A fresh gmsh model named ``name`` (gmsh initialised here unless a caller already did,
-    and finalised, or the model removed, on the way out); a gmsh failure becomes a
-    MeshError naming ``what``."""
-    import gmsh
-
-    owner = not gmsh.isInitialized()
-    if owner:
-        # interruptible=False: gmsh must not install a SIGINT handler (threads, pytest).
-        gmsh.initialize(interruptible=False)
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.model.add(name)
-        yield gmsh
-    except MeshError:
-        raise
-    except Exception as exc:  # gmsh raises plain Exception with its own message
-        raise MeshError(f"gmsh could not mesh {what}: {exc}") from exc
-    finally:
-        if owner:
-            gmsh.finalize()
-        else:
-            gmsh.model.remove()
 
 
 def _build_geometry(gmsh, geo: AxisymmetricGeometry) -> dict:
