@@ -1,12 +1,122 @@
 """The skeleton both FEM drivers share (:mod:`.axisym.driver`, :mod:`.solid3d.driver`).
 
-The verdict: why a solution is not converged (:func:`solve_failures`), and the contact radius
-read from a line of pressures and gaps (:func:`contact_radius`).
+A driver's ``solve`` runs the same four steps, each a function of its own module:
+
+1. set-up: units and bodies of the scene (:func:`flat_candidate`, :func:`refuse_rigid_pair`,
+   :func:`scaled_materials`), then the mesh and the factorised system;
+2. phases: each announced on ``progress`` and timed (:class:`PhaseClock`);
+3. the verdict: finite values, then why the solution is not converged, if it is not
+   (:func:`verdict`, :func:`solve_failures`); the contact radius along a line of pressures and
+   gaps (:func:`contact_radius`);
+4. the result: the one schema with the diagnostics both FEMs report (:func:`fem_result`).
 """
 
 from __future__ import annotations
 
+import math
+import time
+
 import numpy as np
+
+from outcome import ContactResult
+from scenes import ScopeError
+
+from ._reduced import SolveError
+
+# Candidate contact zone of a flat scene, in Hertz radii (the contact radius of a sphere on
+# a half-space is sqrt(R zeta) whatever the materials; 1.5 leaves room for the gap law).
+HERTZ_CANDIDATE = 1.5
+# The contact solvers' complementarity tolerance (min-map residual over zeta) for
+# ``converged`` (a miss is reported in the result, not raised).
+RTOL_COMPLEMENTARITY = 1e-8
+
+
+def flat_candidate(scene) -> tuple[float, float]:
+    """(length unit, candidate contact radius) of a flat scene, in m: the Hertz radius
+    sqrt(R zeta), and :data:`HERTZ_CANDIDATE` of them, inside the sphere (r < R) even at the
+    deepest allowed zeta."""
+    ell = math.sqrt(scene.lens.radius_m * scene.indentation_m)
+    return ell, min(HERTZ_CANDIDATE * ell, 0.9 * scene.lens.radius_m)
+
+
+def refuse_rigid_pair(lens, pillar, pillars: str) -> None:
+    """ScopeError for a rigid lens on rigid pillars (``pillars``: "a rigid pillar", ...)."""
+    if lens.rigid and pillar.rigid:
+        raise ScopeError(f"lens.rigid and pillars.rigid are both true: a rigid lens on "
+                         f"{pillars} has no contact pressure distribution to compute")
+
+
+def scaled_materials(lens, pillar, substrate, bodies) -> tuple[float, dict]:
+    """(E_ref, {body: (E / E_ref, nu)} of the meshed ``bodies``): the modulus unit is the first
+    elastic body's E, so every number the solver factorises is O(1)."""
+    elastic = [m for m in (lens, pillar, substrate) if m is not None and not m.rigid]
+    E_ref = elastic[0].E_Pa
+    return E_ref, {b: (m.E_Pa / E_ref, m.nu)
+                   for b, m in (("lens", lens), ("pillar", pillar), ("substrate", substrate))
+                   if b in bodies}
+
+
+class PhaseClock:
+    """Announces each phase on ``progress`` (``progress(text)``; None: silent) and times it:
+    :meth:`done` marks the end of a phase, :meth:`durations` gives each phase's seconds."""
+
+    def __init__(self, progress=None):
+        self.say = progress or (lambda text: None)
+        self._marks = [("start", time.perf_counter())]
+
+    def done(self, phase: str) -> None:
+        self._marks.append((phase, time.perf_counter()))
+
+    def durations(self) -> dict:
+        return {k: t - t0 for (_, t0), (k, t) in zip(self._marks, self._marks[1:])}
+
+    def elapsed(self) -> float:
+        return time.perf_counter() - self._marks[0][1]
+
+
+def verdict(values, residual: float, contact, force: float, zeta: float, penetration: float,
+            reaches_end: str = "") -> list:
+    """Why a FEM solution is not converged (empty: it is): SolveError when a value is not
+    finite, then :func:`solve_failures`, and ``reaches_end`` (the contact reached the end of
+    the candidate zone: what to say) when given."""
+    if not np.all(np.isfinite(values)):
+        raise SolveError(f"the linear solver returned non-finite values (force {force}, "
+                         f"residual {residual})")
+    failures = solve_failures(residual, contact, force, zeta, penetration)
+    if reaches_end:
+        failures.append(reaches_end)
+    return failures
+
+
+def fem_result(model: str, scene, clock: PhaseClock, failures: list, *, mesh, system,
+               mesh_size: float, block_size_m: float, ell: float, E_ref: float,
+               residual: float, contact_residual: float, penetration: float, force: float,
+               centre_pressure: float, contact_radius_m: float, area: float, pillar_forces,
+               iterations: int, profile: dict, fields: dict, discretisation: dict,
+               diagnostics: dict) -> ContactResult:
+    """The result of a FEM solve: the discretisation and diagnostics both FEMs report,
+    updated with the driver's own (``discretisation``, ``diagnostics``)."""
+    disc = {"mesh_size": float(mesh_size), "block_size_m": block_size_m,
+            "elements": int(mesh.nelements), "dofs": int(system.n_reduced), **discretisation}
+    zeta = scene.indentation_m
+    common = {
+        "message": "; ".join(failures) or "converged",
+        "linear_residual": residual, "contact_residual": contact_residual,
+        "block_size_m": block_size_m,
+        "truncation_estimate": force * scene.half_space_compliance
+        / (math.pi * block_size_m * zeta),
+        "max_pointwise_penetration": penetration,
+        "length_unit_m": ell, "modulus_unit_Pa": E_ref,
+        "mesh_min_quality": float(mesh.quality().min()),
+        "time_s": clock.durations(),
+    }
+    return ContactResult(
+        model=model, scene=scene.to_dict(), discretisation=disc, total_force_N=force,
+        centre_pressure_Pa=centre_pressure, contact_radius_m=contact_radius_m,
+        real_contact_area_m2=area, pillars_in_contact=len(pillar_forces),
+        pillar_forces=pillar_forces, converged=not failures, iterations=int(iterations),
+        wall_time_s=clock.elapsed(), pillar_top_profile=profile,
+        diagnostics={**common, **diagnostics}, fields=fields)
 
 # The linear solve's relative residual below which a solution is taken as exact.
 RTOL_LINEAR = 1e-8

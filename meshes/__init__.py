@@ -9,6 +9,8 @@ substrate block, or a flat substrate.  Groups are named (``lens``, ``pillar``,
 The 3D builder meshes a sector 0 <= theta <= alpha of the lattice centred on pillar (0, 0)
 (alpha = pi/6, the D6 primitive wedge) with tetrahedra: lens block, the pillars the lens can
 reach, substrate block, with per-pillar groups (``contact_pillar_{n}_{m}``, ...).
+One subpackage per geometry with the same modules (geometry, gmsh, mesh): :mod:`.axisym`,
+:mod:`.wedge`; the body names and errors both raise: :mod:`._common`.
 """
 
 from ._common import BODIES, GeometryError, MeshError

@@ -16,8 +16,8 @@ import sys
 
 import pytest
 
-from scenes import ToolError, load_scene, preset_names, scene_to_toml
 from outcome import package_version
+from scenes import ToolError, load_scene, preset_names, scene_to_toml
 
 # The one line of each outcome (progress lines on stderr start with "[").
 KIND = {1: "not converged", 2: "error", 3: "failure", 4: "internal error", 130: "interrupted"}

@@ -10,8 +10,8 @@ import pytest
 from outcome import ContactResult, PillarForce
 from scenes import ScopeError, load_scene
 from validation.engine import Case, Outcome
-from validation.studies.extremes.run import corner_scenes, judge, run_extremes
 from validation.studies.extremes.report import STATUSES, counts, summary_text, write_outputs
+from validation.studies.extremes.run import corner_scenes, judge, run_extremes
 
 
 def _result(F=1e-6, pressures=(2.0, 1.0, 0.0), pen=0.0, converged=True, forces=None):

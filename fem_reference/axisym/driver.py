@@ -5,33 +5,33 @@ Model.  The lens is a block of side L with a flat bottom at z = 0; its spherical
 the initial gap g(r) = R - sqrt(R^2 - r^2) between the lens bottom and the pillar top (or
 the substrate) at the same r.  The lens top moves down by zeta, the substrate bottom is
 fixed (rollers on both far faces, free sides).  The contact line has identical P2 points on
-both bodies; the contact pressure is a P1 (mortar) field on its vertices (:mod:`._contact`:
-node-to-node contact on P2 points made the pressure alternate and left the axis unloaded).  Rigid bodies (E = inf) are not meshed:
-a rigid lens is a moving rigid surface, a rigid pillar on an elastic substrate is one rigid
-translation bonded to it, a rigid substrate clamps the pillar base.
+both bodies; the contact pressure is a P1 (mortar) field on its vertices (:mod:`.contact`:
+node-to-node contact on P2 points made the pressure alternate and left the axis unloaded).
+Rigid bodies (E = inf) are not meshed: a rigid lens is a moving rigid surface, a rigid pillar
+on an elastic substrate is one rigid translation bonded to it, a rigid substrate clamps the
+pillar base.
 
 Solution.  Factorise once; one solve per contact point gives the compliance matrix C; the
-LCP of :mod:`._contact` gives the nodal forces; linear residual and complementarity are
+LCP of :mod:`.contact` gives the nodal forces; linear residual and complementarity are
 checked and reported.
 """
 
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 
-from meshes import build_axisymmetric_mesh, flat_geometry, pillar_geometry
 from contact import solve_active_set
+from meshes import build_axisymmetric_mesh, flat_geometry, pillar_geometry
 from outcome import ContactResult, PillarForce
-from scenes import InputError, Scene, ScopeError, analytic
 from outcome.memory import MEMORY_SHARE, memory_short
+from scenes import InputError, Scene, ScopeError, analytic
 
-from .._driver import contact_radius, solve_failures
+from .._driver import (HERTZ_CANDIDATE, RTOL_COMPLEMENTARITY, PhaseClock, contact_radius,
+                       fem_result, flat_candidate, refuse_rigid_pair, scaled_materials, verdict)
 from .contact import mortar_matrix
 from .fields import cell_stresses, write_vtu
-from .._reduced import SolveError
 from .system import assemble
 
 MODEL = "fem-axisym"
@@ -39,11 +39,6 @@ MODEL = "fem-axisym"
 # the geometric grading makes the large block cost only a few rings of elements (+10 % dofs
 # from 1e4 to 1e5).
 BLOCK_FACTOR = 1e5
-# Candidate contact zone of a flat scene, in Hertz radii (the contact radius of a sphere on
-# a half-space is sqrt(R zeta) whatever the materials; 1.5 leaves room for the gap law).
-HERTZ_CANDIDATE = 1.5
-# Verification thresholds for ``converged`` (a miss is reported in the result, not raised).
-RTOL_COMPLEMENTARITY = 1e-8
 # Memory model of a solve (measured on single-pillar and hertz at mesh_size 4..0.5): the
 # reduced unknowns grow as mesh_size^-1.9 from about 18k (pillar) or 12.5k (flat) at 1; the
 # sparse LU takes ~650 B per unknown per log(unknowns) (2D fill ~ n log n); the compliance
@@ -136,119 +131,128 @@ def solve(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None,
         misses a tolerance comes back with ``converged = False`` and the reason in
         ``diagnostics["message"]``.
     """
-    say = progress or (lambda text: None)
-    clock = {"start": time.perf_counter()}
+    clock = PhaseClock(progress)
     setup = _setup(scene, mesh_size, block_factor)
     _refuse_if_too_large(scene, mesh_size)
-    say(f"meshing (mesh_size {mesh_size:g})")
+    mesh, system = _mesh_and_factorise(setup, mesh_size, clock)
+    compliance = _compliance(system, clock)
+    contact = _contact(scene, setup, system, compliance, clock)
+    result = _result(scene, setup, mesh, system, compliance, contact, mesh_size, clock)
+    if vtu_path is not None:
+        _write_fields(vtu_path, scene, setup, mesh, system, contact["x"], result)
+    return result
+
+
+def _mesh_and_factorise(setup: dict, mesh_size: float, clock: PhaseClock):
+    """Mesh, assemble and factorise: (mesh, system)."""
+    clock.say(f"meshing (mesh_size {mesh_size:g})")
     mesh = build_axisymmetric_mesh(setup["geometry"])
-    clock["mesh"] = time.perf_counter()
-    ell, E_ref = setup["ell"], setup["E_ref"]
+    clock.done("mesh")
+    ell = setup["ell"]
     skmesh = mesh.to_skfem().scaled([1.0 / ell, 1.0 / ell])
-    say(f"assembling ({mesh.nelements} elements)")
+    clock.say(f"assembling ({mesh.nelements} elements)")
     system = assemble(skmesh, setup["materials"], contact=setup["contact"],
                       rigid_pillar_on_substrate=setup["rigid_pillar_on_substrate"],
                       clamp_pillar_base=setup["clamp_pillar_base"])
-    clock["assemble"] = time.perf_counter()
-    say(f"factorising ({system.n_reduced} unknowns)")
+    clock.done("assemble")
+    clock.say(f"factorising ({system.n_reduced} unknowns)")
     system.factorise()
-    clock["factorise"] = time.perf_counter()
-    # One solve per contact vertex: the P1 multiplier's nodal-force patterns G^T D (half as
-    # many right-hand sides as P2 points).  U[:, j] is the gap change at the P2 points.
+    clock.done("factorise")
+    return mesh, system
+
+
+def _compliance(system, clock: PhaseClock) -> dict:
+    """The condensed compliance C on the contact vertices, by one solve per vertex: the P1
+    multiplier's nodal-force patterns G^T D (half as many right-hand sides as P2 points);
+    ``U[:, j]`` is the gap change at the P2 points."""
     D = mortar_matrix(system.contact_r)
-    say(f"compliance ({D.shape[1]} contact points, one solve each)")
-    X, residual_compliance = system.solve(system.G.T @ D)
+    clock.say(f"compliance ({D.shape[1]} contact points, one solve each)")
+    X, residual = system.solve(system.G.T @ D)
     U = system.G @ X
     C = D.T @ U
     asymmetry = float(np.max(np.abs(C - C.T)) / np.max(np.abs(C)))
-    clock["compliance"] = time.perf_counter()
+    clock.done("compliance")
+    return {"D": D, "X": X, "U": U, "C": C, "asymmetry": asymmetry, "residual": residual}
 
-    # Gap and indentation in units of ell.
+
+def _contact(scene: Scene, setup: dict, system, compliance: dict, clock: PhaseClock) -> dict:
+    """The mortar LCP, exactly: pressures ``lam`` (units of E_ref), nodal forces ``f``,
+    pointwise gaps ``w`` at the P2 points and the displacement ``x`` (units of ell)."""
+    D, U, C, X = compliance["D"], compliance["U"], compliance["C"], compliance["X"]
+    ell = setup["ell"]
     R, zeta = scene.lens.radius_m, scene.indentation_m
     r_m = system.contact_r * ell
     gap = analytic.lens_gap(R, r_m) / ell
     weight = D.sum(axis=0)  # integral of psi_j r dr: turns weighted gaps into mean gaps
-    say("contact")
+    clock.say("contact")
     sol = solve_active_set(C, D.T @ (gap - zeta / ell), scale=zeta / ell, weights=weight,
-                      tol=RTOL_COMPLEMENTARITY)
-    lam, rounds = sol.pressure, sol.iterations
-    f = D @ lam
-    w = U @ lam + gap - zeta / ell  # pointwise gaps at the P2 points
-    x = X @ lam
-    clock["contact"] = time.perf_counter()
+                           tol=RTOL_COMPLEMENTARITY)
+    lam = sol.pressure
+    out = {"sol": sol, "lam": lam, "f": D @ lam, "w": U @ lam + gap - zeta / ell,
+           "x": X @ lam, "r_m": r_m}
+    clock.done("contact")
+    return out
 
+
+def _result(scene: Scene, setup: dict, mesh, system, compliance: dict, contact: dict,
+            mesh_size: float, clock: PhaseClock) -> ContactResult:
+    """The verdict and the result, in SI units."""
+    ell, E_ref = setup["ell"], setup["E_ref"]
+    zeta = scene.indentation_m
+    sol, lam, f, w, x = (contact[k] for k in ("sol", "lam", "f", "w", "x"))
     # Residual of the displacement actually returned, under the contact load it carries.
-    residual = max(system.residual(x, system.G.T @ f), residual_compliance)
-    compl = sol.residual
+    residual = max(system.residual(x, system.G.T @ f), compliance["residual"])
     force = 2.0 * math.pi * float(np.sum(f)) * E_ref * ell**2
     r_vertex = system.contact_r[::2]
     pressure = lam * E_ref
     a, reaches_end = contact_radius(system.contact_r, lam, w)
     a *= ell
-    values = [force, a, pressure[0], residual, compl, *pressure]
-    if not np.all(np.isfinite(values)):
-        raise SolveError(f"the linear solver returned non-finite values (force {force}, "
-                         f"residual {residual})")
     penetration = float(max(0.0, -w.min()) / (zeta / ell))
-    failures = solve_failures(residual, sol, force, zeta, penetration)
-    if scene.is_flat and reaches_end:
-        failures.append(f"contact reached the end of the candidate zone r = {r_m[-1]:g} m "
-                        f"({HERTZ_CANDIDATE} Hertz radii)")
+    end = (f"contact reached the end of the candidate zone r = {contact['r_m'][-1]:g} m "
+           f"({HERTZ_CANDIDATE} Hertz radii)") if scene.is_flat and reaches_end else ""
+    failures = verdict([force, a, pressure[0], residual, sol.residual, *pressure], residual,
+                       sol, force, zeta, penetration, end)
+    diagnostics = {
+        "compliance_asymmetry": compliance["asymmetry"], "active_set_rounds": sol.iterations,
+        "contact_points": int(len(f)), "points_in_contact": int(np.sum(lam > 0)),
+        "displacement_dofs": int(system.basis_u.N),
+        "mesh_min_angle_deg": mesh.min_angle_deg(),
+    }
+    if setup["rigid_pillar_on_substrate"]:
+        diagnostics["pillar_translation_m"] = float(x[-1] * ell)
+    return fem_result(
+        MODEL, scene, clock, failures, mesh=mesh, system=system, mesh_size=mesh_size,
+        block_size_m=setup["geometry"].block_size_m, ell=ell, E_ref=E_ref, residual=residual,
+        contact_residual=sol.residual, penetration=penetration, force=force,
+        centre_pressure=float(pressure[0]), contact_radius_m=a, area=math.pi * a * a,
+        pillar_forces=[] if scene.is_flat else [PillarForce(0, 0, 0.0, 0.0, force)],
+        iterations=sol.iterations,
+        profile={"r_m": (r_vertex * ell).tolist(), "pressure_Pa": pressure.tolist()},
+        fields={"pressure_r_m": r_vertex * ell, "contact_pressure_Pa": pressure,
+                "gap_r_m": contact["r_m"], "gap_m": w * ell,
+                "contact_force_N_per_rad": f * E_ref * ell**2,
+                "mortar_compliance": compliance["C"]},
+        discretisation={}, diagnostics=diagnostics)
 
+
+def _write_fields(vtu_path, scene: Scene, setup: dict, mesh, system, x, result) -> None:
+    """Displacement (m) and stresses (Pa) as VTU, with the lens translation removed."""
+    ell, zeta = setup["ell"], scene.indentation_m
     u, p_body = system.full(x)
     if "lens" in setup["materials"]:
         lens_z = system.basis_u.get_dofs(elements="lens").all("u^2")
         u[lens_z] -= zeta / ell  # the lens translation, removed by superposition
-    L = setup["geometry"].block_size_m
-    truncation = force * scene.half_space_compliance / (math.pi * L * zeta)
-    converged = not failures
-    nu_dofs = system.basis_u.N
-    disc = {"mesh_size": float(mesh_size), "block_size_m": L,
-            "elements": int(mesh.nelements), "dofs": int(system.n_reduced)}
-    diagnostics = {
-        "message": "; ".join(failures) or "converged",
-        "linear_residual": residual, "compliance_asymmetry": asymmetry,
-        "contact_residual": compl, "active_set_rounds": rounds,
-        "block_size_m": L, "truncation_estimate": truncation,
-        "contact_points": int(len(f)), "points_in_contact": int(np.sum(lam > 0)),
-        "max_pointwise_penetration": penetration,
-        "displacement_dofs": int(nu_dofs), "length_unit_m": ell, "modulus_unit_Pa": E_ref,
-        "mesh_min_quality": float(mesh.quality().min()),
-        "mesh_min_angle_deg": mesh.min_angle_deg(),
-        "time_s": {k: clock[k] - clock[prev] for prev, k in
-                   zip(("start", "mesh", "assemble", "factorise", "compliance"),
-                       ("mesh", "assemble", "factorise", "compliance", "contact"))},
-    }
-    if setup["rigid_pillar_on_substrate"]:
-        diagnostics["pillar_translation_m"] = float(x[-1] * ell)
-    result = ContactResult(
-        model=MODEL, scene=scene.to_dict(), discretisation=disc,
-        total_force_N=force, centre_pressure_Pa=float(pressure[0]), contact_radius_m=a,
-        real_contact_area_m2=math.pi * a * a,
-        pillars_in_contact=0 if scene.is_flat else 1,
-        pillar_forces=[] if scene.is_flat else [PillarForce(0, 0, 0.0, 0.0, force)],
-        converged=bool(converged), iterations=int(rounds),
-        wall_time_s=time.perf_counter() - clock["start"],
-        pillar_top_profile={"r_m": (r_vertex * ell).tolist(), "pressure_Pa": pressure.tolist()},
-        diagnostics=diagnostics,
-        fields={"pressure_r_m": r_vertex * ell, "contact_pressure_Pa": pressure,
-                "gap_r_m": r_m, "gap_m": w * ell,
-                "contact_force_N_per_rad": f * E_ref * ell**2, "mortar_compliance": C})
-    if vtu_path is not None:
-        vertex = system.basis_u.nodal_dofs
-        cells = cell_stresses(system, u, p_body, E_ref)
-        write_vtu(vtu_path, mesh, u[vertex] * ell, cells,
-                  {"model": MODEL, "scene": result.scene, "discretisation": disc})
-    return result
+    vertex = system.basis_u.nodal_dofs
+    cells = cell_stresses(system, u, p_body, setup["E_ref"])
+    write_vtu(vtu_path, mesh, u[vertex] * ell, cells,
+              {"model": MODEL, "scene": result.scene, "discretisation": result.discretisation})
 
 
 def _setup(scene: Scene, mesh_size: float, block_factor: float) -> dict:
     """Geometry, units, meshed bodies and constraints for ``scene``."""
     lens, sub = scene.lens.material, scene.substrate
     if scene.is_flat:
-        ell = math.sqrt(scene.lens.radius_m * scene.indentation_m)
-        # The candidate zone stays inside the sphere (r < R) even at the deepest allowed zeta.
-        candidate = min(HERTZ_CANDIDATE * ell, 0.9 * scene.lens.radius_m)
+        ell, candidate = flat_candidate(scene)
         geometry = flat_geometry(
             ell, block_factor * ell, candidate_radius_m=candidate, mesh_size=mesh_size,
             bodies=[b for b, m in (("lens", lens), ("substrate", sub)) if not m.rigid])
@@ -264,9 +268,7 @@ def _setup(scene: Scene, mesh_size: float, block_factor: float) -> dict:
                 "the spring-model threshold says a second pillar would touch; the "
                 "axisymmetric FEM holds the centre pillar only (use the BEM, or lower Phi)")
         pillar = p.material
-        if lens.rigid and pillar.rigid:
-            raise ScopeError("lens.rigid and pillars.rigid are both true: a rigid lens on a "
-                             "rigid pillar has no contact pressure distribution to compute")
+        refuse_rigid_pair(lens, pillar, "a rigid pillar")
         ell = 0.5 * p.diameter_m
         bodies = tuple(b for b, m in (("lens", lens), ("pillar", pillar), ("substrate", sub))
                        if not m.rigid)
@@ -275,11 +277,7 @@ def _setup(scene: Scene, mesh_size: float, block_factor: float) -> dict:
         lower = ("contact_pillar" if not pillar.rigid
                  else "rigid-translation" if not sub.rigid else None)
         contact = ("contact_lens" if not lens.rigid else None, lower)
-    elastic = [m for m in (lens, pillar, sub) if m is not None and not m.rigid]
-    E_ref = elastic[0].E_Pa
-    materials = {b: (m.E_Pa / E_ref, m.nu)
-                 for b, m in (("lens", lens), ("pillar", pillar), ("substrate", sub))
-                 if b in geometry.bodies}
+    E_ref, materials = scaled_materials(lens, pillar, sub, geometry.bodies)
     return {"geometry": geometry, "ell": ell, "E_ref": E_ref, "materials": materials,
             "contact": contact,
             "rigid_pillar_on_substrate": bool(pillar is not None and pillar.rigid

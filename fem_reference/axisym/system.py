@@ -1,7 +1,7 @@
 """Assembly of the bodies, their constraints and the contact operator; one factorisation.
 
 Units: the solver works in units of a length ell (the focus radius) and a modulus E_ref, so
-that every number it factorises is O(1) before scaling; :mod:`._axisym` converts back to SI.
+that every number it factorises is O(1) before scaling; :mod:`.driver` converts back to SI.
 
 Each body has its own P1 pressure space (the mean stress jumps at the bonded pillar-base
 interface, so a pressure continuous across it would be wrong), while the P2 displacement is

@@ -25,30 +25,27 @@ from __future__ import annotations
 
 import math
 import resource
-import time
 
 import numpy as np
 
 from contact import constrained_cg
-from meshes import WedgeGeometry, build_wedge_mesh, sector_pillars
-from meshes import MESH_SIZE_RANGE_3D, SECTORS
+from meshes import (MESH_SIZE_RANGE_3D, SECTORS, WedgeGeometry, build_wedge_mesh,
+                    sector_pillars)
 from outcome import ContactResult, PillarForce
+from outcome.memory import MEMORY_SHARE, memory_short
 from scenes import InputError, Scene, ScopeError, analytic
 from scenes.lattice import lattice_indices
-from outcome.memory import MEMORY_SHARE, memory_short
 
-from .._driver import contact_radius, solve_failures
+from .._driver import (RTOL_COMPLEMENTARITY, PhaseClock, contact_radius, fem_result,
+                       flat_candidate, refuse_rigid_pair, scaled_materials, verdict)
 from .contact import contact_area_share, contact_faces, line_profile, preconditioner
 from .fields import cell_stresses, write_vtu3d
-from .._reduced import SolveError
 from .system import assemble_sector
 
 MODEL = "fem-3d"
 # Block radius and height over the focus radius: the truncation ~ 2 a_c / (pi L) for a
 # contact of radius a_c; the grading makes the large block cost a few shells of elements.
 BLOCK_FACTOR = 1e4
-HERTZ_CANDIDATE = 1.5
-RTOL_COMPLEMENTARITY = 1e-8
 MAX_CG_ITERATIONS = 2000
 # Smallest gap between neighbouring pillars, in diameters: at Phi = 0.9 (gap 0.0038 d) the
 # mesh still passes its quality check (q_min 0.047), at Phi = 0.9068 (5.5e-5 d) it fails.
@@ -172,26 +169,48 @@ def solve(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None, progress=None,
     """
     _check_options(mesh_size, sector_angle, block_factor, reach_factor, tol)
     _refuse_if_too_large(scene, mesh_size, sector_angle, reach_factor)
-    say = progress or (lambda text: None)
-    clock = {"start": time.perf_counter()}
+    clock = PhaseClock(progress)
     setup = _setup(scene, mesh_size, sector_angle, block_factor, reach_factor, grading or {})
+    mesh, skmesh, system, faces = _mesh_and_factorise(setup, mesh_size, sector_angle, clock)
+    contact = _contact(scene, setup, system, faces, tol, clock)
+    result = _result(scene, setup, mesh, system, faces, contact, mesh_size, sector_angle,
+                     reach_factor, clock)
+    if vtu_path is not None:
+        clock.say(f"writing {vtu_path}")
+        _write_fields(vtu_path, scene, setup, mesh, skmesh, system, contact["x"], result)
+    clock.say(f"done: F_T = {result.total_force_N:.6g} N, {contact['sol'].iterations} contact "
+              "iterations")
+    return result
+
+
+def _mesh_and_factorise(setup: dict, mesh_size: float, sector_angle: float,
+                        clock: PhaseClock):
+    """Mesh the sector, assemble it and its contact faces, factorise:
+    (mesh, scaled skfem mesh, system, faces)."""
     geo = setup["geometry"]
-    say(f"meshing the sector ({len(geo.pillars)} pillars, mesh_size {mesh_size:g})")
-    mesh = build_wedge_mesh(geo, progress=say)
-    clock["mesh"] = time.perf_counter()
-    ell, E_ref = setup["ell"], setup["E_ref"]
-    say(f"mesh: {mesh.nelements} tetrahedra; assembling")
+    clock.say(f"meshing the sector ({len(geo.pillars)} pillars, mesh_size {mesh_size:g})")
+    mesh = build_wedge_mesh(geo, progress=clock.say)
+    clock.done("mesh")
+    ell = setup["ell"]
+    clock.say(f"mesh: {mesh.nelements} tetrahedra; assembling")
     skmesh = mesh.to_skfem().scaled([1.0 / ell] * 3)
     system = assemble_sector(skmesh, setup["materials"], sector_angle=sector_angle,
                              clamp_pillar_base=setup["clamp_pillar_base"],
-                             rigid_pillars=setup["rigid_pillars"], progress=say)
+                             rigid_pillars=setup["rigid_pillars"], progress=clock.say)
     faces = contact_faces(skmesh, system, lens_meshed=setup["lens_meshed"],
                           lower=setup["lower"])
-    clock["assemble"] = time.perf_counter()
-    say(f"factorising {system.n_reduced} unknowns (PARDISO)")
+    clock.done("assemble")
+    clock.say(f"factorising {system.n_reduced} unknowns (PARDISO)")
     system.factorise()
-    clock["factorise"] = time.perf_counter()
+    clock.done("factorise")
+    return mesh, skmesh, system, faces
 
+
+def _contact(scene: Scene, setup: dict, system, faces, tol: float, clock: PhaseClock) -> dict:
+    """The mortar contact by constrained CG on the condensed operator D^T G K^-1 G^T D (one
+    back-substitution per iteration); then the displacement ``x`` under the contact load,
+    its residual, the pointwise gaps ``w`` and the operator's asymmetry."""
+    ell, E_ref = setup["ell"], setup["E_ref"]
     R, zeta = scene.lens.radius_m, scene.indentation_m
     r_pts = np.hypot(*faces.points) * ell
     gap0 = (analytic.lens_gap(R, r_pts) - zeta) / ell
@@ -207,20 +226,28 @@ def solve(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None, progress=None,
 
     def report(it, err):
         if it % 10 == 0:
-            say(f"contact iteration {it}: residual {err:.3g}")
+            clock.say(f"contact iteration {it}: residual {err:.3g}")
 
-    say(f"contact: {faces.n_vertices} pressure unknowns")
+    clock.say(f"contact: {faces.n_vertices} pressure unknowns")
     sol = constrained_cg(apply, D.T @ gap0, np.zeros(faces.n_vertices), scale=zeta / ell,
                          tol=tol, max_iterations=MAX_CG_ITERATIONS, precondition=precondition,
                          inverse_diagonal=inv_d, weights=faces.weights, callback=report)
     lam = sol.pressure
-    clock["contact"] = time.perf_counter()
+    clock.done("contact")
     load = G.T @ (D @ lam)
     x, residual = system.solve(load)
     w = G @ x + gap0
     asym = _asymmetry(apply, faces.n_vertices)
-    clock["post"] = time.perf_counter()
+    clock.done("post")
+    return {"sol": sol, "lam": lam, "x": x, "residual": residual, "w": w, "asymmetry": asym}
 
+
+def _result(scene: Scene, setup: dict, mesh, system, faces, contact: dict, mesh_size: float,
+            sector_angle: float, reach_factor: float, clock: PhaseClock) -> ContactResult:
+    """Forces unfolded from the sector, profiles, the verdict and the result, in SI units."""
+    ell, E_ref, geo = setup["ell"], setup["E_ref"], setup["geometry"]
+    zeta = scene.indentation_m
+    sol, lam, w, residual = (contact[k] for k in ("sol", "lam", "w", "residual"))
     mult = 2.0 * math.pi / sector_angle
     unit_force = E_ref * ell**2
     f_vertex = faces.weights * lam
@@ -247,60 +274,46 @@ def solve(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None, progress=None,
         reaches_end = False
         pillar_forces, per_sector_pillar = _pillar_forces(scene, geo, faces, f_vertex,
                                                           unit_force, sector_angle)
-    values = [force, a, sigma0, residual, sol.residual, *pressure]
-    if not np.all(np.isfinite(values)):
-        raise SolveError(f"the solution is not finite (force {force}, residual {residual})")
     penetration = float(max(0.0, -w.min()) / (zeta / ell))
-    failures = solve_failures(residual, sol, force, zeta, penetration)
-    if reaches_end:
-        failures.append("contact reached the end of the candidate zone")
-
-    L = geo.block_size_m
-    disc = {"mesh_size": float(mesh_size), "block_size_m": L, "elements": int(mesh.nelements),
-            "dofs": int(system.n_reduced), "sector_angle_rad": float(sector_angle)}
-    phases = ("mesh", "assemble", "factorise", "contact", "post")
+    failures = verdict([force, a, sigma0, residual, sol.residual, *pressure], residual, sol,
+                       force, zeta, penetration,
+                       "contact reached the end of the candidate zone" if reaches_end else "")
     diagnostics = {
-        "message": "; ".join(failures) or "converged",
-        "linear_residual": residual, "contact_residual": sol.residual,
         "cg_iterations": int(sol.iterations), "cg_reentries": int(sol.reentries),
-        "operator_asymmetry": asym,
-        "block_size_m": L,
-        "truncation_estimate": force * scene.half_space_compliance / (math.pi * L * zeta),
+        "operator_asymmetry": contact["asymmetry"],
         "contact_vertices": int(faces.n_vertices), "vertices_in_contact": int(np.sum(lam > 0)),
-        "max_pointwise_penetration": penetration,
         "pillars_meshed": [p.name for p in geo.pillars], "reach_factor": reach_factor,
-        "length_unit_m": ell, "modulus_unit_Pa": E_ref,
         "factor_nonzeros": system.factor.factor_nonzeros,
-        "mesh_min_quality": float(mesh.quality().min()),
-        "time_s": {k: clock[k] - clock[prev] for prev, k in zip(("start",) + phases, phases)},
         "peak_rss_GiB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20,
         "pillar_top_profile_alpha": {"theta_rad": float(sector_angle),
                                      "r_m": (r1 * ell).tolist(), "pressure_Pa": p1.tolist()},
     }
-    result = ContactResult(
-        model=MODEL, scene=scene.to_dict(), discretisation=disc, total_force_N=force,
-        centre_pressure_Pa=sigma0, contact_radius_m=a, real_contact_area_m2=area,
-        pillars_in_contact=len(pillar_forces), pillar_forces=pillar_forces,
-        converged=not failures, iterations=int(sol.iterations),
-        wall_time_s=time.perf_counter() - clock["start"],
-        pillar_top_profile={"r_m": (r0 * ell).tolist(), "pressure_Pa": p0.tolist()},
-        diagnostics=diagnostics,
+    return fem_result(
+        MODEL, scene, clock, failures, mesh=mesh, system=system, mesh_size=mesh_size,
+        block_size_m=geo.block_size_m, ell=ell, E_ref=E_ref, residual=residual,
+        contact_residual=sol.residual, penetration=penetration, force=force,
+        centre_pressure=sigma0, contact_radius_m=a, area=area, pillar_forces=pillar_forces,
+        iterations=sol.iterations,
+        profile={"r_m": (r0 * ell).tolist(), "pressure_Pa": p0.tolist()},
         fields={"vertex_x_m": vx * ell, "vertex_y_m": vy * ell, "contact_pressure_Pa": pressure,
                 "point_x_m": faces.points[0] * ell, "point_y_m": faces.points[1] * ell,
                 "gap_m": w * ell, "sector_pillar_force_N": per_sector_pillar,
-                "residual_history": np.asarray(sol.history)})
-    if vtu_path is not None:
-        say(f"writing {vtu_path}")
-        u, p_body = system.full(x)
-        if setup["lens_meshed"]:
-            u[3 * np.unique(system.basis_s.get_dofs(elements="lens").all()) + 2] -= zeta / ell
-        cells = cell_stresses(system, u, p_body, E_ref)
-        nv = skmesh.p.shape[1]
-        disp = u[:3 * nv].reshape(-1, 3).T * ell  # vertex dofs come first (3 s + c)
-        write_vtu3d(vtu_path, mesh.points, mesh.tets, disp, cells,
-                    {"model": MODEL, "scene": result.scene, "discretisation": disc})
-    say(f"done: F_T = {force:.6g} N, {sol.iterations} contact iterations")
-    return result
+                "residual_history": np.asarray(sol.history)},
+        discretisation={"sector_angle_rad": float(sector_angle)}, diagnostics=diagnostics)
+
+
+def _write_fields(vtu_path, scene: Scene, setup: dict, mesh, skmesh, system, x,
+                  result) -> None:
+    """The sector's displacement (m) and stresses (Pa) as VTU, the lens translation removed."""
+    ell, zeta = setup["ell"], scene.indentation_m
+    u, p_body = system.full(x)
+    if setup["lens_meshed"]:
+        u[3 * np.unique(system.basis_s.get_dofs(elements="lens").all()) + 2] -= zeta / ell
+    cells = cell_stresses(system, u, p_body, setup["E_ref"])
+    nv = skmesh.p.shape[1]
+    disp = u[:3 * nv].reshape(-1, 3).T * ell  # vertex dofs come first (3 s + c)
+    write_vtu3d(vtu_path, mesh.points, mesh.tets, disp, cells,
+                {"model": MODEL, "scene": result.scene, "discretisation": result.discretisation})
 
 
 def _setup(scene: Scene, mesh_size, sector_angle, block_factor, reach_factor, grading) -> dict:
@@ -308,8 +321,7 @@ def _setup(scene: Scene, mesh_size, sector_angle, block_factor, reach_factor, gr
     lens, sub = scene.lens.material, scene.substrate
     out = {"clamp_pillar_base": False, "rigid_pillars": [], "lens_meshed": not lens.rigid}
     if scene.is_flat:
-        ell = math.sqrt(scene.lens.radius_m * scene.indentation_m)
-        candidate = min(HERTZ_CANDIDATE * ell, 0.9 * scene.lens.radius_m)
+        ell, candidate = flat_candidate(scene)
         # The Hertz edge is smooth (sqrt): no edge refinement, finer contact faces (cheap here).
         grading = {"edge_ratio": 1.0, "elements_across_contact": 8.0, **grading}
         geo = WedgeGeometry(ell, block_factor * ell, contact_radius_m=candidate,
@@ -322,9 +334,7 @@ def _setup(scene: Scene, mesh_size, sector_angle, block_factor, reach_factor, gr
         p = scene.pillars
         pillar = p.material
         _check_packing(p)
-        if lens.rigid and pillar.rigid:
-            raise ScopeError("lens.rigid and pillars.rigid are both true: a rigid lens on "
-                             "rigid pillars has no contact pressure distribution to compute")
+        refuse_rigid_pair(lens, pillar, "rigid pillars")
         ell = 0.5 * p.diameter_m
         reach = _reach(scene.lens.radius_m, reach_factor * scene.indentation_m)
         pillars = sector_pillars(p.pitch_m, p.diameter_m, reach, sector_angle)
@@ -340,14 +350,10 @@ def _setup(scene: Scene, mesh_size, sector_angle, block_factor, reach_factor, gr
         else:
             out["lower"] = "pillar"
             out["clamp_pillar_base"] = sub.rigid
-    elastic = [m for m in (lens, pillar, sub) if m is not None and not m.rigid]
-    E_ref = elastic[0].E_Pa
+    E_ref, out["materials"] = scaled_materials(lens, pillar, sub, geo.bodies)
     # (1 - nu^2) / E of the two faces in contact (1/Pa), for the contact preconditioner
     out["face_compliance"] = lens.compliance + (sub.compliance if pillar is None else
                                                 (pillar.compliance or sub.compliance))
-    out["materials"] = {b: (m.E_Pa / E_ref, m.nu)
-                        for b, m in (("lens", lens), ("pillar", pillar), ("substrate", sub))
-                        if b in geo.bodies}
     out.update(geometry=geo, ell=ell, E_ref=E_ref)
     return out
 

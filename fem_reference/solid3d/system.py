@@ -1,6 +1,6 @@
 """Assembly of the 3D sector model, its constraints and one sparse factorisation.
 
-Units: the solver works in units of a length ell and a modulus E_ref (see :mod:`._solid3d`).
+Units: the solver works in units of a length ell and a modulus E_ref (see :mod:`.driver`).
 
 Unknowns.  P2 displacement (vector dof 3 s + c of scalar P2 node s, component c) continuous
 over the conforming pillar-substrate mesh (the bond), one P1 pressure space per body (the

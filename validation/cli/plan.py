@@ -1,5 +1,5 @@
 """``pillar-xval plan``: which model a scene needs for a tolerance, with predicted errors,
-time and memory (:mod:`validation.studies.planner`)."""
+time and memory (:mod:`validation.planner`)."""
 
 from __future__ import annotations
 

@@ -7,9 +7,10 @@ How the code enters the key
 :func:`code_version` and the model's own code (:func:`model_code`).  The code version is the
 package version followed by the first 12 hex digits of a SHA-256 over the source and data
 files (``*.py``, ``*.toml``, ``*.json``, with their relative paths) of
-:data:`COMPUTING_PACKAGES`, what decides every result: the physics (``outcome``, ``scenes``, ``contact``,
-``bem_solver``, ``closed_forms``, ``meshes``, ``fem_reference``), the model registry (``validation.registry``:
-which options reach a solver) and this module (how a case runs).  A model that computes with
+:data:`COMPUTING_PACKAGES`, what decides every result: the physics (``outcome``, ``scenes``,
+``contact``, ``bem_solver``, ``closed_forms``, ``meshes``, ``fem_reference``), the model
+registry (``validation.registry``: which options reach a solver) and this module (how a case
+runs).  A model that computes with
 more (``auto``: the planner, ``validation.planner``, and its data) declares it in its
 ``code`` (:class:`validation.registry.Model`), and its keys hash that too, so a recalibration
 gives ``auto`` new keys and leaves every other model's cache alone.  Digests are computed once
@@ -34,9 +35,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from outcome import ContactResult
+from outcome import ContactResult, package_version
 from scenes import Scene, ToolError
-from outcome import package_version
 
 from ._progress import SolveProgress
 

@@ -1,7 +1,8 @@
 """Figures of the studies (matplotlib, Agg): convergence, pressure profiles, the Gecit-like
 study and the time-accuracy trade-off.  Units as units (µm, kPa, µN); a figure whose data
 include a solve that missed its tolerance is stamped NOT CONVERGED
-(:func:`validation.report.stamp_not_converged`).  The 3D render is :mod:`validation.output.render`.
+(:func:`validation.output.report.stamp_not_converged`).  The renders of FEM fields are
+:mod:`validation.output.render` and :mod:`validation.output.render3d`.
 """
 
 from __future__ import annotations

@@ -9,8 +9,8 @@ planner predicts, per requested quantity,
   one (Hooke pillar against elastic pillar, flat punch against curved lens, Hertz against
   the lattice, finite blocks against half-spaces), interpolated likewise;
 
-and adds them with their leave-one-out margins (:mod:`.planner_tables`); its time and memory
-come from the cost fits (:mod:`.planner_costs`). The choice is the cheapest candidate
+and adds them with their leave-one-out margins (:mod:`.tables`); its time and memory
+come from the cost fits (:mod:`.costs`). The choice is the cheapest candidate
 predicted within tolerance for every requested quantity. When the model error that every
 candidate carries exceeds the tolerance (the Hooke pillar's sigma0 in a lattice: 3-60 %,
 measured by the lattice study against fem-3d), none is within tolerance: the plan says so,
@@ -25,8 +25,8 @@ from __future__ import annotations
 
 import math
 
-from scenes import InputError, Scene, ScopeError
 from outcome.memory import MEMORY_SHARE, available_memory
+from scenes import InputError, Scene, ScopeError
 
 from ..registry import QUANTITIES
 from .features import features, regime

@@ -5,7 +5,7 @@ The data files (``validation/planner/data/error_models.json``, ``cost_models.jso
 a new model, a new rung or a new study adds candidates, tables and fits, not code.
 
 An error table holds one measured relative error per calibration scene (a point in a
-feature space, :mod:`.planner_features`) and quantity.  ``kind`` says what it measures:
+feature space, :mod:`.features`) and quantity.  ``kind`` says what it measures:
 
 - ``discretisation``: |f(option) - f_ref| / |f_ref| of one candidate (a model at one option
   value) against a converged reference of the same physics; interpolated in log10;
@@ -230,7 +230,7 @@ class CostFit:
     """Time and memory of one model's solves on this machine.
 
     time (s) = sum_k coef_k n^powers_k with n = exp(``term``) of the size function ``size``
-    of :mod:`.planner_costs` applied to the model option ``option`` (n: the dense BEM's
+    of :mod:`.costs` applied to the model option ``option`` (n: the dense BEM's
     unknowns, the FFT's padded points, the FEM's unknowns; a constant for closed forms), so
     that a fixed start-up, assembly (n^2) and dense solves (n^3) each keep their own law when
     extrapolated; ``rms`` is the fit's residual in ln(time).  ``memory``:

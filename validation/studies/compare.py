@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from scenes import Scene, analytic
 from outcome import write_atomic
+from scenes import Scene, analytic
 
 from ..engine import Engine
 from ..registry import QUANTITIES, ladder_for, quantity_values

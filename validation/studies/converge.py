@@ -8,8 +8,8 @@ import io
 import json
 from pathlib import Path
 
-from scenes import InputError, Scene
 from outcome import write_atomic
+from scenes import InputError, Scene
 
 from ..engine import Case, Engine, Outcome
 from ..registry import QUANTITIES, check_option, flag, get_model, ladder_for, quantity_values
@@ -59,7 +59,7 @@ def study_levels(model: str, scene: Scene, outcomes: list[Outcome]) -> dict:
     """The verification study of finished levels (coarse to fine).
 
     Returns a JSON-ready dict with the ladder, one row per level and, per quantity, the
-    :func:`validation.verification.study` dict, plus ``results`` (the ContactResults, not
+    :func:`validation.analysis.verification.study` dict, plus ``results`` (the ContactResults, not
     JSON).  A level that failed raises its error.
     """
     ladder = ladder_for(model)

@@ -2,9 +2,9 @@
 
 Over stiffness ratios E_p/E_l and aspect ratios h/d on the single-pillar scene, with the
 substrate as stiff as the pillars (E_s = E_p, the paper's convention), the Hooke-spring BEM
-is compared with the elastic-pillar FEM in F_T and sigma_0, and the shape of
-the FEM pressure across the pillar top is measured (:mod:`validation.profiles`): the centre
-plateau sigma(d/4)/sigma_0, the exponent lambda of the edge singularity
+is compared with the elastic-pillar FEM in F_T and sigma_0, and the shape of the FEM pressure
+across the pillar top is measured (:mod:`validation.analysis.profiles`): the centre plateau
+sigma(d/4)/sigma_0, the exponent lambda of the edge singularity
 sigma ~ (d/2 - r)^(-lambda) (a rigid pillar gives the flat punch's 1/2, a soft one none), and
 the share of the pillar force carried by the outer 10 % of the radius.  Every case runs on
 the engine: a rerun resumes.
@@ -25,8 +25,8 @@ import math
 import time
 from pathlib import Path
 
-from scenes import InputError, load_scene
 from outcome import write_atomic
+from scenes import InputError, load_scene
 
 from ..engine import Case, Engine
 from ..registry import check_option, get_model, ladder_for

@@ -4,7 +4,7 @@ Over surface fractions Phi and stiffness ratios E_p/E_l at zeta = 0.3 um (Table 
 the Hooke-spring boundary-element model (every pillar a uniformly shortening spring on a
 half-space) is compared with fem-3d (every pillar a fully elastic body bonded to the
 substrate).  Each model climbs its own refinement ladder; each quantity gets its Richardson
-estimate and GCI band (validation.verification), and every BEM-FEM difference is set beside
+estimate and GCI band (validation.analysis.verification), and every BEM-FEM difference is set beside
 both models' numerical uncertainty: a difference larger than the two bands together is the
 modelling error of the Hooke pillar, not noise.
 

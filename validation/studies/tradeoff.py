@@ -15,7 +15,7 @@ rung is |f - f_ref| / |f_ref|.
 Outputs: ``tradeoff.csv`` (one row per model and rung), ``tradeoff.json`` (rows,
 references with their orders and bands, scene and versions) and ``tradeoff.png`` (log-log
 error against wall time, one panel per quantity, one line per model, points labelled by their
-refinement, the Pareto front marked: :func:`validation.plots.plot_tradeoff`).
+refinement, the Pareto front marked: :func:`validation.output.plots.plot_tradeoff`).
 
 References
 ----------
@@ -31,9 +31,8 @@ import math
 import tempfile
 from pathlib import Path
 
+from outcome import package_version, write_atomic
 from scenes import InputError
-from outcome import write_atomic
-from outcome import package_version
 
 from ..engine import Case, Engine
 from ..registry import QUANTITIES

@@ -21,7 +21,7 @@ Every number comes from studies run on the engine (resumable, cached in ``OUT/ca
   in place of the Gecit grid's single-pillar values for multi-pillar scenes.
 
 Each case's wall time and peak memory feed one cost fit per model.  The result is two data
-files in the format of :mod:`.planner_tables` and a report of everything measured.
+files in the format of :mod:`validation.planner.tables` and a report of everything measured.
 """
 
 from __future__ import annotations

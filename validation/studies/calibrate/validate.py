@@ -3,7 +3,7 @@ tolerance of the best reference the toolkit has, and is it cheap?
 
 Scenes: a Latin-hypercube sample of the paper's family (seed :data:`VALIDATION_SEED`, not the
 calibration's), a smaller stiff-substrate sample and flat scenes
-(:mod:`.calibrate_scenes`).  The best reference per regime:
+(:mod:`.scenes`).  The best reference per regime:
 
 - one pillar touches: the elastic pillar, fem-axisym's Richardson estimate over mesh_size
   2, 1, 0.5 (blocks 1e5 radii wide: truncation ~5e-6);

@@ -96,7 +96,7 @@ def interpenetration_tol(model: str) -> float:
     A model with weak (mortar) contact, the FEMs, holds the weighted gaps to its contact
     residual, while the pointwise gap at the P2 points beside a contact edge dips below zero
     by a share of zeta (1-3 % on resolved edges, ~9 % beside a flat punch's singular edge).
-    The FEMs themselves call a run beyond ``fem_reference._contact.MAX_POINTWISE_PENETRATION``
+    The FEMs themselves call a run beyond ``fem_reference._driver.MAX_POINTWISE_PENETRATION``
     under-resolved (not converged); a converged run beyond it would be a bug."""
     if model in MODELS and MODELS[model].weak_contact:
         from fem_reference._driver import MAX_POINTWISE_PENETRATION

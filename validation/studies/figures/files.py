@@ -1,4 +1,4 @@
-"""The files of ``pillar-xval figures``: each figure's PNG (:mod:`.figures_plots`) and the CSV
+"""The files of ``pillar-xval figures``: each figure's PNG (:mod:`.plots`) and the CSV
 of its data (SI units, the unit in each column name)."""
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from scenes import Material, Scene, analytic
 from outcome import write_atomic
+from scenes import Material, Scene, analytic
 
 from . import plots
 from .fits import master_curve

@@ -1,11 +1,11 @@
 """The paper's Figs. 3-8 from one call: :func:`run_figures`.
 
-Every scene of :mod:`.figures_scenes` runs as one batch on the engine (cached under
+Every scene of :mod:`.scenes` runs as one batch on the engine (cached under
 ``out/cases``: a rerun resumes), longest first so the pool ends evenly; then the single-pillar
-threshold is bisected on the exact solver (:mod:`.figures_thresholds`), the master curves are
-fitted (:mod:`.figures_fits`), and each figure is written as a PNG with the CSV of its data
-(:mod:`.figures_plots`), beside ``figures.json`` (every number), ``figures.md`` (the paper's
-numbers beside ours, :mod:`.figures_report`) and ``timing.json``.
+threshold is bisected on the exact solver (:mod:`.thresholds`), the master curves are
+fitted (:mod:`.fits`), and each figure is written as a PNG with the CSV of its data
+(:mod:`.plots`), beside ``figures.json`` (every number), ``figures.md`` (the paper's
+numbers beside ours, :mod:`.report`) and ``timing.json``.
 
 How the paper's thresholds are fitted here: for each (zeta, E_p/E_l), sigma_0H is the Hertz
 value of eq. S0Hertz and sigma_0S the solver's own single-pillar plateau (sigma_0 at the
@@ -26,8 +26,8 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from scenes import Scene
 from outcome import write_atomic
+from scenes import Scene
 
 from ...engine import Case, Engine
 from .files import write_figures

@@ -49,8 +49,8 @@ import csv
 import io
 from pathlib import Path
 
-from scenes import InputError, Scene, apply_overrides, scene_dict
 from outcome import write_atomic
+from scenes import InputError, Scene, apply_overrides, scene_dict
 
 from ...engine import Case, CaseStore, Engine, Outcome
 from .grid import (Axis, ModelSpec, Sweep, SweepCase, _override, crossed, linear, log,
