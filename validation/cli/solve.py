@@ -15,11 +15,14 @@ OUTPUTS = ("elements.csv", "pillars.csv", "pressure.png", "fields.vtu", "fields.
 
 
 def add_parser(sub) -> None:
+    from ..registry import MODELS
+
+    models = "; ".join(f"{m.name}: {m.summary}" for m in MODELS.values())
     p = sub.add_parser(
         "solve", help="solve one scene with one model",
         description="Solve one scene with one model and print a summary (or, with --json, "
                     "the result as one JSON document).  A model option that the chosen "
-                    "model does not take is refused.")
+                    f"model does not take is refused.  Models: {models}.")
     add_scene_arguments(p)
     add_model_argument(p, model_names(), help_text="model to run (default bem, the dense "
                                                    "boundary-element solver)")
