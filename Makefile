@@ -77,7 +77,7 @@ bench-figures: $(STAMP)
 
 # The planner's error and cost models, measured (convergence ladders, Gecit grid, closed forms,
 # FEM truncation, the lattice study's Hooke error; resumable; about 1.5 h) and installed as the
-# package's data (validation/data/*.json).
+# package's data (validation/planner/data/*.json).
 calibrate: $(STAMP)
 	$(VENV)/bin/pillar-xval lattice --out $(OUT)/lattice
 	$(VENV)/bin/pillar-xval calibrate --out $(OUT)/calibrate --lattice $(OUT)/lattice/lattice.json --install

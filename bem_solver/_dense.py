@@ -12,9 +12,10 @@ import time
 
 import numpy as np
 
-from contact import ContactSolution, min_map_residual, solve_dense as solve_contact
-from scenes import ContactResult, PillarForce, Scene, ScopeError, analytic
-from scenes.memory import memory_short
+from contact import ContactSolution, min_map_residual, solve_active_set as solve_contact
+from outcome import ContactResult, PillarForce
+from scenes import Scene, ScopeError, analytic
+from outcome.memory import memory_short
 
 from ._cells import VARIANTS, cell_pattern
 from ._discretise import Discretisation, discretise, overlap_radius

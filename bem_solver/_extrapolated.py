@@ -40,7 +40,8 @@ from __future__ import annotations
 
 import time
 
-from scenes import ContactResult, PillarForce, Scene
+from outcome import ContactResult, PillarForce
+from scenes import Scene
 
 from ._dense import solve_dense
 

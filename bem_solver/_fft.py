@@ -44,7 +44,8 @@ import time
 import numpy as np
 
 from contact import constrained_cg, diagonal_preconditioner
-from scenes import ContactResult, PillarForce, Scene
+from outcome import ContactResult, PillarForce
+from scenes import Scene
 
 from ._dense import _smooth_edge_radius
 from ._fft_grid import CellGrid, build_grid

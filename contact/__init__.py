@@ -17,12 +17,12 @@ symmetry-reduced or mortar operator) into a gap in metres.  It is zero exactly a
 solution and bounds both the interpenetration and the gap on the contact set.  A solver that
 misses its tolerance returns ``converged = False`` and a message; it never raises for that.
 
-- :func:`solve_dense`: exact primal-dual active set on a dense matrix (NNLS if it cycles).
+- :func:`solve_active_set`: exact primal-dual active set on a dense matrix (NNLS if it cycles).
 - :func:`constrained_cg`: Polonsky-Keer constrained conjugate gradients on an operator given
   as a function (FFT half-space, or an FEM compliance applied by back-substitution).
 """
 
-from ._active_set import solve_dense
+from ._active_set import solve_active_set
 from ._cg import constrained_cg, diagonal_preconditioner
 from ._solution import ContactSolution, evaluate, min_map_residual
 
@@ -32,5 +32,5 @@ __all__ = [
     "diagonal_preconditioner",
     "evaluate",
     "min_map_residual",
-    "solve_dense",
+    "solve_active_set",
 ]

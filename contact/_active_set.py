@@ -32,7 +32,7 @@ CHOLESKY_MAX = 1200
 CG_RTOL = 1e-14
 
 
-def solve_dense(A: np.ndarray, b: np.ndarray, *, scale: float, weights=None,
+def solve_active_set(A: np.ndarray, b: np.ndarray, *, scale: float, weights=None,
                 groups: np.ndarray | None = None, initial: np.ndarray | None = None,
                 tol: float = 1e-8, max_iterations: int = 100) -> ContactSolution:
     """Solve gap = A p + b, p >= 0, gap >= 0, p gap = 0 exactly.

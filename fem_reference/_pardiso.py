@@ -1,7 +1,8 @@
 """MKL PARDISO on a symmetric indefinite matrix, through pypardiso's library handle.
 
-Why PARDISO: DESIGN.md measured it ~10x faster than SuperLU on these P2/P1 tetrahedral
-saddle-point systems (3 s against 30 s at 54k unknowns; SuperLU > 600 s at 190k), and it
+Why PARDISO: measured ~10x faster than SuperLU on these P2/P1 tetrahedral saddle-point
+systems (3 s against 30 s at 54k unknowns; SuperLU > 600 s at 190k; ``python -m
+validation.bench.fem3d --compare-solvers 2.83`` measures it again), and it
 installs as a wheel (pypardiso + mkl).  The symmetric indefinite mode (mtype -2, upper
 triangle, Bunch-Kaufman pivots with symmetric weighted matching, as MKL advises for saddle
 points) stores half the factor of pypardiso's default unsymmetric mode.  Solves call the
@@ -16,7 +17,7 @@ import ctypes
 import numpy as np
 import scipy.sparse as sp
 
-from ._system import SolveError
+from ._reduced import SolveError
 
 
 class Pardiso:

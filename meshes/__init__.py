@@ -9,18 +9,23 @@ substrate block, or a flat substrate.  Groups are named (``lens``, ``pillar``,
 The 3D builder meshes a sector 0 <= theta <= alpha of the lattice centred on pillar (0, 0)
 (alpha = pi/6, the D6 primitive wedge) with tetrahedra: lens block, the pillars the lens can
 reach, substrate block, with per-pillar groups (``contact_pillar_{n}_{m}``, ...).
+One subpackage per geometry with the same modules (geometry, gmsh, mesh): :mod:`.axisym`,
+:mod:`.wedge`; the body names and errors both raise: :mod:`._common`.
 """
 
-from ._geometry import (BODIES, AxisymmetricGeometry, GeometryError, MeshError, flat_geometry,
-                        pillar_geometry)
-from ._gmsh import build_axisymmetric_mesh
-from ._mesh import MIN_QUALITY, AxisymmetricMesh
-from ._mesh3d import MIN_QUALITY_3D, WedgeMesh
-from ._wedge_geometry import SECTORS, SectorPillar, WedgeGeometry, sector_pillars
-from ._wedge_gmsh import build_wedge_mesh
+from ._common import BODIES, GeometryError, MeshError
+from .axisym.geometry import MESH_SIZE_RANGE, AxisymmetricGeometry, flat_geometry, pillar_geometry
+from .axisym.gmsh import build_axisymmetric_mesh
+from .axisym.mesh import MIN_QUALITY, AxisymmetricMesh
+from .wedge.geometry import (MESH_SIZE_RANGE_3D, SECTORS, SectorPillar, WedgeGeometry,
+                             sector_pillars)
+from .wedge.gmsh import build_wedge_mesh
+from .wedge.mesh import MIN_QUALITY_3D, WedgeMesh
 
 __all__ = [
     "BODIES",
+    "MESH_SIZE_RANGE",
+    "MESH_SIZE_RANGE_3D",
     "MIN_QUALITY",
     "MIN_QUALITY_3D",
     "SECTORS",

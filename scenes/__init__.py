@@ -11,26 +11,17 @@ from ._checks import LENGTH_RANGE_M, MODULUS_RANGE_PA, PHI_CLOSE_PACKING, POISSO
 from ._io import load_scene, preset_names, scene_dict, scene_loader, scene_to_toml
 from ._overrides import apply_overrides
 from ._tables import scene_from_dict
-from ._errors import (EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_NOT_CONVERGED, EXIT_OK,
-                      EXIT_TOOL_FAILURE, InputError, SceneError, ScopeError, ToolError)
+from ._errors import InputError, SceneError, ScopeError, ToolError
 from ._scene import Lens, Material, Pillars, Scene
-from .result import ContactResult, PillarForce, atomic_path, write_atomic
 
 __all__ = [
-    "EXIT_BAD_INPUT",
-    "EXIT_INTERRUPTED",
-    "EXIT_NOT_CONVERGED",
-    "EXIT_OK",
-    "EXIT_TOOL_FAILURE",
     "LENGTH_RANGE_M",
     "MODULUS_RANGE_PA",
     "PHI_CLOSE_PACKING",
     "POISSON_RANGE",
-    "ContactResult",
     "InputError",
     "Lens",
     "Material",
-    "PillarForce",
     "Pillars",
     "Scene",
     "SceneError",
@@ -38,7 +29,6 @@ __all__ = [
     "ToolError",
     "analytic",
     "apply_overrides",
-    "atomic_path",
     "lattice",
     "load_scene",
     "preset_names",
@@ -46,5 +36,4 @@ __all__ = [
     "scene_from_dict",
     "scene_loader",
     "scene_to_toml",
-    "write_atomic",
 ]

@@ -1,18 +1,19 @@
-"""The toolkit's failure policy: three kinds of failure, each with its own exception and exit
-status, and a fourth outcome that is not an exception at all.
+"""The toolkit's failure policy: three kinds of failure, each with its own exception, and a
+fourth outcome that is not an exception at all (the CLI's exit status of each:
+:mod:`validation.cli._exit`).
 
-=========================  =====================================  ===========
-what happened              how it is reported                     CLI exit
-=========================  =====================================  ===========
-solver missed tolerance    ``ContactResult.converged = False``    1
+=========================  =====================================
+what happened              how it is reported
+=========================  =====================================
+solver missed tolerance    ``ContactResult.converged = False``
                            and ``diagnostics["message"]``
-bad input                  :class:`InputError` (incl.             2
+bad input                  :class:`InputError` (incl.
                            :class:`SceneError`)
-scene outside a model      :class:`ScopeError` (an InputError:    2
+scene outside a model      :class:`ScopeError` (an InputError:
                            the model refuses it, with the reason)
-a tool underneath failed   :class:`ToolError` (gmsh, a linear     3
+a tool underneath failed   :class:`ToolError` (gmsh, a linear
                            solver, the file system, memory)
-=========================  =====================================  ===========
+=========================  =====================================
 
 Messages are one line: bad input names the parameter as the user wrote it, its value and the
 allowed range; a tool failure names the tool and what it said.
@@ -21,13 +22,6 @@ allowed range; a tool failure names the tool and what it said.
 from __future__ import annotations
 
 import math
-
-EXIT_OK = 0
-EXIT_NOT_CONVERGED = 1
-EXIT_BAD_INPUT = 2
-EXIT_TOOL_FAILURE = 3
-EXIT_INTERRUPTED = 130
-
 
 class InputError(ValueError):
     """Bad input: the message names the parameter, its value and the allowed range."""

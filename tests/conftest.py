@@ -6,7 +6,6 @@ import types
 import pytest
 
 import fakes as fake_models
-from validation import models
 from validation.cli import main
 
 
@@ -16,9 +15,9 @@ def fakes(monkeypatch):
     mod = types.ModuleType("xval_fakes")
     mod.fake_fem, mod.fake_bem = fake_models.fake_fem, fake_models.fake_bem
     monkeypatch.setitem(sys.modules, "xval_fakes", mod)
-    monkeypatch.setitem(models.MODELS, "fem-axisym", ("xval_fakes", "fake_fem", ("mesh_size",)))
-    monkeypatch.setitem(models.MODELS, "bem", ("xval_fakes", "fake_bem",
-                                               ("elements_per_diameter", "cells", "contact")))
+    fake_models.register(monkeypatch, "fem-axisym", "xval_fakes:fake_fem", ("mesh_size",))
+    fake_models.register(monkeypatch, "bem", "xval_fakes:fake_bem",
+                         ("elements_per_diameter", "cells", "contact"))
     fake_models.CALLS.clear()
     return fake_models.CALLS
 

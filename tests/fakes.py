@@ -6,9 +6,26 @@ import math
 
 import numpy as np
 
-from scenes import ContactResult, PillarForce, analytic
+from outcome import ContactResult, PillarForce
+from scenes import analytic
 
 CALLS: list[tuple] = []
+
+
+def register(monkeypatch, name: str, solver: str, options=None, **fields):
+    """Put ``solver`` ("module:function") in place of model ``name``'s for this test: the
+    declaration keeps its other fields; ``options`` narrows its options to these names, or (a
+    dict of specs) declares them; a model not registered yet is declared with ``fields``."""
+    from dataclasses import replace
+
+    from validation.registry import MODELS, Model
+
+    model = MODELS.get(name) or Model(name, solver, f"fake {name}")
+    if options is None:
+        options = model.options
+    elif not isinstance(options, dict):
+        options = {k: model.options[k] for k in options}
+    monkeypatch.setitem(MODELS, name, replace(model, solver=solver, options=options, **fields))
 # Fake discretisation errors: f = f_exact (1 + C_FEM h^2) (FEM, h = mesh_size) and
 # f_exact (1 + C_BEM / P^2) (BEM): both second order by construction.
 C_FEM, C_BEM = 0.02, 0.5

@@ -347,7 +347,7 @@ def test_dense_and_fft_identical_on_flat_scene(n):
 def test_both_bems_converge_to_the_same_continuum_answer(name):
     """Observed orders (three finest levels, ratio 2) and Richardson limits of F_T and
     sigma_0 for both models; the limits agree within the sum of their GCI bands."""
-    from validation.verification import gci_three
+    from validation.analysis.verification import gci_three
 
     scene = load_scene(name)
     fft = [solve_fft(scene, n) for n in (64, 32, 16)]

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.integrate import dblquad
 
-from contact import solve_dense as solve_contact
+from contact import solve_active_set as solve_contact
 from bem_solver import (cell_pattern, discretise, disk_rectangle_area, expansion, full_operator,
                         lens_gap, love_rectangle, reduced_operator, solve_dense)
 from bem_solver._love import FAR_FIELD_RATIO, FAR_FIELD_RTOL, unit_force_influence

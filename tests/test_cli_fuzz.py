@@ -16,8 +16,8 @@ import sys
 
 import pytest
 
+from outcome import package_version
 from scenes import ToolError, load_scene, preset_names, scene_to_toml
-from scenes.result import package_version
 
 # The one line of each outcome (progress lines on stderr start with "[").
 KIND = {1: "not converged", 2: "error", 3: "failure", 4: "internal error", 130: "interrupted"}
@@ -227,7 +227,7 @@ def test_real_fft_not_converged_is_stamped(tmp_path, cli):
     """The real FFT model, stopped early through the Python API, and its figure."""
     from scenes import load_scene
     from bem_solver import solve_fft
-    from validation.report import pressure_figure
+    from validation.output.report import pressure_figure
 
     result = solve_fft(load_scene("paper-fig3-sparse"), 8, max_iterations=2)
     assert not result.converged and "no convergence" in result.diagnostics["message"]
@@ -300,13 +300,12 @@ def _override(rng: random.Random) -> str:
 @pytest.fixture
 def fake_fft(fakes, monkeypatch):
     """The FFT model faked too (its real solves at the fuzz's resolutions cost minutes)."""
-    from validation import models
+    from fakes import register
 
     module = sys.modules["xval_fakes"]
     module.fake_fft = lambda scene, cells_per_diameter=32: module.fake_bem(
         scene, elements_per_diameter=cells_per_diameter)
-    monkeypatch.setitem(models.MODELS, "bem-fft", ("xval_fakes", "fake_fft",
-                                                   ("cells_per_diameter",)))
+    register(monkeypatch, "bem-fft", "xval_fakes:fake_fft", ("cells_per_diameter",))
     return fakes
 
 

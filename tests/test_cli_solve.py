@@ -5,7 +5,7 @@ import json
 
 import pytest
 
-from scenes import ContactResult
+from outcome import ContactResult
 from validation.cli import main
 
 
@@ -50,7 +50,7 @@ def test_grid_pressure_map_is_an_image_and_its_profile_a_density():
 
     from bem_solver import solve_fft
     from scenes import load_scene
-    from validation.report import SCATTER_MAX, pressure_plot
+    from validation.output.report import SCATTER_MAX, pressure_plot
 
     result = solve_fft(load_scene("paper-fig3-dense"), 6)
     assert result.fields["x_m"].size > SCATTER_MAX
@@ -64,7 +64,7 @@ def test_grid_pressure_map_is_an_image_and_its_profile_a_density():
 def test_dense_map_draws_the_lattice_wedge_only_with_a_lattice():
     from bem_solver import solve_dense
     from scenes import load_scene
-    from validation.report import pressure_plot
+    from validation.output.report import pressure_plot
 
     lattice = pressure_plot(solve_dense(load_scene("paper-fig3-sparse"), 5)).axes[0]
     flat = pressure_plot(solve_dense(load_scene("hertz"), 5)).axes[0]
@@ -76,7 +76,7 @@ def test_dense_map_draws_the_lattice_wedge_only_with_a_lattice():
 def test_model_without_element_map_gets_one_panel_sized_to_the_pillar():
     from fakes import fake_fem
     from scenes import load_scene
-    from validation.report import pressure_plot
+    from validation.output.report import pressure_plot
 
     scene = load_scene("single-pillar")
     fig = pressure_plot(fake_fem(scene, 1.0))
@@ -89,7 +89,7 @@ def test_model_without_element_map_gets_one_panel_sized_to_the_pillar():
 def test_not_converged_figures_say_so():
     from bem_solver import solve_fft
     from scenes import load_scene
-    from validation.report import pressure_plot
+    from validation.output.report import pressure_plot
 
     result = solve_fft(load_scene("paper-fig3-sparse"), 8, max_iterations=2)
     assert not result.converged
@@ -104,7 +104,7 @@ def test_solve_hands_the_model_a_progress_callback(monkeypatch, capsys):
     import sys
     import types
 
-    from validation import models
+    from fakes import register
 
     seen = []
 
@@ -117,8 +117,7 @@ def test_solve_hands_the_model_a_progress_callback(monkeypatch, capsys):
     module = types.ModuleType("xval_slow")
     module.slow_model = slow_model
     monkeypatch.setitem(sys.modules, "xval_slow", module)
-    monkeypatch.setitem(models.MODELS, "bem", ("xval_slow", "slow_model",
-                                               ("elements_per_diameter",)))
+    register(monkeypatch, "bem", "xval_slow:slow_model", ("elements_per_diameter",))
     assert main(["solve", "--scene", "hertz", "--json"]) == 0
     assert callable(seen[0])
     json.loads(capsys.readouterr().out)

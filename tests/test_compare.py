@@ -78,7 +78,7 @@ def test_compare_render_failure_costs_one_picture_not_the_run(fakes, tmp_path, m
     leaves no picture of an earlier run."""
     import subprocess
 
-    import validation.render as render
+    import validation.output.render as render
 
     out = tmp_path / "single-pillar"
     out.mkdir()
@@ -191,7 +191,7 @@ def test_real_compare(scene, tmp_path):
 
 def test_render_has_a_length_scale_and_a_readable_colour_bar(fakes, tmp_path):
     from fakes import fake_fem
-    from validation.render import nice_length, readable, render_stress
+    from validation.output.render import nice_length, readable, render_stress
 
     assert [nice_length(s) for s in (10.0, 3.0, 0.7, 45.0)] == [2.0, 1.0, 0.2, 10.0]
     assert readable("von_mises_Pa") == "von Mises stress"

@@ -12,7 +12,8 @@ import itertools
 import numpy as np
 import pytest
 
-from contact import constrained_cg, diagonal_preconditioner, evaluate, min_map_residual, solve_dense
+from contact import (constrained_cg, diagonal_preconditioner, evaluate, min_map_residual,
+                     solve_active_set)
 
 RTOL_ROUNDOFF = 1e-10  # exact active-set solutions: round-off only
 
@@ -42,7 +43,7 @@ def _problems(count, n=6, seed=20261123):
 
 def test_dense_solver_matches_enumeration():
     for A, b in _problems(20):
-        sol = solve_dense(A, b, scale=1.0)
+        sol = solve_active_set(A, b, scale=1.0)
         assert sol.converged, sol.message
         np.testing.assert_allclose(sol.pressure, _enumerate(A, b), atol=RTOL_ROUNDOFF)
         assert sol.residual < RTOL_ROUNDOFF
@@ -74,7 +75,7 @@ def test_min_map_residual_definition():
 
 def test_residual_is_relative_to_the_scale():
     A, b = next(_problems(1))
-    sol = solve_dense(A, b, scale=1.0)
+    sol = solve_active_set(A, b, scale=1.0)
     wrong = sol.pressure * 1.01
     got = evaluate(A, b, wrong, scale=1e-3)
     assert got.residual == pytest.approx(min_map_residual(wrong, A @ wrong + b) / 1e-3)

@@ -9,15 +9,15 @@ import pytest
 from scenes import analytic, load_scene
 from validation.cli import main
 from validation.engine import Case, Engine, case_key
-from validation.ladders import LADDERS
+from validation.registry import ladders
 from validation.studies.converge import converge_study
 
 def test_ladders_refine_as_documented():
-    assert [LADDERS["bem"].value(k) for k in range(4)] == [11, 23, 47, 95]
-    assert [LADDERS["fem-axisym"].value(k) for k in range(3)] == [1.0, 0.5, 0.25]
-    assert [LADDERS["bem-fft"].value(k) for k in range(3)] == [32, 64, 128]
-    assert LADDERS["bem"].size(11) == pytest.approx(1 / 11)
-    assert LADDERS["bem"].options(1) == {"cells": "covered", "elements_per_diameter": 23}
+    assert [ladders()["bem"].value(k) for k in range(4)] == [11, 23, 47, 95]
+    assert [ladders()["fem-axisym"].value(k) for k in range(3)] == [1.0, 0.5, 0.25]
+    assert [ladders()["bem-fft"].value(k) for k in range(3)] == [32, 64, 128]
+    assert ladders()["bem"].size(11) == pytest.approx(1 / 11)
+    assert ladders()["bem"].options(1) == {"cells": "covered", "elements_per_diameter": 23}
 
 
 def test_case_key_depends_on_physics_not_name():
@@ -148,7 +148,7 @@ def test_convergence_figure_of_a_level_that_missed_is_stamped(fakes, tmp_path, m
     import sys
 
     from fakes import fake_bem
-    from validation import plots
+    from validation.output import plots
 
     def stuck_at_23(scene, elements_per_diameter=11, **options):
         result = fake_bem(scene, elements_per_diameter, **options)

@@ -61,7 +61,7 @@ def test_key_is_stable_and_sensitive_to_what_is_computed():
     assert case_key("bem", scene, {**opts, "elements_per_diameter": 9}) != key
     assert case_key("bem", scene, {**opts, "contact": "paper"}) != key
     assert case_key("bem", scene, opts, version=code_version() + "x") != key
-    assert code_version().startswith(__import__("scenes").result.package_version())
+    assert code_version().startswith(__import__("outcome").package_version())
 
 
 def test_source_digest_follows_every_source_edit(tmp_path):

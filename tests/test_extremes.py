@@ -7,10 +7,11 @@ import json
 
 import pytest
 
-from scenes import ContactResult, PillarForce, ScopeError, load_scene
+from outcome import ContactResult, PillarForce
+from scenes import ScopeError, load_scene
 from validation.engine import Case, Outcome
-from validation.studies.extremes import corner_scenes, judge, run_extremes
-from validation.studies.extremes_report import STATUSES, counts, summary_text, write_outputs
+from validation.studies.extremes.report import STATUSES, counts, summary_text, write_outputs
+from validation.studies.extremes.run import corner_scenes, judge, run_extremes
 
 
 def _result(F=1e-6, pressures=(2.0, 1.0, 0.0), pen=0.0, converged=True, forces=None):
@@ -98,11 +99,11 @@ def test_fast_subset_of_the_extremes(tmp_path):
 
 
 def test_fem3d_is_skipped_for_cost_or_refused_on_wide_lattices():
-    from validation.studies.extremes import FEM3D_MAX_DOFS, MODELS, skip_reason
+    from validation.studies.extremes.run import FEM3D_MAX_DOFS, model_options, skip_reason
 
     scenes = {c["label"]: c["scene"] for c in corner_scenes()}
-    opts = MODELS["fem-3d"]
+    opts = model_options()["fem-3d"]
     assert skip_reason("fem-3d", scenes["nominal"], opts) is None
-    assert skip_reason("bem", scenes["R+"], MODELS["bem"]) is None
+    assert skip_reason("bem", scenes["R+"], model_options()["bem"]) is None
     why = skip_reason("fem-3d", scenes["R+"], opts)  # a 1 m lens: ~1e2-1e3 sector pillars
     assert why and "skipped for cost" in why and f"{FEM3D_MAX_DOFS:.2g}" in why

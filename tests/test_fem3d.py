@@ -21,8 +21,8 @@ import math
 import numpy as np
 import pytest
 
-from fem_reference import solve_axisymmetric, solve_fem3d
-from fem_reference._system3d import mirror_normals, rigid_modes
+from fem_reference import axisym, solid3d
+from fem_reference.solid3d.system import mirror_normals, rigid_modes
 from scenes import ScopeError, analytic, load_scene
 
 RTOL_SOLVER = 1e-8
@@ -61,8 +61,8 @@ def test_rigid_modes_respect_the_mirrors():
 def test_skew_roller_is_exact():
     """Every reduced vector gives u . n = 0 on both mirror planes (a transform, not a
     penalty), and u_z = 0 on the far faces."""
-    from fem_reference._solid3d import _setup
-    from fem_reference._system3d import assemble_sector
+    from fem_reference.solid3d.driver import _setup
+    from fem_reference.solid3d.system import assemble_sector
     from meshes import build_wedge_mesh
 
     scene = load_scene("single-pillar")
@@ -87,7 +87,7 @@ def test_skew_roller_is_exact():
 def test_hertz_coarse():
     scene = load_scene("hertz", ["load.indentation_um=0.005"])
     ref = analytic.hertz(scene)
-    res = solve_fem3d(scene, 1.0)
+    res = solid3d.solve(scene, 1.0)
     assert_verified(res)
     assert res.total_force_N == pytest.approx(ref.force, rel=RTOL_HERTZ_FORCE)
     assert res.centre_pressure_Pa == pytest.approx(ref.centre_pressure, rel=RTOL_HERTZ_CENTRE)
@@ -99,8 +99,8 @@ def test_hertz_coarse():
 # --- the axisymmetric FEM -----------------------------------------------------------------
 def test_single_pillar_against_axisymmetric_coarse():
     scene = load_scene("single-pillar")
-    ax = solve_axisymmetric(scene)
-    res = solve_fem3d(scene, 2.0)
+    ax = axisym.solve(scene)
+    res = solid3d.solve(scene, 2.0)
     assert_verified(res)
     assert res.total_force_N == pytest.approx(ax.total_force_N, rel=RTOL_AXISYM_COARSE)
     assert res.centre_pressure_Pa == pytest.approx(ax.centre_pressure_Pa,
@@ -123,8 +123,8 @@ def test_rigid_lens_against_axisymmetric():
     """A rigid lens (not meshed: the contact faces are the pillar top's alone) on an elastic
     pillar and substrate, against fem-axisym."""
     scene = load_scene("single-pillar", ["lens.rigid=true"])
-    ax = solve_axisymmetric(scene)
-    res = solve_fem3d(scene, 2.0)
+    ax = axisym.solve(scene)
+    res = solid3d.solve(scene, 2.0)
     assert_verified(res)
     assert res.total_force_N == pytest.approx(ax.total_force_N, rel=RTOL_AXISYM_COARSE)
 
@@ -136,7 +136,7 @@ def test_incompressible_limit_is_continuous():
     f = {}
     for nu in (0.5, 0.4999):
         scene = load_scene("single-pillar", [*base, f"lens.nu={nu}", f"pillars.nu={nu}"])
-        res = solve_fem3d(scene, 2.0)
+        res = solid3d.solve(scene, 2.0)
         assert_verified(res)
         f[nu] = res.total_force_N
     change = f[0.4999] / f[0.5] - 1
@@ -149,12 +149,12 @@ def test_stiffness_extremes_and_monotone_force():
     forces = {}
     for ratio in (1e-3, 1.0, 1e6):
         scene = load_scene("single-pillar", [f"pillars.E_Pa={ratio * 1.6e6}"])
-        res = solve_fem3d(scene, 2.0)
+        res = solid3d.solve(scene, 2.0)
         assert_verified(res)
         assert all(math.isfinite(v) for v in res.pillar_top_profile["pressure_Pa"])
         forces[ratio] = res.total_force_N
         if ratio != 1.0:
-            ax = solve_axisymmetric(scene)
+            ax = axisym.solve(scene)
             assert res.total_force_N == pytest.approx(ax.total_force_N, rel=RTOL_AXISYM_COARSE)
     assert forces[1e-3] < forces[1.0] < forces[1e6]
 
@@ -165,7 +165,7 @@ def test_result_schema_and_vtu(tmp_path):
 
     scene = load_scene("single-pillar")
     lines = []
-    res = solve_fem3d(scene, 2.0, vtu_path=tmp_path / "fem3d.vtu", progress=lines.append)
+    res = solid3d.solve(scene, 2.0, vtu_path=tmp_path / "fem3d.vtu", progress=lines.append)
     assert res.model == "fem-3d"
     assert {"mesh_size", "dofs", "elements", "block_size_m"} <= set(res.discretisation)
     assert any("factorising" in t for t in lines) and any("contact" in t for t in lines)
@@ -192,13 +192,13 @@ def test_bad_options_are_refused_clearly(kwargs, match):
     from scenes import InputError
 
     with pytest.raises(InputError, match=match):
-        solve_fem3d(load_scene("single-pillar"), **kwargs)
+        solid3d.solve(load_scene("single-pillar"), **kwargs)
 
 
 def test_hertz_on_a_rigid_substrate():
     """Only the lens is meshed: F = Hertz with gamma_l alone (closed form)."""
     scene = load_scene("hertz", ["load.indentation_um=0.005", "substrate.rigid=true"])
-    res = solve_fem3d(scene, 1.0)
+    res = solid3d.solve(scene, 1.0)
     assert_verified(res)
     assert res.total_force_N == pytest.approx(analytic.hertz(scene).force, rel=RTOL_HERTZ_FORCE)
 
@@ -212,7 +212,7 @@ def test_rigid_pillar_on_elastic_substrate_is_two_springs_in_series():
                                          "pillars.surface_fraction=1e-7",
                                          "substrate.E_Pa=6.4e6", "substrate.nu=0.5"])
     gl, gs = scene.lens.material.compliance, scene.substrate.compliance
-    res = solve_fem3d(scene, 2.0)
+    res = solid3d.solve(scene, 2.0)
     assert_verified(res)
     d, zeta = scene.pillars.diameter_m, scene.indentation_m
     assert res.total_force_N == pytest.approx(d * zeta / (gl + gs), rel=RTOL_AXISYM_COARSE)
@@ -220,14 +220,14 @@ def test_rigid_pillar_on_elastic_substrate_is_two_springs_in_series():
 
 def test_close_packing_is_refused():
     with pytest.raises(ScopeError, match="surface_fraction"):
-        solve_fem3d(load_scene("paper-fig3-dense", ["pillars.surface_fraction=0.9068"]))
+        solid3d.solve(load_scene("paper-fig3-dense", ["pillars.surface_fraction=0.9068"]))
 
 
 def test_rigid_lens_on_rigid_pillars_is_refused():
     scene = load_scene("single-pillar", ["lens.rigid=true", "pillars.rigid=true",
                                          "substrate.E_Pa=1.6e6", "substrate.nu=0.5"])
     with pytest.raises(ScopeError, match="rigid"):
-        solve_fem3d(scene)
+        solid3d.solve(scene)
 
 
 # --- symmetry -------------------------------------------------------------------------------
@@ -238,8 +238,8 @@ SMALL_LATTICE = ["pillars.surface_fraction=0.05", "load.indentation_um=0.1",
 def same_forces_in_wedge_and_quadrant(scene, mesh_size):
     """Solve on the pi/6 wedge and on the quadrant; assert the same 7 pillars carry the same
     forces within RTOL_SYMMETRY; return both results and the quadrant's forces by (n, m)."""
-    wedge = solve_fem3d(scene, mesh_size)
-    quad = solve_fem3d(scene, mesh_size, sector_angle=math.pi / 2)
+    wedge = solid3d.solve(scene, mesh_size)
+    quad = solid3d.solve(scene, mesh_size, sector_angle=math.pi / 2)
     for res in (wedge, quad):
         assert_verified(res)
     fw = {(p.n, p.m): p.force_N for p in wedge.pillar_forces}
@@ -290,7 +290,7 @@ def test_hertz_converges_at_a_rate():
     scene = load_scene("hertz", ["load.indentation_um=0.005"])
     ref = analytic.hertz(scene)
     sizes = [2.0, 1.41, 1.0, 0.71]
-    results = [solve_fem3d(scene, s) for s in sizes]
+    results = [solid3d.solve(scene, s) for s in sizes]
     for res in results:
         assert_verified(res)
     force = [r.total_force_N / ref.force - 1 for r in results]
@@ -310,9 +310,9 @@ def test_single_pillar_agrees_with_axisymmetric_within_gcis():
     +0.11 %; sigma0 +0.38, +0.03, -0.04 %."""
     scene = load_scene("single-pillar")
     s3 = [0.71, 1.0, 1.41]
-    r3 = [solve_fem3d(scene, s) for s in s3]
+    r3 = [solid3d.solve(scene, s) for s in s3]
     sa = [0.5, 1.0, 2.0]
-    ra = [solve_axisymmetric(scene, s) for s in sa]
+    ra = [axisym.solve(scene, s) for s in sa]
     for get in (lambda r: r.total_force_N, lambda r: r.centre_pressure_Pa):
         band = (capped_gci(s3, [get(r) for r in r3]) + capped_gci(sa, [get(r) for r in ra]))
         assert abs(get(r3[0]) - get(ra[0])) <= band
@@ -325,7 +325,7 @@ FORMAL_ORDER = 2.0
 def capped_gci(h, f) -> float:
     """Uncertainty (unit of f) of the finest of three solutions: the GCI with the observed
     order capped at FORMAL_ORDER, or the conservative fallback when no order is observed."""
-    from validation.verification import FS_THREE_GRIDS, gci_three, gci_two
+    from validation.analysis.verification import FS_THREE_GRIDS, gci_three, gci_two
 
     g = gci_three(h, f)
     if g.order is None:
@@ -340,14 +340,14 @@ def test_rigid_pillars_against_dense_bem():
     their Richardson estimates of F_T must agree within the two GCIs (plus the FEM block's
     truncation estimate)."""
     from bem_solver import solve_dense
-    from validation.verification import gci_three
+    from validation.analysis.verification import gci_three
 
     scene = load_scene("paper-fig3-sparse", [*SMALL_LATTICE[:2], "pillars.rigid=true",
                                              "substrate.rigid=true"])
     P = [29, 21, 15]
     bem = [solve_dense(scene, p) for p in P]
     s3 = [1.0, 1.41, 2.0]
-    fem = [solve_fem3d(scene, s) for s in s3]
+    fem = [solid3d.solve(scene, s) for s in s3]
     for res in fem:
         assert_verified(res)
     gb = gci_three([1.0 / p for p in P], [r.total_force_N for r in bem])
@@ -366,8 +366,8 @@ def test_unloaded_pillars_change_little():
     changes F_T by less than the discretisation error (measured -0.069 % at mesh_size 2 with
     reach_factor 3: 4 pillars of the wedge meshed instead of 2, the same 7 in contact)."""
     scene = load_scene("paper-fig3-sparse", SMALL_LATTICE)
-    base = solve_fem3d(scene, 2.0)
-    wide = solve_fem3d(scene, 2.0, reach_factor=3.0)
+    base = solid3d.solve(scene, 2.0)
+    wide = solid3d.solve(scene, 2.0, reach_factor=3.0)
     assert len(wide.diagnostics["pillars_meshed"]) > len(base.diagnostics["pillars_meshed"])
     assert wide.pillars_in_contact == base.pillars_in_contact
     assert wide.total_force_N == pytest.approx(base.total_force_N, rel=2e-3)
@@ -377,7 +377,7 @@ def test_scalar_piece_assembly_equals_the_vector_forms():
     """The assembler's interleaved scalar pieces equal the vector P2 forms of forms.solid3d."""
     from skfem import Basis, ElementTetP1, ElementTetP2, ElementVector, MeshTet
 
-    from fem_reference._system3d import vector_blocks
+    from fem_reference.solid3d.system import vector_blocks
     from fem_reference.forms.solid3d import divergence_coupling, shear_stiffness
 
     mesh = MeshTet().refined(2)
@@ -402,7 +402,7 @@ def test_block_truncation_is_measured():
     scene = load_scene("single-pillar", ["pillars.rigid=true", "substrate.rigid=true",
                                          "lens.radius_mm=1e5", "pillars.surface_fraction=1e-7"])
     exact = analytic.rigid_punch(scene).force
-    f = {b: solve_fem3d(scene, 1.41, block_factor=b) for b in (1e2, 1e3, 1e4, 1e5)}
+    f = {b: solid3d.solve(scene, 1.41, block_factor=b) for b in (1e2, 1e3, 1e4, 1e5)}
     measured = f[1e2].total_force_N / f[1e4].total_force_N - 1
     estimate = f[1e2].diagnostics["truncation_estimate"]
     assert 0.5 * estimate < measured < 1.2 * estimate
@@ -412,10 +412,10 @@ def test_block_truncation_is_measured():
 
 @pytest.mark.slow
 def test_render_of_the_twelve_images(tmp_path):
-    from validation.render3d import render_sector
+    from validation.output.render3d import render_sector
 
     scene = load_scene("paper-fig3-sparse", SMALL_LATTICE)
-    solve_fem3d(scene, 2.83, vtu_path=tmp_path / "sector.vtu")
+    solid3d.solve(scene, 2.83, vtu_path=tmp_path / "sector.vtu")
     ok, message = render_sector(tmp_path / "sector.vtu", tmp_path / "disk.png")
     assert ok, message
     assert "von Mises stress (kPa)" in message
@@ -424,15 +424,15 @@ def test_render_of_the_twelve_images(tmp_path):
 
 # --- memory: estimated up front, refused when it would not fit ----------------------------
 def test_fem3d_memory_estimate_against_a_solve_and_refusal():
-    from fem_reference import estimate_memory_3d, solve_fem3d
+    from fem_reference import solid3d
 
     scene = load_scene("paper-fig3-sparse", ["pillars.surface_fraction=0.2"])
-    est = estimate_memory_3d(scene, 2.83)
-    result = solve_fem3d(scene, 2.83)
+    est = solid3d.estimate_memory(scene, 2.83)
+    result = solid3d.solve(scene, 2.83)
     # fitted on the lattice study's sectors: within 30 % of the unknowns actually meshed
     assert est["pillars"] == len(result.diagnostics["pillars_meshed"])
     assert est["dofs"] == pytest.approx(result.discretisation["dofs"], rel=0.3)
     # a 10 m lens on the dense lattice reaches ~1e6 pillars: refused before any meshing
     huge = load_scene("paper-fig3-dense", ["lens.radius_mm=1e4"])
     with pytest.raises(ScopeError, match="mesh_size = 2.83: fem-3d would mesh"):
-        solve_fem3d(huge, 2.83)
+        solid3d.solve(huge, 2.83)

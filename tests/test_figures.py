@@ -15,10 +15,10 @@ from scenes import analytic as an
 from scenes import load_scene
 from validation.cli import main
 from validation.engine import Engine
-from validation.studies.figures_fits import (fit_area_exponent, fit_common_exponent,
+from validation.studies.figures.fits import (fit_area_exponent, fit_common_exponent,
                                              fit_thresholds, hertz_band_entry, master_curve)
-from validation.studies.figures_scenes import table1_scene
-from validation.studies.figures_thresholds import (analytic_thresholds, bisect_single_pillar,
+from validation.studies.figures.scenes import table1_scene
+from validation.studies.figures.thresholds import (analytic_thresholds, bisect_single_pillar,
                                                    rim_contact_radius)
 
 # Fits of noise-free synthetic data recover their parameters to the optimiser's tolerance.
@@ -142,7 +142,7 @@ def test_bisected_threshold_follows_the_rim_not_the_paper(tmp_path):
 
 # --- the pressure map -------------------------------------------------------------------
 def test_pressure_map_is_the_element_field():
-    from validation.studies.figures_maps import ElementMap
+    from validation.studies.figures.maps import ElementMap
 
     r = solve_dense_extrapolated(load_scene("paper-fig3-sparse"), 3)
     f = r.fields

@@ -8,7 +8,7 @@ import pytest
 
 from scenes import analytic, load_scene
 from validation.cli import main
-from validation.profiles import edge_exponent, outer_load_fraction, plateau_ratio
+from validation.analysis.profiles import edge_exponent, outer_load_fraction, plateau_ratio
 
 from fakes import edge_exponent_of
 
@@ -162,7 +162,7 @@ def test_failed_case_is_a_row_not_a_crash(fakes, tmp_path, monkeypatch):
 
 
 def test_gecit_figure_draws_the_bands_it_computes(tmp_path, monkeypatch):
-    from validation import plots
+    from validation.output import plots
 
     rows = [{"ratio": r, "aspect": 0.5, "err_F_T": -0.01 * r, "U_BEM_F_T": 0.002,
              "err_sigma0": 0.1, "U_BEM_sigma0": 0.004, "edge_exponent": 0.3, "plateau": 1.0,

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from scenes import ContactResult, PillarForce
+from outcome import ContactResult, PillarForce
 from validation.engine import Engine
 from validation.studies import lattice as study
 

@@ -154,7 +154,7 @@ def test_bad_geometry_is_refused_clearly(kwargs, match):
 
 
 def test_gmsh_failure_becomes_a_mesh_error(monkeypatch):
-    import meshes._gmsh as builder
+    import meshes.axisym.gmsh as builder
 
     def broken(gmsh, geo):
         raise Exception("simulated gmsh failure")

@@ -12,13 +12,13 @@ import pytest
 
 from bem_solver import discretise, estimate_memory, solve_dense
 from scenes import InputError, ScopeError, analytic, load_scene
-from scenes.closed_form_models import solve_hertz, solve_spring
+from closed_forms._models import solve_hertz, solve_spring
 from validation.cli import main
-from validation.studies.planner import plan, plan_text
-from validation.studies.planner_features import features, regime
-from validation.studies.planner_tables import CostFit, ErrorTable, PlannerData, load_data
+from validation.planner.plan import plan, plan_text
+from validation.planner.features import features, regime
+from validation.planner.tables import CostFit, ErrorTable, PlannerData, load_data
 from validation.studies.tradeoff import reference_values
-from validation.verification import gci_three
+from validation.analysis.verification import gci_three
 
 # The dense BEM converges at order ~1 (tests/test_bem_limits.py): Richardson over
 # P = 21, 41, 81 leaves ~0.1 % on a single pillar, ~0.01 % on a flat scene.
@@ -105,15 +105,16 @@ def test_a_scene_too_large_for_memory_is_refused_up_front():
 
 
 def test_fem_estimate_and_refusal():
-    from fem_reference import estimate_memory as fem_estimate, solve_axisymmetric
+    from fem_reference import axisym
+    from fem_reference.axisym import estimate_memory as fem_estimate
 
     scene = load_scene("single-pillar")
-    r = solve_axisymmetric(scene, 2.0)
+    r = axisym.solve(scene, 2.0)
     assert fem_estimate(scene, 2.0)["dofs"] == pytest.approx(r.discretisation["dofs"],
                                                              rel=0.35)
     assert fem_estimate(scene, 0.5)["bytes"] > 3 * fem_estimate(scene, 1.0)["bytes"]
     with pytest.raises(ScopeError, match="mesh_size = 0.02"):
-        solve_axisymmetric(scene, 0.02)
+        axisym.solve(scene, 0.02)
 
 
 # --- tradeoff's cross-checked reference ---------------------------------------------------
@@ -311,14 +312,14 @@ def test_plans_of_a_handful_of_scenes(name, sets, expect):
 def test_planned_spring_is_within_tolerance_of_the_elastic_pillar():
     # a rigid pillar: the spring model's Hooke error vanishes; fem-axisym at mesh_size 1 is
     # within ~1e-4 of its converged value (its calibration)
-    from fem_reference import solve_axisymmetric
+    from fem_reference import axisym
 
     scene = load_scene("single-pillar", ["pillars.rigid=true"])
     p = plan(scene)
-    from validation.models import run_model
+    from validation.registry import run_model
 
     planned = run_model(p["choice"]["model"], scene, **p["choice"]["options"])
-    fem = solve_axisymmetric(scene, 1.0)
+    fem = axisym.solve(scene, 1.0)
     for q, attr in (("F_T", "total_force_N"), ("sigma0", "centre_pressure_Pa")):
         err = abs(getattr(planned, attr) / getattr(fem, attr) - 1)
         assert err <= p["tolerance"], (q, err, plan_text(p))
@@ -348,7 +349,7 @@ SHARE_ACCURATE = 0.95
 @pytest.mark.slow
 def test_planner_validation(tmp_path):
     from validation.engine import Engine
-    from validation.studies.planner_validation import summary_text, validate_planner
+    from validation.studies.calibrate.validate import summary_text, validate_planner
 
     with Engine("pool", workers=2, quiet=True) as engine:
         doc = validate_planner(tmp_path, engine)

@@ -45,7 +45,7 @@ CONTRAST_SCENE = ("paper-fig3-sparse", ["substrate.E_Pa=1.6e6"])  # E_s = E_l, 7
 
 def _contrast_run(model, contrast, **options):
     from scenes import load_scene
-    from validation.models import run_model
+    from validation.registry import run_model
 
     name, sets = CONTRAST_SCENE
     pillars = "pillars.rigid=true" if contrast is None else f"pillars.E_Pa={contrast * 1.6e6}"

@@ -10,9 +10,10 @@ from importlib import resources
 
 import pytest
 
+from outcome import write_atomic
 from scenes import (LENGTH_RANGE_M, MODULUS_RANGE_PA, PHI_CLOSE_PACKING, InputError, Lens,
                     Material, Pillars, Scene, SceneError, analytic, load_scene, preset_names,
-                    scene_from_dict, scene_to_toml, write_atomic)
+                    scene_from_dict, scene_to_toml)
 
 # A user's file without [substrate]: the substrate takes the pillars' material (E_s = E_p).
 IMPLIED_SUBSTRATE = """name = "implied"
@@ -219,7 +220,7 @@ def test_presets_state_their_substrate(tmp_path):
 
 
 def test_summary_shows_every_material():
-    from scenes import ContactResult
+    from outcome import ContactResult
 
     s = load_scene("single-pillar", ["pillars.E_Pa=1e9", "lens.rigid=true"])
     res = ContactResult("bem", s.to_dict(), {}, 1.0, 1.0, 1.0, 1.0, 1, [], True, 1, 0.1)

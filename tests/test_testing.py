@@ -9,10 +9,10 @@ import dataclasses
 import pytest
 
 from scenes import analytic, load_scene
-from scenes.closed_form_models import solve_hertz
+from closed_forms import solve_hertz
 from validation.testing import (assert_agree, assert_close, assert_converged,
                                 assert_matches_closed_form, assert_order, checks_made)
-from validation.verification import study
+from validation.analysis.verification import study
 
 
 @pytest.fixture

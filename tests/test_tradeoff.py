@@ -8,7 +8,7 @@ import json
 import pytest
 
 from scenes import load_scene
-from validation.ladders import LADDERS, Ladder
+from validation.registry import Ladder, OptionSpec, ladders
 from validation.studies.tradeoff import reference_values, tradeoff, write_outputs
 
 
@@ -48,13 +48,13 @@ def test_reference_falls_back_to_the_most_expensive_solution():
 
 
 def test_every_registered_ladder_names_a_model():
-    from validation.models import MODELS
+    from validation.registry import MODELS
 
-    for name, ladder in LADDERS.items():
+    for name, ladder in ladders().items():
         assert name in MODELS
         sizes = [ladder.size(level) for level in ladder.rungs]
         assert sizes == sorted(sizes, reverse=True)  # coarse to fine
-        assert ladder.option in MODELS[name][2]
+        assert ladder.option in MODELS[name].options
 
 
 def test_tradeoff_writes_csv_json_png(tmp_path):
@@ -100,9 +100,9 @@ def refusing_model(scene, **kwargs):
 
 
 def test_a_model_that_refuses_the_scene_is_skipped(monkeypatch):
-    import validation.models as models
+    from fakes import register
 
-    monkeypatch.setitem(models.MODELS, "refuser", (__name__, "refusing_model", ("n",)))
+    register(monkeypatch, "refuser", f"{__name__}:refusing_model", options={"n": OptionSpec(int)})
     ladders = {"refuser": _ladder("n", (1, 2)),
                "bem-fft": _ladder("cells_per_diameter", (8, 12, 16))}
     doc = tradeoff(load_scene("single-pillar"), ["refuser", "bem-fft"], repeats=1,
@@ -112,7 +112,7 @@ def test_a_model_that_refuses_the_scene_is_skipped(monkeypatch):
 
 
 def test_pareto_front_is_the_set_nothing_beats():
-    from validation.plots import pareto_front
+    from validation.output.plots import pareto_front
 
     points = [(1.0, 0.1), (2.0, 0.2), (2.0, 0.05), (3.0, 0.05), (4.0, 0.01), (0.5, 0.5)]
     # (2, 0.2) is beaten by (1, 0.1); (3, 0.05) by (2, 0.05); the rest are each best so far
@@ -123,7 +123,7 @@ def test_tradeoff_figure_marks_the_front_labels_rungs_and_crosses_misses(tmp_pat
                                                                           monkeypatch):
     import matplotlib.pyplot as plt
 
-    from validation import plots
+    from validation.output import plots
 
     rows = [{"model": "bem", "option": "elements_per_diameter", "level": n, "h": 1 / n,
              "wall_time_s": 0.01 * n, "converged": n != 9, "err_F_T": 1.0 / n**2,

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from validation.verification import (
+from validation.analysis.verification import (
     gci_three, gci_two, loglog_order, observed_order_lsq, study)
 
 # The NPARC example is quoted to 4-5 significant digits.

@@ -1,14 +1,12 @@
-"""What users run.
+"""What users run (ARCHITECTURE.md: the rooms and their one-way arrows).
 
+- :mod:`validation.registry`: one declaration per model and the one path that runs it;
+- :mod:`validation.planner`: which model a scene needs for a tolerance, at what cost;
+- :mod:`validation.engine`: the study engine (cases, keys, cache, locks, executors, progress);
+- :mod:`validation.studies`: the studies behind the commands;
+- :mod:`validation.analysis`: grid convergence and GCI, pressure-profile shape;
+- :mod:`validation.output`: plots, solve reports, the renders of FEM fields;
 - :mod:`validation.cli`: the ``pillar-xval`` commands, thin layers over the studies;
-- :mod:`validation.engine`: the study engine (cases, cache, locks, executors, progress);
-- :mod:`validation.studies`: converge, compare, gecit, tradeoff and sweep;
-- :mod:`validation.ladders`: each model's refinement ladder and the compared quantities;
-- :mod:`validation.verification` (GCI), :mod:`validation.profiles` (pressure-profile shape),
-  :mod:`validation.plots`, :mod:`validation.report` (solve reports, figure utilities),
-  :mod:`validation.render` (the off-screen 3D render);
-- :mod:`validation.options`: the options a model takes and their allowed values;
 - ``validation/examples/``: a sweep spec and the Python API example;
-- :mod:`validation.models`: the registry of models by ``--model`` name;
 - ``validation/bench/``: benchmarks run by the Makefile, never imported by the CLI.
 """

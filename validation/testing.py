@@ -23,9 +23,9 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from scenes import ContactResult
+from outcome import ContactResult
 
-from .ladders import QUANTITIES
+from .registry import QUANTITIES
 
 __all__ = ["Check", "assert_agree", "assert_close", "assert_converged",
            "assert_matches_closed_form", "assert_order", "checks_made", "quantity_value"]

@@ -9,7 +9,7 @@ sigma = 2 mu eps(u) + p I.  The saddle-point system is::
 exact at nu = 1/2 (1/lambda = 0) and valid for every nu in [0, 1/2].  Solvers rescale the
 pressure, p = beta p~ with beta = sqrt(2 nu mu) (:func:`mixed_coefficients`, shared with the
 axisymmetric forms), so that no coefficient is infinite at either end of that range.  Pure P2
-displacement locks: 30 % too stiff at nu = 0.4999 in 3D (DESIGN.md).
+displacement locks: 30 % too stiff at nu = 0.4999 in 3D (measured while choosing the element).
 
 References
 ----------
@@ -47,7 +47,7 @@ def pressure_mass(p, q, w):
 
 
 # The same operators from scalar P2 pieces (10 x 10 local matrices instead of 30 x 30; the
-# assembler interleaves them, see fem_reference._system3d.vector_blocks):
+# assembler interleaves them, see fem_reference.solid3d.system.vector_blocks):
 #   A[(t, b), (s, a)] = mu (delta_ab sum_c K_cc + K_ab)[t, s],  K_pq[t, s] = (d_q phi_s, d_p phi_t)
 #   B[q, (s, a)] = (psi_q, d_a phi_s).
 def gradient_product(p: int, q: int):

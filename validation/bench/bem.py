@@ -20,9 +20,10 @@ from pathlib import Path
 import numpy as np
 
 from bem_solver import discretise, full_operator, lens_gap, solve_dense
-from contact import solve_dense as solve_contact
-from scenes import load_scene, write_atomic
-from validation.report import figure_png
+from contact import solve_active_set as solve_contact
+from outcome import write_atomic
+from scenes import load_scene
+from validation.output.report import figure_png
 
 UNREDUCED_MAX_ELEMENTS = 9000  # 650 MB for the full operator
 

@@ -28,7 +28,7 @@ import time
 from collections import Counter
 from pathlib import Path
 
-from scenes import write_atomic
+from outcome import write_atomic
 from validation.engine import read_journal
 
 # Measured columns: they differ from run to run, the results do not.

@@ -32,11 +32,11 @@ DENSE_RTOL, DENSE_TIME_S = 0.05, 900.0
 
 def _run_level(preset: str, overrides: list, mesh_size: float) -> dict:
     """One solve in this (fresh) process; the figures of the benchmark table."""
-    from fem_reference import solve_fem3d
+    from fem_reference.solid3d import solve
     from scenes import load_scene
 
     t0 = time.perf_counter()
-    res = solve_fem3d(load_scene(preset, overrides), mesh_size)
+    res = solve(load_scene(preset, overrides), mesh_size)
     d = res.diagnostics
     return {"mesh_size": mesh_size, "dofs": res.discretisation["dofs"],
             "elements": res.discretisation["elements"],
@@ -58,8 +58,8 @@ def _compare_solvers(preset: str, overrides: list, mesh_size: float) -> dict:
     from scipy.sparse.linalg import splu
 
     from fem_reference._pardiso import Pardiso
-    from fem_reference._solid3d import _setup
-    from fem_reference._system3d import assemble_sector
+    from fem_reference.solid3d.driver import _setup
+    from fem_reference.solid3d.system import assemble_sector
     from meshes import build_wedge_mesh
     from scenes import load_scene
 
@@ -107,7 +107,7 @@ def _table(rows: list, reference: float | None) -> str:
 
 
 def main(argv=None) -> int:
-    from validation.verification import gci_three, gci_two
+    from validation.analysis.verification import gci_three, gci_two
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", required=True, type=Path)
@@ -176,7 +176,7 @@ def main(argv=None) -> int:
             c = cmp[name]
             print(f"{name:8s} {cmp['unknowns']} unknowns: factorise {c['factorise_s']:.1f} s, "
                   f"solve {c['solve_s']:.2f} s, residual {c['residual']:.1e}")
-    from scenes import write_atomic
+    from outcome import write_atomic
 
     path = write_atomic(args.out / "bench_fem3d.json", json.dumps(out, indent=2))
     print(f"wrote {path}")

@@ -176,7 +176,7 @@ def main(argv=None) -> int:
 
 def write_report(out: Path, scaling: list, side: list, meta: dict) -> str:
     """Write bench_fft.json and bench_fft.png into ``out``; return the printed table."""
-    from scenes import write_atomic
+    from outcome import write_atomic
 
     lines = ["scaling (bem-fft, scene %s, elastic pillars)" % meta["scene"],
              f"{'N':>4} {'cells':>9} {'grid':>9} {'time s':>8} {'iter':>5} {'FFTs':>5} "
@@ -281,7 +281,7 @@ def _plot(path: Path, scaling: list, side: list) -> None:
     for ax in (ax_t, ax_m):
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
-    from validation.report import save_figure
+    from validation.output.report import save_figure
 
     save_figure(fig, path, 120)
 

@@ -26,10 +26,10 @@ from pathlib import Path
 import numpy as np
 
 from bem_solver._extrapolated import richardson
-from scenes import write_atomic
+from outcome import write_atomic
 from validation.engine import Case, Engine
 from validation.studies.figures import run_figures
-from validation.studies.figures_scenes import FigureGrid, expected_pillars, figure_sweeps
+from validation.studies.figures.scenes import FigureGrid, expected_pillars, figure_sweeps
 
 SEED = 8  # issue 8
 SAMPLE = 40

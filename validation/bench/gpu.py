@@ -153,7 +153,7 @@ def _gpu_name() -> str:
 
 def write_report(out: Path, rows: list, meta: dict) -> str:
     """Write bench_gpu.json into ``out``; return the printed table."""
-    from scenes import write_atomic
+    from outcome import write_atomic
 
     head = (f"{'pillars':>7} {'N':>4} {'cells':>9} {'CPU s':>8} {'table':>6} {'it':>4} "
             f"{'GPU s':>8} {'table':>6} {'it':>4} {'speed-up':>8} {'dF_T rel':>9}")

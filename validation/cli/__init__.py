@@ -27,21 +27,19 @@ import os
 import sys
 import warnings
 
-from scenes import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_TOOL_FAILURE, InputError, ToolError
-from scenes.result import package_version
+from outcome import package_version
+from scenes import InputError, ToolError
 
-from ._args import DEBUG_ENV, EXIT_INTERNAL_ERROR, Parser, add_scene_arguments, one_line
+from ._args import DEBUG_ENV, Parser, add_scene_arguments, one_line
+from ._exit import EXIT_BAD_INPUT, EXIT_INTERNAL_ERROR, EXIT_INTERRUPTED, EXIT_TOOL_FAILURE
 
-__all__ = ["COMMANDS", "DEBUG_ENV", "EXIT_INTERNAL_ERROR", "UserError",
-           "add_scene_arguments", "build_parser", "main"]
+__all__ = ["COMMANDS", "DEBUG_ENV", "EXIT_INTERNAL_ERROR", "add_scene_arguments",
+           "build_parser", "main"]
 
 COMMANDS = ("validation.cli.solve", "validation.cli.compare", "validation.cli.converge",
             "validation.cli.gecit", "validation.cli.tradeoff", "validation.cli.sweep",
             "validation.cli.figures", "validation.cli.lattice", "validation.cli.plan",
             "validation.cli.calibrate", "validation.cli.extremes", "validation.cli.check")
-
-# Kept for commands written against it: an error in what the user asked for.
-UserError = InputError
 
 
 def build_parser() -> argparse.ArgumentParser:

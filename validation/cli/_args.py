@@ -8,11 +8,11 @@
   level: ``--elements-per-diameter P`` (bem), ``--cells-per-diameter N`` (bem-fft),
   ``--mesh-size S`` (fem-axisym, fem-3d) (:func:`add_refinement_arguments`); ``--levels N``
   for a ladder (:func:`add_levels_argument`).  An option that no chosen model takes is
-  refused (:func:`refuse_inapplicable`): the registry :data:`validation.models.MODELS` says
+  refused (:func:`refuse_inapplicable`): the registry :data:`validation.registry.MODELS` says
   which options a model takes, so a model registered later joins without a change here;
-- model options with a few values: ``--cells``, ``--contact``, ``--device``
-  (:func:`add_choice_arguments`); the values of every model option are those of
-  :data:`validation.options.MODEL_OPTIONS`;
+- model options with a few values: ``--cells``, ``--contact``, ``--device``, every option
+  with choices that a model declares (:func:`add_choice_arguments`); the values of every model
+  option are those the models declare (:func:`validation.registry.option_vocabulary`);
 - output: ``--out DIR`` and ``--json`` (:func:`add_output_arguments`, :func:`check_out`,
   :func:`print_json`);
 - engine: ``--executor``, ``--workers``, ``--scheduler``, ``--fresh``
@@ -35,11 +35,11 @@ import re
 import sys
 from pathlib import Path
 
-from scenes import (EXIT_BAD_INPUT, EXIT_NOT_CONVERGED, EXIT_TOOL_FAILURE, InputError,
-                    preset_names)
+from ._exit import EXIT_BAD_INPUT, EXIT_INTERNAL_ERROR, EXIT_NOT_CONVERGED, EXIT_TOOL_FAILURE
+from scenes import InputError, preset_names
 
 from ..engine import add_engine_arguments, engine_from_args
-from ..options import MODEL_OPTIONS, family_options, flag
+from ..registry import family_options, flag, option_vocabulary
 
 __all__ = [
     "DEBUG_ENV", "EXIT_INTERNAL_ERROR", "Parser", "Renamed", "add_choice_arguments",
@@ -50,10 +50,7 @@ __all__ = [
     "study_status",
 ]
 
-# An exception that none of the failure policy's kinds covers is a bug of the toolkit: one
-# line and this status (exit statuses 0-3 and 130: scenes._errors).  --debug, or this variable
-# set to anything but "" or "0", shows its traceback instead.
-EXIT_INTERNAL_ERROR = 4
+# Set to anything but "" or "0": an internal error shows its traceback (as --debug does).
 DEBUG_ENV = "PILLAR_XVAL_DEBUG"
 
 _INTEGER = re.compile(r"[+-]?[0-9]+")
@@ -105,8 +102,9 @@ def number(lo: float | None = None, hi: float | None = None, *, open_lo: bool = 
 
 
 def option_type(name: str):
-    """The strict argparse type of a model option of :data:`validation.options.MODEL_OPTIONS`."""
-    spec = MODEL_OPTIONS[name]
+    """The strict argparse type of a model option (its spec in
+    :func:`validation.registry.option_vocabulary`)."""
+    spec = option_vocabulary()[name]
     if spec.kind is int:
         return integer(spec.lo, spec.hi)
     return number(spec.lo, spec.hi)
@@ -176,8 +174,9 @@ def add_refinement_arguments(parser, ladder: bool, families=None,
     sets the coarsest level of a ladder; otherwise the resolution of the one solve.  Their
     defaults are None, so that :func:`refuse_inapplicable` sees which the user gave."""
     what = "the coarsest level; " if ladder else ""
+    vocabulary = option_vocabulary()
     for name in families or family_options():
-        spec = MODEL_OPTIONS[name]
+        spec = vocabulary[name]
         default = (defaults or {}).get(name)
         parser.add_argument(
             flag(name), dest=name, type=option_type(name), default=None,
@@ -187,10 +186,12 @@ def add_refinement_arguments(parser, ladder: bool, families=None,
                     f" (default {default if isinstance(default, str) else f'{default:g}'})"))
 
 
-def add_choice_arguments(parser, names) -> None:
-    """Model options with a few allowed values (``--cells``, ``--contact``, ``--device``)."""
-    for name in names:
-        spec = MODEL_OPTIONS[name]
+def add_choice_arguments(parser, names=None) -> None:
+    """Model options with a few allowed values (default: every such option a model declares:
+    ``--cells``, ``--contact``, ``--device``, ...)."""
+    vocabulary = option_vocabulary()
+    for name in names or [n for n, spec in vocabulary.items() if spec.choices]:
+        spec = vocabulary[name]
         parser.add_argument(flag(name), dest=name, choices=spec.choices, default=None,
                             help=spec.help)
 
@@ -210,18 +211,18 @@ def add_output_arguments(parser, out_help: str, json_help: str = "") -> None:
 def refuse_inapplicable(args, models, dests=None) -> None:
     """InputError for every model option the user gave that none of ``models`` takes.
 
-    ``dests`` are the argparse destinations to check (default: every option of
-    :data:`validation.options.MODEL_OPTIONS`); an option counts as given when it is not None.
-    The registry :data:`validation.models.MODELS` says which options each model takes."""
-    from ..models import MODELS
+    ``dests`` are the argparse destinations to check (default: every model option); an option
+    counts as given when it is not None.  The registry :data:`validation.registry.MODELS` says
+    which options each model takes."""
+    from ..registry import MODELS
 
-    dests = dests or tuple(MODEL_OPTIONS)
-    takes = {m: set(MODELS[m][2]) for m in models if m in MODELS}
+    dests = dests or tuple(option_vocabulary())
+    takes = {m: set(MODELS[m].options) for m in models if m in MODELS}
     for dest in dests:
         value = getattr(args, dest, None)
         if value is None or any(dest in t for t in takes.values()):
             continue
-        owners = sorted(m for m, entry in MODELS.items() if dest in entry[2])
+        owners = sorted(m for m, entry in MODELS.items() if dest in entry.options)
         chosen = ", ".join(models)
         raise InputError(
             f"{flag(dest)} {_show(value)}: does not apply to "

@@ -21,7 +21,7 @@ def add_parser(sub) -> None:
                    help="folder for the data files, the report and the cached cases "
                         "(default out/calibrate)")
     p.add_argument("--install", action="store_true",
-                   help="copy error_models.json and cost_models.json into validation/data")
+                   help="copy error_models.json and cost_models.json into validation/planner/data")
     p.add_argument("--lattice", type=Path, default=None, metavar="LATTICE_JSON",
                    help="lattice.json of `pillar-xval lattice`: the Hooke pillar's error in "
                         "lattices, measured against fem-3d (without it the Gecit grid's "
@@ -39,7 +39,7 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     from ..studies.calibrate import calibrate, load_lattice, write_data
-    from ..studies.planner_tables import data_dir
+    from ..planner.tables import data_dir
 
     lattice = None if args.lattice is None else load_lattice(args.lattice)
     check_out(args.out)
@@ -86,7 +86,7 @@ def _lattice_only(args, lattice) -> int:
     from scenes import InputError
 
     from ..studies.calibrate import relattice, write_document
-    from ..studies.planner_tables import data_dir
+    from ..planner.tables import data_dir
 
     if lattice is None:
         raise InputError("--lattice-only: needs --lattice LATTICE_JSON")

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from scenes import load_scene
 
-from ..ladders import LADDERS
+from ..registry import ladders
 from ._args import (Renamed, add_engine_arguments, add_levels_argument, add_model_argument,
                     add_output_arguments, add_refinement_arguments, add_scene_arguments,
                     check_out, engine_from_args, not_converged, print_json,
@@ -23,9 +23,9 @@ def add_parser(sub) -> None:
                     "refinement option) and report, per quantity, the observed order, the "
                     "Richardson estimate and the GCI band (Roache; Celik et al. 2008).")
     add_scene_arguments(p)
-    add_model_argument(p, sorted(LADDERS), help_text="model to refine (default bem)")
+    add_model_argument(p, sorted(ladders()), help_text="model to refine (default bem)")
     add_refinement_arguments(p, ladder=True, defaults={
-        ladder.option: ladder.coarsest for ladder in LADDERS.values()})
+        ladder.option: ladder.coarsest for ladder in ladders().values()})
     add_levels_argument(p, 3, 2, 8, "refinement levels (3 or more give an observed order)")
     add_output_arguments(p, "report folder (default out/converge/<scene>-<model>)")
     p.add_argument("--coarsest", action=Renamed, successor="the model's refinement option "
@@ -38,10 +38,10 @@ def run(args) -> int:
     """Study, write the report folder, print the table; exit 1 if a level did not converge."""
     from ..studies.converge import (OUTPUTS, check_ladder, converge_study, study_table,
                                     write_report)
-    from ..report import clear_outputs
+    from ..output.report import clear_outputs
 
     refuse_inapplicable(args, [args.model])
-    option = LADDERS[args.model].option
+    option = ladders()[args.model].option
     coarsest = getattr(args, option, None)
     check_ladder(args.model, args.levels, coarsest)
     scene = load_scene(args.scene, args.overrides)

@@ -9,8 +9,9 @@ from ._args import add_engine_arguments, check_out, engine_from_args, print_json
 
 
 def add_parser(sub) -> None:
-    from ..studies.extremes import MODELS
+    from ..studies.extremes import model_options
 
+    models = list(model_options())
     p = sub.add_parser(
         "extremes", help="every model over the corners of the parameter space: convergence, "
                          "invariants, time; summary table and heat map",
@@ -21,8 +22,8 @@ def add_parser(sub) -> None:
                     "and stiffness.  Resumable (cases cached in OUT/cases).")
     p.add_argument("--out", type=Path, default=Path("out") / "extremes",
                    help="report folder (default out/extremes)")
-    p.add_argument("--models", default=",".join(MODELS), metavar="A,B",
-                   help=f"comma-separated models (default {','.join(MODELS)})")
+    p.add_argument("--models", default=",".join(models), metavar="A,B",
+                   help=f"comma-separated models (default {','.join(models)})")
     p.add_argument("--quick", action="store_true", help="a handful of corners (smoke test)")
     p.add_argument("--json", action="store_true",
                    help="print the verdict counts per model as one JSON document")
@@ -33,13 +34,14 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     from scenes import InputError
 
-    from ..studies.extremes import MODELS, run_extremes
-    from ..studies.extremes_report import counts, summary_text, write_outputs
+    from ..studies.extremes import model_options, run_extremes
+    from ..studies.extremes.report import counts, summary_text, write_outputs
 
+    allowed = list(model_options())
     models = [m.strip() for m in args.models.split(",") if m.strip()]
-    bad = [m for m in models if m not in MODELS]
+    bad = [m for m in models if m not in allowed]
     if bad or not models:
-        raise InputError(f"--models {args.models}: allowed: {', '.join(MODELS)}")
+        raise InputError(f"--models {args.models}: allowed: {', '.join(allowed)}")
     check_out(args.out)
     with engine_from_args(args, "extremes") as engine:
         doc = run_extremes(args.out, engine, quick=args.quick, models=models)

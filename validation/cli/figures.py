@@ -39,7 +39,7 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     from ..studies.figures import DENSE_MODELS, run_figures
-    from ..studies.figures_scenes import FigureGrid
+    from ..studies.figures.scenes import FigureGrid
 
     if args.model not in DENSE_MODELS:
         raise InputError(f"--model {args.model!r}: the figures draw pressure maps from the "

@@ -5,13 +5,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from scenes import EXIT_BAD_INPUT, EXIT_TOOL_FAILURE
-
-from ..profiles import EDGE_SKIP, EDGE_WINDOW
+from ..analysis.profiles import EDGE_SKIP, EDGE_WINDOW
 from ..studies.gecit import ASPECTS, CONVENTION, RATIOS
 from ._args import (Renamed, add_engine_arguments, add_output_arguments,
                     add_refinement_arguments, add_scene_arguments, check_out,
                     engine_from_args, integer, number, print_json, study_status)
+from ._exit import EXIT_BAD_INPUT, EXIT_TOOL_FAILURE
 
 FEM_MESH_SIZE = 0.5
 
@@ -56,7 +55,7 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     """Run or resume every case, write the table and figures; exit 1 if a case failed."""
-    from ..report import clear_outputs
+    from ..output.report import clear_outputs
     from ..studies.gecit import (OUTPUTS, check_fit_options, gecit_study, report_doc,
                                  study_scenes, table_text, write_report)
 

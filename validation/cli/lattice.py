@@ -39,7 +39,7 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    from ..report import clear_outputs
+    from ..output.report import clear_outputs
     from ..studies import lattice as study
 
     points = study.grid(args.surface_fractions, args.ratios)

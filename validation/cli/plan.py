@@ -1,5 +1,5 @@
 """``pillar-xval plan``: which model a scene needs for a tolerance, with predicted errors,
-time and memory (:mod:`validation.studies.planner`)."""
+time and memory (:mod:`validation.planner`)."""
 
 from __future__ import annotations
 
@@ -38,7 +38,7 @@ def _add_plan(sub) -> None:
 
 
 def run(args) -> int:
-    from ..studies.planner import check_request, plan, plan_text
+    from ..planner.plan import check_request, plan, plan_text
 
     tolerance, quantities, budget = check_request(args.tolerance, args.quantities, args.budget)
     scene = load_scene(args.scene, args.overrides)
@@ -74,8 +74,8 @@ def _add_validate(sub) -> None:
 
 
 def run_validate(args) -> int:
-    from ..studies.planner import check_request
-    from ..studies.planner_validation import (summary_text, validate_planner,
+    from ..planner.plan import check_request
+    from ..studies.calibrate.validate import (summary_text, validate_planner,
                                               validation_scenes, write_outputs)
 
     tolerance, quantities, _ = check_request(args.tolerance, args.quantities)

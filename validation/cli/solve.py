@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from scenes import load_scene
 
-from ..models import model_names
+from ..registry import model_names
 from ._args import (add_choice_arguments, add_model_argument, add_output_arguments,
                     add_refinement_arguments, add_scene_arguments, check_out, not_converged,
                     print_json, refuse_inapplicable)
@@ -15,16 +15,19 @@ OUTPUTS = ("elements.csv", "pillars.csv", "pressure.png", "fields.vtu", "fields.
 
 
 def add_parser(sub) -> None:
+    from ..registry import MODELS
+
+    models = "; ".join(f"{m.name}: {m.summary}" for m in MODELS.values())
     p = sub.add_parser(
         "solve", help="solve one scene with one model",
         description="Solve one scene with one model and print a summary (or, with --json, "
                     "the result as one JSON document).  A model option that the chosen "
-                    "model does not take is refused.")
+                    f"model does not take is refused.  Models: {models}.")
     add_scene_arguments(p)
     add_model_argument(p, model_names(), help_text="model to run (default bem, the dense "
                                                    "boundary-element solver)")
     add_refinement_arguments(p, ladder=False)
-    add_choice_arguments(p, ("cells", "contact", "device"))
+    add_choice_arguments(p)
     add_output_arguments(p, "folder for result.json, element and pillar CSVs, pressure.png "
                             "(and fields.vtu for the FEM)",
                          "print the result as exactly one JSON document")
@@ -33,24 +36,26 @@ def add_parser(sub) -> None:
 
 def model_options(args) -> dict:
     """The model options the user gave (None: the model's default)."""
-    from ..options import MODEL_OPTIONS
+    from ..registry import option_vocabulary
 
-    return {k: getattr(args, k) for k in MODEL_OPTIONS if getattr(args, k, None) is not None}
+    return {k: getattr(args, k) for k in option_vocabulary()
+            if getattr(args, k, None) is not None}
 
 
 def run(args) -> int:
     refuse_inapplicable(args, [args.model])
     scene = load_scene(args.scene, args.overrides)
     options = model_options(args)
+    vtu_path = None
     if args.out is not None:
-        from ..report import clear_outputs
+        from ..output.report import clear_outputs
 
         check_out(args.out)
         clear_outputs(args.out, OUTPUTS)
-        options["vtu_path"] = args.out / "fields.vtu"  # models with volume fields write them
-    result = _solve(args.model, scene, options)
+        vtu_path = args.out / "fields.vtu"  # models with volume fields write them
+    result = _solve(args.model, scene, options, vtu_path)
     if args.out is not None:
-        from ..report import write_solve_report
+        from ..output.report import write_solve_report
 
         write_solve_report(result, args.out)
     if args.json:
@@ -65,16 +70,10 @@ def run(args) -> int:
                                    f"{result.diagnostics.get('message', 'no message')}"])
 
 
-def _solve(model: str, scene, options: dict):
+def _solve(model: str, scene, options: dict, vtu_path=None):
     """Run the model, with progress lines inside a long solve when the model reports them."""
-    from ..engine import SolveProgress, accepts_progress, accepts_vtu, solver_of
-    from ..models import MODELS
+    from ..engine import SolveProgress
+    from ..registry import run_model
 
-    accepted = MODELS[model][2]
-    kwargs = {k: v for k, v in options.items() if k in accepted}
-    if "vtu_path" in options and accepts_vtu(model):
-        kwargs["vtu_path"] = options["vtu_path"]
     with SolveProgress(f"solve {model}") as progress:
-        if accepts_progress(model):
-            kwargs["progress"] = progress
-        return solver_of(model)(scene, **kwargs)
+        return run_model(model, scene, vtu_path=vtu_path, progress=progress, **options)

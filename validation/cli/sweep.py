@@ -29,7 +29,7 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    from ..report import clear_outputs
+    from ..output.report import clear_outputs
     from ..studies.sweep import (Sweep, estimate_cost, run_sweep_cases, table_rows,
                                  write_table)
 

@@ -7,25 +7,20 @@ from pathlib import Path
 
 from scenes import load_scene
 
-from ..ladders import LADDERS
+from ..registry import MODELS, ladders
 from ._args import (add_engine_arguments, add_models_argument, add_output_arguments,
                     add_refinement_arguments, add_scene_arguments, check_out,
                     engine_from_args, integer, not_converged, number, print_json,
                     refuse_inapplicable)
 
 
-# Joins only when named: its rungs take minutes each (validation/bench/fem3d.py).
-EXPENSIVE = ("fem-3d",)
-
-
-def _models_with_ladders() -> list[str]:
-    from ..models import MODELS
-
-    return [m for m in LADDERS if m in MODELS]
+def _expensive() -> list[str]:
+    """Models that join only when named (their declaration: minutes per rung)."""
+    return [m for m in ladders() if MODELS[m].expensive]
 
 
 def _default_models() -> list[str]:
-    return [m for m in _models_with_ladders() if m not in EXPENSIVE]
+    return [m for m in ladders() if not MODELS[m].expensive]
 
 
 def add_parser(sub) -> None:
@@ -38,9 +33,9 @@ def add_parser(sub) -> None:
                     "tradeoff.json and tradeoff.png (error against time, Pareto front "
                     "marked, points labelled by their resolution).")
     add_scene_arguments(p)
-    add_models_argument(p, _models_with_ladders(),
+    add_models_argument(p, list(ladders()),
                         f"default: {','.join(_default_models())}; "
-                        f"{', '.join(EXPENSIVE)} joins when named (minutes per rung)")
+                        f"{', '.join(_expensive())} joins when named (minutes per rung)")
     add_refinement_arguments(p, ladder=True)
     p.add_argument("--levels", type=integer(1, 12), default=None, metavar="N",
                    help="rungs per model, from the coarsest (default: the ladder's rungs; "
@@ -61,11 +56,11 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     from ..studies.tradeoff import OUTPUTS, check_options, pareto_table, tradeoff, write_outputs
-    from ..report import clear_outputs
+    from ..output.report import clear_outputs
 
     names = args.models or _default_models()
     refuse_inapplicable(args, names)
-    coarsest = {k: getattr(args, k) for k in (LADDERS[m].option for m in names)
+    coarsest = {k: getattr(args, k) for k in (MODELS[m].ladder.option for m in names)
                 if getattr(args, k, None) is not None}
     options = dict(coarsest=coarsest, levels=args.levels, repeats=args.repeats,
                    single_above=args.single_above, max_time=args.max_time)

@@ -16,9 +16,9 @@ Example
 ...     outcomes = engine.run(cases, "out/my-study/cases")
 """
 
-from ._case import (COMPUTING_PACKAGES, Case, accepts_progress, accepts_vtu, canonical_json,
-                    case_key, code_version, compute_case, scene_physics, solver_of,
-                    source_digest)
+from ._case import (COMPUTING_PACKAGES, Case, accepts_vtu, canonical_json,
+                    case_key, code_digest, code_version, compute_case, model_code,
+                    package_root, scene_physics, source_digest)
 from ._engine import CASE_ERRORS, Engine, Outcome
 from ._executors import EXECUTORS, default_workers, make_executor
 from ._progress import Progress, SolveProgress
@@ -35,19 +35,20 @@ __all__ = [
     "Outcome",
     "Progress",
     "SolveProgress",
-    "accepts_progress",
     "accepts_vtu",
     "add_engine_arguments",
     "canonical_json",
     "case_key",
+    "code_digest",
     "code_version",
     "compute_case",
     "default_workers",
     "engine_from_args",
     "make_executor",
     "read_journal",
+    "model_code",
+    "package_root",
     "scene_physics",
-    "solver_of",
     "source_digest",
 ]
 

@@ -3,14 +3,21 @@
 How the code enters the key
 ---------------------------
 :func:`case_key` hashes, as canonical JSON (sorted keys, no whitespace), the scene's physics
-(every SI field of ``Scene.to_dict`` except its name), the model's name, its options and
-:func:`code_version`.  The code version is the package version followed by the first 12 hex
-digits of a SHA-256 over the source files (``*.py`` and ``*.toml``, with their relative paths)
-of the packages that compute a result: ``scenes``, ``contact``, ``bem_solver``,
-``fem_reference`` and ``meshes``.  It is computed once per process.  Any edit to one of those
-files gives every case a new key, so a cached result of older code is never reused; the old
-files stay on disk, unused.  Edits to ``validation/`` (studies, reports) do not change results
-and do not change the key.
+(every SI field of ``Scene.to_dict`` except its name), the model's name, its options,
+:func:`code_version` and the model's own code (:func:`model_code`).  The code version is the
+package version followed by the first 12 hex digits of a SHA-256 over the source and data
+files (``*.py``, ``*.toml``, ``*.json``, with their relative paths) of
+:data:`COMPUTING_PACKAGES`, what decides every result: the physics (``outcome``, ``scenes``,
+``contact``, ``bem_solver``, ``closed_forms``, ``meshes``, ``fem_reference``), the model
+registry (``validation.registry``: which options reach a solver) and this module (how a case
+runs).  A model that computes with
+more (``auto``: the planner, ``validation.planner``, and its data) declares it in its
+``code`` (:class:`validation.registry.Model`), and its keys hash that too, so a recalibration
+gives ``auto`` new keys and leaves every other model's cache alone.  Digests are computed once
+per process.  Any edit to those files gives the cases it can change a new key, so a cached
+result of older code is never reused; the old files stay on disk, unused.  Edits elsewhere in
+``validation/`` (studies, analysis, output, the CLI) do not change results and do not change
+the key.
 """
 
 from __future__ import annotations
@@ -18,9 +25,7 @@ from __future__ import annotations
 import ctypes
 import functools
 import hashlib
-import importlib
 import importlib.util
-import inspect
 import json
 import os
 import socket
@@ -30,42 +35,70 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from scenes import ContactResult, Scene, ToolError
-from scenes.result import package_version
+from outcome import ContactResult, package_version
+from scenes import Scene, ToolError
 
 from ._progress import SolveProgress
 
-# The packages whose source decides a result.
-COMPUTING_PACKAGES = ("scenes", "contact", "bem_solver", "fem_reference", "meshes")
+# The packages and modules whose source decides every result (module docstring).
+COMPUTING_PACKAGES = ("outcome", "scenes", "contact", "bem_solver", "closed_forms", "meshes",
+                      "fem_reference", "validation.registry", "validation.engine._case")
+# The files of a package that enter its digest: source, and the data it reads.
+SOURCE_SUFFIXES = (".py", ".toml", ".json")
 
 
 def source_digest(roots: dict[str, Path | None]) -> str:
-    """12 hex digits of SHA-256 over the ``*.py`` and ``*.toml`` files under each root (name ->
-    folder, None for an absent package), with their relative paths, in sorted order."""
+    """12 hex digits of SHA-256 over the :data:`SOURCE_SUFFIXES` files under each root (name
+    -> folder, or one module's file; None for an absent package), with their relative paths,
+    in sorted order."""
     digest = hashlib.sha256()
     for name in sorted(roots):
         root = roots[name]
         if root is None:
             digest.update(f"{name}:absent".encode())
             continue
-        files = sorted(p for p in Path(root).rglob("*") if p.suffix in (".py", ".toml")
-                       and "__pycache__" not in p.parts)
+        root = Path(root)
+        files = [root] if root.is_file() else sorted(
+            p for p in root.rglob("*")
+            if p.suffix in SOURCE_SUFFIXES and "__pycache__" not in p.parts)
         for path in files:
-            digest.update(f"{name}/{path.relative_to(root).as_posix()}\0".encode())
+            relative = path.name if path == root else path.relative_to(root).as_posix()
+            digest.update(f"{name}/{relative}\0".encode())
             digest.update(path.read_bytes())
             digest.update(b"\0")
     return digest.hexdigest()[:12]
 
 
+def package_root(name: str) -> Path | None:
+    """The folder of package ``name``, the file of module ``name``, or None when absent."""
+    spec = importlib.util.find_spec(name)
+    if spec is None:
+        return None
+    locations = list(spec.submodule_search_locations or [])
+    if locations:
+        return Path(locations[0])
+    return Path(spec.origin) if spec.origin else None
+
+
+@functools.lru_cache(maxsize=None)
+def code_digest(names: tuple[str, ...]) -> str:
+    """:func:`source_digest` of the packages or modules ``names``."""
+    return source_digest({name: package_root(name) for name in names})
+
+
 @functools.lru_cache(maxsize=1)
 def code_version() -> str:
     """``<package version>+src.<12 hex digits>``: see the module docstring."""
-    roots = {}
-    for name in COMPUTING_PACKAGES:
-        spec = importlib.util.find_spec(name)
-        locations = list(spec.submodule_search_locations or []) if spec else []
-        roots[name] = Path(locations[0]) if locations else None
-    return f"{package_version()}+src.{source_digest(roots)}"
+    return f"{package_version()}+src.{code_digest(COMPUTING_PACKAGES)}"
+
+
+def model_code(model: str) -> str | None:
+    """The digest of what ``model`` computes with beyond :data:`COMPUTING_PACKAGES` (its
+    declaration's ``code``), None for a model that declares nothing more."""
+    from ..registry import MODELS
+
+    declared = MODELS[model].code if model in MODELS else ()
+    return code_digest(tuple(declared)) if declared else None
 
 
 def canonical_json(obj) -> str:
@@ -81,9 +114,12 @@ def scene_physics(scene: Scene) -> dict:
 def case_key(model: str, scene: Scene, options: dict, version: str | None = None) -> str:
     """16 hex digits of SHA-256 over the scene's physics, the model, its options and the code
     version (default :func:`code_version`): equal keys mean equal computations."""
-    text = canonical_json({"scene": scene_physics(scene), "model": model,
-                           "options": dict(options),
-                           "code": code_version() if version is None else version})
+    payload = {"scene": scene_physics(scene), "model": model, "options": dict(options),
+               "code": code_version() if version is None else version}
+    own = model_code(model)
+    if own is not None:
+        payload["model_code"] = own
+    text = canonical_json(payload)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -125,38 +161,17 @@ class Case:
     def spec(self) -> dict:
         """What a worker needs (plain data: crosses process and machine boundaries)."""
         return {"model": self.model, "scene": self.scene.to_dict(), "options": dict(self.options),
-                "key": self.key, "code_version": code_version(), "repeats": self.repeats,
+                "key": self.key, "code_version": code_version(),
+                "model_code": model_code(self.model), "repeats": self.repeats,
                 "tag": self.describe(),
                 "single_above": self.single_above, "vtu": self.vtu, "fields": self.fields}
 
 
-def solver_of(model: str):
-    """The function of a registered model."""
-    from scenes import InputError
-
-    from ..models import MODELS, model_names
-
-    if model not in MODELS:
-        raise InputError(f"--model {model!r}: unknown; available: {', '.join(model_names())}")
-    module, function, _ = MODELS[model]
-    return getattr(importlib.import_module(module), function)
-
-
-def _accepts(model: str, parameter: str) -> bool:
-    try:
-        return parameter in inspect.signature(solver_of(model)).parameters
-    except (ImportError, ValueError, TypeError):
-        return False
-
-
 def accepts_vtu(model: str) -> bool:
     """Whether the model's function takes ``vtu_path`` (it writes its fields as VTU)."""
-    return _accepts(model, "vtu_path")
+    from ..registry import get_model
 
-
-def accepts_progress(model: str) -> bool:
-    """Whether the model's function takes ``progress`` (lines inside a long solve)."""
-    return _accepts(model, "progress")
+    return get_model(model).takes("vtu_path")
 
 
 # --- memory ------------------------------------------------------------------------------
@@ -197,7 +212,7 @@ def _release_free_memory() -> None:
         pass
 
 
-def _measured_run(solver, scene, kwargs) -> tuple[ContactResult, float, dict]:
+def _measured_run(run) -> tuple[ContactResult, float, dict]:
     """One run: (result, wall time s, memory dict).  Peak memory is the resident set's high
     water mark (VmHWM) after resetting it, so C buffers count and nothing slows the run;
     ``peak_memory_MB`` is what the run added to the resident set it started from (freed
@@ -206,7 +221,7 @@ def _measured_run(solver, scene, kwargs) -> tuple[ContactResult, float, dict]:
     reset = _reset_peak()
     rss0 = _status_kib("VmRSS")
     start = time.perf_counter()
-    result = solver(scene, **kwargs)
+    result = run()
     wall = time.perf_counter() - start
     hwm = _status_kib("VmHWM")
     if reset and hwm is not None and rss0 is not None:
@@ -248,25 +263,22 @@ def compute_case(spec: dict) -> dict:
     model propagate unchanged.
     """
     mine = code_version()
-    if mine != spec["code_version"]:
-        raise ToolError(f"worker {socket.gethostname()} runs code {mine}, the study expects "
-                        f"{spec['code_version']}: install the same toolkit on every worker")
-    from ..models import MODELS
+    if mine != spec["code_version"] or model_code(spec["model"]) != spec.get("model_code"):
+        raise ToolError(f"worker {socket.gethostname()} runs code {mine} "
+                        f"({spec['model']}: {model_code(spec['model'])}), the study expects "
+                        f"{spec['code_version']} ({spec.get('model_code')}): install the same "
+                        "toolkit on every worker")
+    from ..registry import run_model
 
     scene = Scene.from_dict(spec["scene"])
-    solver = solver_of(spec["model"])
-    accepted = MODELS[spec["model"]][2]
-    kwargs = {k: v for k, v in spec["options"].items() if k in accepted and v is not None}
+    model, options = spec["model"], spec["options"]
     files: dict[str, bytes] = {}
     with tempfile.TemporaryDirectory(prefix="pillar-xval-case-") as tmp:
-        first_kwargs = dict(kwargs)
-        if spec.get("vtu") and accepts_vtu(spec["model"]):
-            first_kwargs["vtu_path"] = Path(tmp) / "fields.vtu"
+        vtu_path = Path(tmp) / "fields.vtu" if spec.get("vtu") else None
         # Lines inside a long first run (on the worker's stderr); the timing repeats are quiet.
-        with SolveProgress(spec.get("tag") or spec["model"], every_s=10.0) as progress:
-            if accepts_progress(spec["model"]):
-                first_kwargs["progress"] = progress
-            result, wall, memory = _measured_run(solver, scene, first_kwargs)
+        with SolveProgress(spec.get("tag") or model, every_s=10.0) as progress:
+            result, wall, memory = _measured_run(lambda: run_model(
+                model, scene, vtu_path=vtu_path, progress=progress, **options))
         for path in sorted(Path(tmp).iterdir()):
             files[path.name] = path.read_bytes()
     if spec.get("fields"):
@@ -275,7 +287,7 @@ def compute_case(spec: dict) -> dict:
     if wall <= spec.get("single_above", float("inf")):
         for _ in range(max(1, int(spec.get("repeats", 1))) - 1):
             start = time.perf_counter()
-            solver(scene, **kwargs)
+            run_model(model, scene, **options)
             times.append(time.perf_counter() - start)
     timing = {"wall_time_s": statistics.median(times), "wall_times_s": times,
               "repeats": len(times), "repeats_requested": int(spec.get("repeats", 1)),

@@ -20,7 +20,8 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from scenes import ContactResult, InputError, ToolError
+from outcome import ContactResult
+from scenes import InputError, ToolError
 
 from ._case import Case, compute_case
 from ._executors import EXECUTORS, default_workers, make_executor

@@ -25,7 +25,8 @@ import os
 import time
 from pathlib import Path
 
-from scenes import ContactResult, ToolError, write_atomic
+from outcome import ContactResult, write_atomic
+from scenes import ToolError
 
 from ._case import Case, accepts_vtu, code_version
 

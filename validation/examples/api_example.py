@@ -12,8 +12,8 @@ from pathlib import Path
 
 from scenes import analytic, load_scene
 from validation.engine import Engine
-from validation.models import run_model
-from validation.report import write_solve_report
+from validation.output.report import write_solve_report
+from validation.registry import run_model
 from validation.studies.converge import converge_study, study_table
 
 

@@ -66,8 +66,7 @@ def _number(where: str, value, lo: float = 0.0) -> float:
 
 
 def _check_model(where: str, name, options) -> None:
-    from ..models import MODELS, model_names
-    from ..options import check_option
+    from ..registry import MODELS, check_option, model_names
 
     if name not in MODELS:
         raise InputError(f"{where} = {name!r}: unknown model; available: "
@@ -76,7 +75,7 @@ def _check_model(where: str, name, options) -> None:
                                                           if "reference" in where else ""))
     if not isinstance(options, dict):
         raise InputError(f"{where}'s options must be a table, not {options!r}")
-    accepted = set(MODELS[name][2]) - {"vtu_path"}
+    accepted = set(MODELS[name].options)
     for key, value in options.items():
         if key not in accepted:
             raise InputError(f"{where} {name}: unknown option {key!r}; it takes "

@@ -23,12 +23,13 @@ from pathlib import Path
 
 import numpy as np
 
-from scenes import Scene, analytic, write_atomic
+from outcome import write_atomic
+from scenes import Scene, analytic
 
 from ..engine import Engine
-from ..ladders import QUANTITIES, ladder_for, quantity_values
-from ..profiles import profile_at
-from ..verification import study
+from ..registry import QUANTITIES, ladder_for, quantity_values
+from ..analysis.profiles import profile_at
+from ..analysis.verification import study
 from .converge import check_ladder, level_cases, study_levels
 
 FEM, FEM_3D, BEM = "fem-axisym", "fem-3d", "bem"
@@ -255,7 +256,7 @@ def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None, leve
     ``elements_per_diameter`` the BEM's (default its ladder's).  The files of an earlier
     report in ``out`` are removed first and ``report.json`` is written last, so the folder
     never mixes two runs."""
-    from ..report import clear_outputs
+    from ..output.report import clear_outputs
 
     t0 = time.perf_counter()
     fem = fem_model or fem_model_for(scene)
@@ -299,18 +300,18 @@ def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None, leve
     elif not vtu:
         render_msg = "not possible: the FEM model wrote no VTU"
     elif fem == FEM_3D:
-        from ..render3d import render_sector
+        from ..output.render3d import render_sector
 
         ok, msg = render_sector(Path(vtu), out / "fem_stress_3d.png",
                                 stamp="" if fem_res.converged else "NOT CONVERGED")
         render_msg = msg if ok else f"not rendered on this machine: {msg}"
     else:
-        from ..render import render_stress
+        from ..output.render import render_stress
 
         ok, msg = render_stress(Path(vtu), out / "fem_stress_3d.png", roi_m=2.5 * r_ref,
                                 stamp="" if fem_res.converged else "NOT CONVERGED")
         render_msg = msg if ok else f"not rendered on this machine: {msg}"
-    from ..plots import plot_profiles
+    from ..output.plots import plot_profiles
 
     plot_profiles(_profile_curves(scene, bem_res, fem_data, r_ref), r_ref, out / "profiles.png",
                   f"pressure across the {'contact' if scene.is_flat else 'pillar top'}: "

@@ -8,12 +8,12 @@ import io
 import json
 from pathlib import Path
 
-from scenes import InputError, Scene, write_atomic
+from outcome import write_atomic
+from scenes import InputError, Scene
 
 from ..engine import Case, Engine, Outcome
-from ..ladders import QUANTITIES, ladder_for, quantity_values
-from ..options import MODEL_OPTIONS, check_option, flag
-from ..verification import study
+from ..registry import QUANTITIES, check_option, flag, get_model, ladder_for, quantity_values
+from ..analysis.verification import study
 
 # The report folder's files, report (converge.json) last: its presence means a whole report.
 OUTPUTS = ("levels.csv", "gci.csv", "convergence.png", "converge.json")
@@ -29,18 +29,19 @@ def check_ladder(model: str, levels: int, coarsest: float | None = None,
     if isinstance(levels, bool) or not isinstance(levels, int) or not lo <= levels <= hi:
         raise InputError(f"{levels_flag} {levels!r}: allowed range is [{lo}, {hi}]")
     name = flag(ladder.option)
+    spec = get_model(model).options[ladder.option]
     if coarsest is not None:
-        check_option(ladder.option, coarsest)
+        check_option(ladder.option, coarsest, spec=spec)
     values = [ladder.value(k, coarsest) for k in range(levels)]
     for k, value in enumerate(values):
         try:
-            check_option(ladder.option, value)
+            check_option(ladder.option, value, spec=spec)
         except InputError:
             start = f"{name} {coarsest:g}" if coarsest is not None else \
                 f"{model}'s default {name} {ladder.coarsest:g}"
             raise InputError(
                 f"{start} with {levels_flag} {levels}: level {k + 1} would be "
-                f"{ladder.option} = {value:g}, outside {MODEL_OPTIONS[ladder.option].allowed()} "
+                f"{ladder.option} = {value:g}, outside {spec.allowed()} "
                 f"(fewer levels, or another coarsest level)") from None
     return values
 
@@ -58,7 +59,7 @@ def study_levels(model: str, scene: Scene, outcomes: list[Outcome]) -> dict:
     """The verification study of finished levels (coarse to fine).
 
     Returns a JSON-ready dict with the ladder, one row per level and, per quantity, the
-    :func:`validation.verification.study` dict, plus ``results`` (the ContactResults, not
+    :func:`validation.analysis.verification.study` dict, plus ``results`` (the ContactResults, not
     JSON).  A level that failed raises its error.
     """
     ladder = ladder_for(model)
@@ -148,7 +149,7 @@ def gci_csv(data: dict) -> str:
 
 def write_report(data: dict, out: Path) -> list[str]:
     """:data:`OUTPUTS` in ``out`` (converge.json last); returns their names."""
-    from ..plots import plot_convergence
+    from ..output.plots import plot_convergence
 
     doc = {k: v for k, v in data.items() if k != "results"}
     write_atomic(out / "levels.csv", levels_csv(doc))

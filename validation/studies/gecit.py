@@ -2,9 +2,9 @@
 
 Over stiffness ratios E_p/E_l and aspect ratios h/d on the single-pillar scene, with the
 substrate as stiff as the pillars (E_s = E_p, the paper's convention), the Hooke-spring BEM
-is compared with the elastic-pillar FEM in F_T and sigma_0, and the shape of
-the FEM pressure across the pillar top is measured (:mod:`validation.profiles`): the centre
-plateau sigma(d/4)/sigma_0, the exponent lambda of the edge singularity
+is compared with the elastic-pillar FEM in F_T and sigma_0, and the shape of the FEM pressure
+across the pillar top is measured (:mod:`validation.analysis.profiles`): the centre plateau
+sigma(d/4)/sigma_0, the exponent lambda of the edge singularity
 sigma ~ (d/2 - r)^(-lambda) (a rigid pillar gives the flat punch's 1/2, a soft one none), and
 the share of the pillar force carried by the outer 10 % of the radius.  Every case runs on
 the engine: a rerun resumes.
@@ -25,12 +25,13 @@ import math
 import time
 from pathlib import Path
 
-from scenes import InputError, load_scene, write_atomic
+from outcome import write_atomic
+from scenes import InputError, load_scene
 
 from ..engine import Case, Engine
-from ..ladders import ladder_for
-from ..options import check_option
-from ..profiles import EDGE_SKIP, EDGE_WINDOW, edge_exponent, outer_load_fraction, plateau_ratio
+from ..registry import check_option, get_model, ladder_for
+from ..analysis.profiles import (EDGE_SKIP, EDGE_WINDOW, edge_exponent, outer_load_fraction,
+                                 plateau_ratio)
 from .converge import check_ladder, study_levels
 
 # The paper's convention (Table 1: E_p = E_s): every scene of the study has it.
@@ -77,7 +78,7 @@ def check_fit_options(edge_window, edge_nodes, edge_skip, bem_levels,
         raise InputError(f"--edge-nodes {edge_nodes}: allowed range is >= 3")
     if edge_skip < 0:
         raise InputError(f"--edge-skip {edge_skip}: allowed range is >= 0")
-    check_option("mesh_size", mesh_size)
+    check_option("mesh_size", mesh_size, spec=get_model(FEM).options["mesh_size"])
     check_ladder(BEM, bem_levels, elements_per_diameter, lo=1)
 
 
@@ -254,7 +255,7 @@ def report_doc(doc: dict, extra_meta: dict | None = None) -> dict:
 
 def write_report(doc: dict, out: Path, extra_meta: dict | None = None) -> list[str]:
     """:data:`OUTPUTS` in ``out``, gecit.json last (its presence means a whole report)."""
-    from ..plots import plot_gecit, plot_gecit_profiles
+    from ..output.plots import plot_gecit, plot_gecit_profiles
 
     rows = doc["rows"]
     write_atomic(out / "gecit.csv", rows_csv(rows))

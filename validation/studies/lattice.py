@@ -4,7 +4,7 @@ Over surface fractions Phi and stiffness ratios E_p/E_l at zeta = 0.3 um (Table 
 the Hooke-spring boundary-element model (every pillar a uniformly shortening spring on a
 half-space) is compared with fem-3d (every pillar a fully elastic body bonded to the
 substrate).  Each model climbs its own refinement ladder; each quantity gets its Richardson
-estimate and GCI band (validation.verification), and every BEM-FEM difference is set beside
+estimate and GCI band (validation.analysis.verification), and every BEM-FEM difference is set beside
 both models' numerical uncertainty: a difference larger than the two bands together is the
 modelling error of the Hooke pillar, not noise.
 
@@ -29,8 +29,8 @@ import numpy as np
 from scenes import InputError, Scene, lattice, load_scene
 
 from ..engine import Case, Engine
-from ..ladders import QUANTITIES, quantity_values
-from ..verification import study
+from ..registry import QUANTITIES, quantity_values
+from ..analysis.verification import study
 
 PHIS = (0.03, 0.1, 0.2, 0.4)
 RATIOS = (0.1, 1.0, 10.0, 1e6)
@@ -278,7 +278,7 @@ def plot_lattice(report: dict, path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ..report import save_figure, stamp_not_converged
+    from ..output.report import save_figure, stamp_not_converged
 
     rows = [r for r in report["rows"] if r.get("quantities")]
     ratios = sorted({r["ratio"] for r in rows})
@@ -351,7 +351,7 @@ def write_report(report: dict, out) -> list[str]:
     import json
     from pathlib import Path
 
-    from scenes import write_atomic
+    from outcome import write_atomic
 
     out = Path(out)
     write_atomic(out / "lattice.csv", rows_csv(report))

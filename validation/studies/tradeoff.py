@@ -1,8 +1,8 @@
 """What each model's accuracy costs in time and memory.
 
-For every model that has a ladder in :data:`validation.ladders.LADDERS` (and is registered in
-:mod:`validation.models`), the study solves the scene on each of the ladder's ``rungs``, one
-case at a time on the engine (timings are not shared with another case running beside them),
+For every model whose declaration has a ladder (:mod:`validation.registry`), the study solves
+the scene on each of the ladder's ``rungs``, one case at a time on the engine (timings are not
+shared with another case running beside them),
 and records the wall time (median of ``repeats`` runs inside the case, stored with it), the
 peak memory (the resident set's high-water mark during the first run, above where it
 started) and the four compared quantities F_T, sigma_0, a and A.  Finished rungs are cached:
@@ -15,7 +15,7 @@ rung is |f - f_ref| / |f_ref|.
 Outputs: ``tradeoff.csv`` (one row per model and rung), ``tradeoff.json`` (rows,
 references with their orders and bands, scene and versions) and ``tradeoff.png`` (log-log
 error against wall time, one panel per quantity, one line per model, points labelled by their
-refinement, the Pareto front marked: :func:`validation.plots.plot_tradeoff`).
+refinement, the Pareto front marked: :func:`validation.output.plots.plot_tradeoff`).
 
 References
 ----------
@@ -25,29 +25,30 @@ References
 from __future__ import annotations
 
 import csv
-import importlib
 import io
 import json
 import math
 import tempfile
 from pathlib import Path
 
-from scenes import InputError, write_atomic
-from scenes.result import package_version
+from outcome import package_version, write_atomic
+from scenes import InputError
 
 from ..engine import Case, Engine
-from ..ladders import LADDERS, QUANTITIES
-
-# Models that solve the same equations share a reference; a model with other physics (the
-# elastic pillar of the FEM against the Hooke pillar of the BEM) is measured against its own,
-# so that its errors are discretisation errors, not the modelling difference (which
-# ``pillar-xval compare`` reports).  On a flat scene every model solves the Hertz problem.
-PHYSICS = {"bem": "hooke-pillar", "bem-fft": "hooke-pillar", "bem-richardson": "hooke-pillar",
-           "fem-axisym": "elastic-pillar", "fem-3d": "elastic-pillar"}
-
+from ..registry import QUANTITIES
+from ..registry import ladders as all_ladders
 
 def physics_group(model: str, scene) -> str:
-    return "half-space" if scene.is_flat else PHYSICS.get(model, model)
+    """Models that solve the same equations share a reference (a model's ``physics``); a
+    model with other physics (the elastic pillar of the FEM against the Hooke pillar of the
+    BEM) is measured against its own, so that its errors are discretisation errors, not the
+    modelling difference (which ``pillar-xval compare`` reports).  On a flat scene every model
+    solves the Hertz problem."""
+    from ..registry import MODELS
+
+    if scene.is_flat:
+        return "half-space"
+    return (MODELS[model].physics if model in MODELS else "") or model
 
 
 def rungs_for(ladder, coarsest=None, levels: int | None = None) -> list:
@@ -71,9 +72,9 @@ def check_options(models, ladders=None, *, coarsest: dict | None = None,
                   max_time: float = 600.0) -> dict:
     """Every model's rungs ({model: [values]}); InputError (one line, naming the option)
     for anything a study could only refuse after solving."""
-    from ..options import check_option, flag
+    from ..registry import MODELS, check_option, flag
 
-    ladders = ladders or LADDERS
+    ladders = ladders or all_ladders()
     if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
         raise InputError(f"--repeats {repeats!r}: allowed range is >= 1")
     if not (isinstance(max_time, (int, float)) and max_time > 0 and max_time < math.inf):
@@ -92,9 +93,10 @@ def check_options(models, ladders=None, *, coarsest: dict | None = None,
         ladder = ladders[name]
         start = (coarsest or {}).get(ladder.option)
         plan[name] = rungs_for(ladder, start, levels)
+        spec = MODELS[name].options.get(ladder.option) if name in MODELS else None
         for k, value in enumerate(plan[name]):
             try:
-                check_option(ladder.option, value)
+                check_option(ladder.option, value, spec=spec)
             except InputError as exc:
                 given = "" if start is None else f"{flag(ladder.option)} {start:g}, "
                 raise InputError(f"{name}: {given}rung {k + 1} would be {ladder.option} = "
@@ -113,9 +115,9 @@ def tradeoff(scene, models, cache_dir: Path | None = None, *, engine: Engine | N
     several pillars in contact) is skipped with its reason; a model stops climbing after a
     rung slower than ``max_time`` seconds.
     """
-    from ..models import MODELS
+    from ..registry import MODELS
 
-    ladders = ladders or LADDERS
+    ladders = ladders or all_ladders()
     plan = check_options(models, ladders, coarsest=coarsest, levels=levels, repeats=repeats,
                          single_above=single_above, max_time=max_time)
     own = engine is None
@@ -129,7 +131,7 @@ def tradeoff(scene, models, cache_dir: Path | None = None, *, engine: Engine | N
         for name in models:
             ladder = ladders[name]
             try:
-                importlib.import_module(MODELS[name][0])
+                MODELS[name].function  # noqa: B018 - imports the solver's module
             except ImportError as exc:
                 skipped[name] = f"not available ({exc})"
                 continue
@@ -174,12 +176,10 @@ def tradeoff(scene, models, cache_dir: Path | None = None, *, engine: Engine | N
             "version": package_version()}
 
 
-# Expected order of each model's error in h (its ladder's cell size): the BEMs' uniform
-# pressure elements give O(h) at the pillar edges (measured 1.0-1.05 on paper-fig3-dense).
-# An observed order further than ORDER_TOL from it, or an asymptotic ratio
+# An observed order further than ORDER_TOL from a model's expected order (its declaration's
+# ``expected_order``, in its ladder's cell size h), or an asymptotic ratio
 # GCI23 / (r^p GCI12) further than ASYMPTOTIC_RATIO_TOL from 1, marks the estimate as
 # pre-asymptotic.
-EXPECTED_ORDER = {"bem": 1.0, "bem-fft": 1.0}
 ORDER_TOL = 0.3
 ASYMPTOTIC_RATIO_TOL = 0.25
 
@@ -190,7 +190,8 @@ def _model_estimate(rows: list, short: str, model: str) -> dict | None:
     pre-asymptotic, empty when it looks asymptotic) and, for a model with an expected order,
     the two finest extrapolated at that order (``assumed``: Roache's two-grid GCI, Fs = 3).
     None below three rungs."""
-    from ..verification import gci_three, gci_two
+    from ..analysis.verification import gci_three, gci_two
+    from ..registry import MODELS
 
     mine = sorted((r for r in rows if r["model"] == model and r["converged"]),
                   key=lambda r: r["h"])
@@ -201,7 +202,7 @@ def _model_estimate(rows: list, short: str, model: str) -> dict | None:
     est = {"f_exact": g.f_exact, "order": g.order, "band": g.uncertainty, "status": g.status,
            "asymptotic_ratio": g.asymptotic_ratio, "sizes": g.h, "pre_asymptotic": [],
            "assumed": None}
-    expected = EXPECTED_ORDER.get(model)
+    expected = MODELS[model].expected_order if model in MODELS else None
     if expected is not None and f[0] != f[1]:
         a = gci_two(h[:2], f[:2], expected)
         if a.f_exact is not None:
@@ -254,7 +255,8 @@ def reference_values(rows: list) -> dict:
 
     Each model with three converged rungs gives an estimate (observed order, Richardson value,
     GCI band).  An estimate whose order is far from the model's expected one
-    (:data:`EXPECTED_ORDER`) or whose asymptotic ratio is far from 1 is pre-asymptotic and
+    (its declaration's ``expected_order``) or whose asymptotic ratio is far from 1 is
+    pre-asymptotic and
     not preferred: such a model (or one whose order cannot be observed) enters at its expected
     order instead, from its two finest rungs with the two-grid band (Fs = 3), after every
     asymptotic estimate (:func:`_tiers`).  Among the estimates of the most trusted tier
@@ -332,7 +334,7 @@ def write_outputs(doc: dict, out: Path) -> None:
     for row in doc["rows"]:
         writer.writerow({k: ("" if row.get(k) is None else row.get(k)) for k in CSV_COLUMNS})
     write_atomic(out / "tradeoff.csv", buf.getvalue())
-    from ..plots import plot_tradeoff
+    from ..output.plots import plot_tradeoff
 
     plot_tradeoff(doc, out / "tradeoff.png")
     write_atomic(out / "tradeoff.json", json.dumps(doc, indent=2, allow_nan=False))

@@ -1,0 +1,15 @@
+"""The resolutions and methods the boundary-element models accept.
+
+The solvers refuse a value outside these (``_dense._check_options``, ``_fft_grid.cell_size``);
+the toolkit's option ranges (:mod:`validation.registry`) read them here, so an option is
+refused before any solve with the name the user wrote.
+"""
+
+# P, square elements across a pillar diameter (dense BEM, and both levels of its
+# Richardson-extrapolated variant): below 2 there is no element inside the disk; above 400 a
+# single pillar top alone has 1.3e5 elements, beyond the dense operator's reach.
+ELEMENTS_PER_DIAMETER_RANGE = (2, 400)
+# N, grid cells across a pillar diameter (FFT BEM); the grid's own size caps it from above.
+MIN_CELLS_PER_DIAMETER = 2
+# The dense BEM's contact solvers: exact complementarity, or the paper's radius search.
+CONTACT_METHODS = ("exact", "paper")

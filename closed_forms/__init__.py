@@ -1,0 +1,7 @@
+"""Closed forms as models (``hertz``, ``spring``): they return a :class:`outcome.ContactResult`
+like every numerical model (:mod:`._models`).  The formulas themselves are the scene's
+analytic library, :mod:`scenes.analytic`."""
+
+from ._models import solve_hertz, solve_spring
+
+__all__ = ["solve_hertz", "solve_spring"]

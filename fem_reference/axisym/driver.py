@@ -1,0 +1,289 @@
+"""Axisymmetric FEM reference: a lens on one elastic pillar bonded to a substrate, or on a
+flat substrate (Hertz), with frictionless unilateral contact, displacement-controlled.
+
+Model.  The lens is a block of side L with a flat bottom at z = 0; its spherical shape is
+the initial gap g(r) = R - sqrt(R^2 - r^2) between the lens bottom and the pillar top (or
+the substrate) at the same r.  The lens top moves down by zeta, the substrate bottom is
+fixed (rollers on both far faces, free sides).  The contact line has identical P2 points on
+both bodies; the contact pressure is a P1 (mortar) field on its vertices (:mod:`.contact`:
+node-to-node contact on P2 points made the pressure alternate and left the axis unloaded).
+Rigid bodies (E = inf) are not meshed: a rigid lens is a moving rigid surface, a rigid pillar
+on an elastic substrate is one rigid translation bonded to it, a rigid substrate clamps the
+pillar base.
+
+Solution.  Factorise once; one solve per contact point gives the compliance matrix C; the
+LCP of :mod:`.contact` gives the nodal forces; linear residual and complementarity are
+checked and reported.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from contact import solve_active_set
+from meshes import build_axisymmetric_mesh, flat_geometry, pillar_geometry
+from outcome import ContactResult, PillarForce
+from outcome.memory import memory_short
+from scenes import InputError, Scene, ScopeError, analytic
+
+from .._driver import (HERTZ_CANDIDATE, RTOL_COMPLEMENTARITY, PhaseClock, contact_radius,
+                       fem_result, flat_candidate, refuse_rigid_pair, scaled_materials, verdict)
+from .contact import mortar_matrix
+from .fields import cell_stresses, write_vtu
+from .system import assemble
+
+MODEL = "fem-axisym"
+# Block side over the focus radius: truncation ~ 2a/(pi L) = 6e-6 at 1e5 (measured 0.8x that);
+# the geometric grading makes the large block cost only a few rings of elements (+10 % dofs
+# from 1e4 to 1e5).
+BLOCK_FACTOR = 1e5
+# Memory model of a solve (measured on single-pillar and hertz at mesh_size 4..0.5): the
+# reduced unknowns grow as mesh_size^-1.9 from about 18k (pillar) or 12.5k (flat) at 1; the
+# sparse LU takes ~650 B per unknown per log(unknowns) (2D fill ~ n log n); the compliance
+# solves keep a dense (unknowns x contact vertices) array; imports and meshing ~40 MB.
+DOFS_AT_UNIT_SIZE = {"pillar": 18_000.0, "flat": 12_500.0}
+DOFS_EXPONENT = 1.9
+CONTACT_POINTS_AT_UNIT_SIZE = 60.0
+BYTES_PER_DOF_LOG = 650.0
+BYTES_FIXED = 40 * 2.0**20
+
+
+def estimate_memory(scene: Scene, mesh_size: float = 1.0) -> dict:
+    """Peak memory of :func:`solve` on ``scene`` (estimated, nothing built).
+
+    Returns
+    -------
+    dict
+        ``bytes`` (peak), ``dofs`` (reduced unknowns) and ``contact_points`` (P2 points on
+        the contact line), floats.
+    """
+    if not isinstance(mesh_size, (int, float)) or not math.isfinite(mesh_size) \
+            or mesh_size <= 0:
+        raise InputError(f"mesh_size = {mesh_size!r}: must be a number > 0")
+    kind = "flat" if scene.is_flat else "pillar"
+    dofs = DOFS_AT_UNIT_SIZE[kind] * mesh_size ** -DOFS_EXPONENT
+    if not scene.is_flat:  # taller pillars hold more elements along their side
+        dofs *= max(1.0, 2.0 * scene.pillars.height_m / scene.pillars.diameter_m) ** 0.5
+    contact = CONTACT_POINTS_AT_UNIT_SIZE / mesh_size
+    peak = (BYTES_FIXED + BYTES_PER_DOF_LOG * dofs * math.log(dofs)
+            + 8.0 * dofs * contact / 2.0 + 8.0 * contact**2)
+    return {"bytes": float(peak), "dofs": float(dofs), "contact_points": float(contact)}
+
+
+def _refuse_if_too_large(scene: Scene, mesh_size: float) -> None:
+    need = estimate_memory(scene, mesh_size)
+    short = memory_short(need["bytes"])
+    if short is not None:
+        raise ScopeError(
+            f"mesh_size = {mesh_size:g}: this mesh needs about {need['bytes'] / 2**30:.3g} GiB "
+            f"(~{need['dofs']:.3g} unknowns), {short}; use a larger mesh_size")
+
+
+def solve(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None,
+                       block_factor: float = BLOCK_FACTOR, progress=None) -> ContactResult:
+    """Solve ``scene`` with the axisymmetric finite-element model.
+
+    Parameters
+    ----------
+    scene : Scene
+        A flat (Hertz) scene, or a pillar scene in the single-pillar regime
+        (surface fraction below the spring-model threshold Phi_S).
+    mesh_size : float
+        Dimensionless refinement factor; 0.5 halves every element size.
+    vtu_path : path-like, optional
+        Where to write the VTU of displacement (m) and stresses (Pa); a JSON sidecar with the
+        scene and discretisation is written beside it.
+    block_factor : float
+        Side of the lens and substrate blocks in units of the pillar radius d/2 (or of the
+        Hertz radius); the truncation error is about 2 a / (pi L).
+    progress : callable, optional
+        ``progress(text)`` is called as each phase starts (meshing, assembling, factorising,
+        compliance, contact).
+
+    Returns
+    -------
+    ContactResult
+        ``model = "fem-axisym"``; ``pillar_top_profile`` is the contact pressure (Pa) at the
+        mesh vertices of the pillar top, r = 0 to d/2, graded towards the edge (flat scenes:
+        of the candidate contact zone, 0 to 1.5 a).  ``diagnostics`` holds
+        ``linear_residual`` (scaled, relative), ``contact_residual`` (the min-map
+        residual of :mod:`contact` on the mean gaps, relative to zeta), ``compliance_asymmetry``,
+        ``block_size_m``, ``truncation_estimate`` (F (gamma_l + gamma_s) / (pi L zeta), an
+        upper bound of the relative force error from the finite block: measured 0.8 x it),
+        ``max_pointwise_penetration`` (over zeta, at the P2 points; the mortar contact
+        enforces the gap weighted by each vertex's hat function, and near a punch edge the
+        pointwise gap wobbles by <1 % of zeta within the last three elements), the mesh
+        quality, timings, and for a rigid pillar on an elastic substrate
+        ``pillar_translation_m`` (its vertical displacement, negative downwards).
+        ``fields`` holds the arrays (pressure at the vertices, gaps and nodal forces at the
+        P2 points, the condensed compliance).
+
+    Raises
+    ------
+    ScopeError
+        For a scene the model cannot represent (two or more pillars in contact, rigid lens
+        on a rigid pillar).
+    SolveError
+        If the sparse factorisation fails or returns non-finite values.  A solution that
+        misses a tolerance comes back with ``converged = False`` and the reason in
+        ``diagnostics["message"]``.
+    """
+    clock = PhaseClock(progress)
+    setup = _setup(scene, mesh_size, block_factor)
+    _refuse_if_too_large(scene, mesh_size)
+    mesh, system = _mesh_and_factorise(setup, mesh_size, clock)
+    compliance = _compliance(system, clock)
+    contact = _contact(scene, setup, system, compliance, clock)
+    result = _result(scene, setup, mesh, system, compliance, contact, mesh_size, clock)
+    if vtu_path is not None:
+        _write_fields(vtu_path, scene, setup, mesh, system, contact["x"], result)
+    return result
+
+
+def _mesh_and_factorise(setup: dict, mesh_size: float, clock: PhaseClock):
+    """Mesh, assemble and factorise: (mesh, system)."""
+    clock.say(f"meshing (mesh_size {mesh_size:g})")
+    mesh = build_axisymmetric_mesh(setup["geometry"])
+    clock.done("mesh")
+    ell = setup["ell"]
+    skmesh = mesh.to_skfem().scaled([1.0 / ell, 1.0 / ell])
+    clock.say(f"assembling ({mesh.nelements} elements)")
+    system = assemble(skmesh, setup["materials"], contact=setup["contact"],
+                      rigid_pillar_on_substrate=setup["rigid_pillar_on_substrate"],
+                      clamp_pillar_base=setup["clamp_pillar_base"])
+    clock.done("assemble")
+    clock.say(f"factorising ({system.n_reduced} unknowns)")
+    system.factorise()
+    clock.done("factorise")
+    return mesh, system
+
+
+def _compliance(system, clock: PhaseClock) -> dict:
+    """The condensed compliance C on the contact vertices, by one solve per vertex: the P1
+    multiplier's nodal-force patterns G^T D (half as many right-hand sides as P2 points);
+    ``U[:, j]`` is the gap change at the P2 points."""
+    D = mortar_matrix(system.contact_r)
+    clock.say(f"compliance ({D.shape[1]} contact points, one solve each)")
+    X, residual = system.solve(system.G.T @ D)
+    U = system.G @ X
+    C = D.T @ U
+    asymmetry = float(np.max(np.abs(C - C.T)) / np.max(np.abs(C)))
+    # Reciprocity makes the exact compliance symmetric; the solves leave a rounding asymmetry
+    # that grows with the stiffness contrast (5.6e-9 at E_p/E_s = 6e5).  The contact solver
+    # factorises one triangle, so its residual, computed with the full C, would report that
+    # asymmetry as a contact error: solve with the symmetric part, report the asymmetry apart.
+    C = 0.5 * (C + C.T)
+    clock.done("compliance")
+    return {"D": D, "X": X, "U": U, "C": C, "asymmetry": asymmetry, "residual": residual}
+
+
+def _contact(scene: Scene, setup: dict, system, compliance: dict, clock: PhaseClock) -> dict:
+    """The mortar LCP, exactly: pressures ``lam`` (units of E_ref), nodal forces ``f``,
+    pointwise gaps ``w`` at the P2 points and the displacement ``x`` (units of ell)."""
+    D, U, C, X = compliance["D"], compliance["U"], compliance["C"], compliance["X"]
+    ell = setup["ell"]
+    R, zeta = scene.lens.radius_m, scene.indentation_m
+    r_m = system.contact_r * ell
+    gap = analytic.lens_gap(R, r_m) / ell
+    weight = D.sum(axis=0)  # integral of psi_j r dr: turns weighted gaps into mean gaps
+    clock.say("contact")
+    sol = solve_active_set(C, D.T @ (gap - zeta / ell), scale=zeta / ell, weights=weight,
+                           tol=RTOL_COMPLEMENTARITY)
+    lam = sol.pressure
+    out = {"sol": sol, "lam": lam, "f": D @ lam, "w": U @ lam + gap - zeta / ell,
+           "x": X @ lam, "r_m": r_m}
+    clock.done("contact")
+    return out
+
+
+def _result(scene: Scene, setup: dict, mesh, system, compliance: dict, contact: dict,
+            mesh_size: float, clock: PhaseClock) -> ContactResult:
+    """The verdict and the result, in SI units."""
+    ell, E_ref = setup["ell"], setup["E_ref"]
+    zeta = scene.indentation_m
+    sol, lam, f, w, x = (contact[k] for k in ("sol", "lam", "f", "w", "x"))
+    # Residual of the displacement actually returned, under the contact load it carries.
+    residual = max(system.residual(x, system.G.T @ f), compliance["residual"])
+    force = 2.0 * math.pi * float(np.sum(f)) * E_ref * ell**2
+    r_vertex = system.contact_r[::2]
+    pressure = lam * E_ref
+    a, reaches_end = contact_radius(system.contact_r, lam, w)
+    a *= ell
+    penetration = float(max(0.0, -w.min()) / (zeta / ell))
+    end = (f"contact reached the end of the candidate zone r = {contact['r_m'][-1]:g} m "
+           f"({HERTZ_CANDIDATE} Hertz radii)") if scene.is_flat and reaches_end else ""
+    failures = verdict([force, a, pressure[0], residual, sol.residual, *pressure], residual,
+                       sol, force, zeta, penetration, end)
+    diagnostics = {
+        "compliance_asymmetry": compliance["asymmetry"], "active_set_rounds": sol.iterations,
+        "contact_points": int(len(f)), "points_in_contact": int(np.sum(lam > 0)),
+        "displacement_dofs": int(system.basis_u.N),
+        "mesh_min_angle_deg": mesh.min_angle_deg(),
+    }
+    if setup["rigid_pillar_on_substrate"]:
+        diagnostics["pillar_translation_m"] = float(x[-1] * ell)
+    return fem_result(
+        MODEL, scene, clock, failures, mesh=mesh, system=system, mesh_size=mesh_size,
+        block_size_m=setup["geometry"].block_size_m, ell=ell, E_ref=E_ref, residual=residual,
+        contact_residual=sol.residual, penetration=penetration, force=force,
+        centre_pressure=float(pressure[0]), contact_radius_m=a, area=math.pi * a * a,
+        pillar_forces=[] if scene.is_flat else [PillarForce(0, 0, 0.0, 0.0, force)],
+        iterations=sol.iterations,
+        profile={"r_m": (r_vertex * ell).tolist(), "pressure_Pa": pressure.tolist()},
+        fields={"pressure_r_m": r_vertex * ell, "contact_pressure_Pa": pressure,
+                "gap_r_m": contact["r_m"], "gap_m": w * ell,
+                "contact_force_N_per_rad": f * E_ref * ell**2,
+                "mortar_compliance": compliance["C"]},
+        discretisation={}, diagnostics=diagnostics)
+
+
+def _write_fields(vtu_path, scene: Scene, setup: dict, mesh, system, x, result) -> None:
+    """Displacement (m) and stresses (Pa) as VTU, with the lens translation removed."""
+    ell, zeta = setup["ell"], scene.indentation_m
+    u, p_body = system.full(x)
+    if "lens" in setup["materials"]:
+        lens_z = system.basis_u.get_dofs(elements="lens").all("u^2")
+        u[lens_z] -= zeta / ell  # the lens translation, removed by superposition
+    vertex = system.basis_u.nodal_dofs
+    cells = cell_stresses(system, u, p_body, setup["E_ref"])
+    write_vtu(vtu_path, mesh, u[vertex] * ell, cells,
+              {"model": MODEL, "scene": result.scene, "discretisation": result.discretisation})
+
+
+def _setup(scene: Scene, mesh_size: float, block_factor: float) -> dict:
+    """Geometry, units, meshed bodies and constraints for ``scene``."""
+    lens, sub = scene.lens.material, scene.substrate
+    if scene.is_flat:
+        ell, candidate = flat_candidate(scene)
+        geometry = flat_geometry(
+            ell, block_factor * ell, candidate_radius_m=candidate, mesh_size=mesh_size,
+            bodies=[b for b, m in (("lens", lens), ("substrate", sub)) if not m.rigid])
+        pillar = None
+        contact = ("contact_lens" if not lens.rigid else None,
+                   "contact_substrate" if not sub.rigid else None)
+    else:
+        p = scene.pillars
+        phi_s = analytic.single_pillar_threshold(scene)
+        if p.surface_fraction >= phi_s:
+            raise ScopeError(
+                f"pillars.surface_fraction = {p.surface_fraction:.4g} >= Phi_S = {phi_s:.4g}: "
+                "the spring-model threshold says a second pillar would touch; the "
+                "axisymmetric FEM holds the centre pillar only (use the BEM, or lower Phi)")
+        pillar = p.material
+        refuse_rigid_pair(lens, pillar, "a rigid pillar")
+        ell = 0.5 * p.diameter_m
+        bodies = tuple(b for b, m in (("lens", lens), ("pillar", pillar), ("substrate", sub))
+                       if not m.rigid)
+        geometry = pillar_geometry(p.diameter_m, p.height_m, block_factor * ell,
+                                   bodies=bodies, mesh_size=mesh_size)
+        lower = ("contact_pillar" if not pillar.rigid
+                 else "rigid-translation" if not sub.rigid else None)
+        contact = ("contact_lens" if not lens.rigid else None, lower)
+    E_ref, materials = scaled_materials(lens, pillar, sub, geometry.bodies)
+    return {"geometry": geometry, "ell": ell, "E_ref": E_ref, "materials": materials,
+            "contact": contact,
+            "rigid_pillar_on_substrate": bool(pillar is not None and pillar.rigid
+                                              and not sub.rigid),
+            "clamp_pillar_base": bool(pillar is not None and not pillar.rigid and sub.rigid)}

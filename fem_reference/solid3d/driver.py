@@ -1,0 +1,440 @@
+"""3D FEM reference: a lens on a hexagonal lattice of elastic pillars bonded to a substrate,
+or on a flat substrate (Hertz), frictionless unilateral contact, displacement-controlled.
+
+Model.  The pi/6 wedge of the lattice centred on pillar (0, 0), the D6 primitive cell:
+mirror symmetry on theta = 0 (u_y = 0) and on the skew plane theta = pi/6 (u . n = 0 by a
+rotated unknown in the reduced transform T, no penalty).  The lens is a sector block of
+radius and height L with a flat bottom at z = 0; its spherical shape is the initial gap
+g(r) = R - sqrt(R^2 - r^2) between the lens bottom and a pillar top at the same (x, y).  The
+lens top moves down by zeta (a roller), the substrate bottom is a roller, the cylindrical
+sides are free.  The pillars meshed are those whose top the undeformed lens could reach,
+g(|c| - d/2) <= reach_factor * zeta (exact with reach_factor = 1: elastic deflections only
+open the gap, so the others carry no load; meshing the unloaded pillars out to 3 zeta of
+reach changed F_T by -0.07 % on a 7-pillar scene at mesh_size 2).  The blocks are 1e4 focus
+radii wide: truncation ~ F gamma / (pi L zeta), 6e-5 for one pillar (measured 0.8 x the
+estimate at L = 1e2); the graded far field itself moves F_T by <= 0.08 % from L = 1e3 to
+1e5.  Taylor-Hood P2/P1 tetrahedra, rigid bodies imposed, not meshed.
+
+Solution.  One PARDISO factorisation of the reduced saddle-point matrix; the contact problem
+on the P1 mortar multiplier is solved by constrained conjugate gradients with the condensed
+operator D^T G K^-1 G^T D applied by one back-substitution per iteration.  Linear residual
+and complementarity residual are checked and reported.
+"""
+
+from __future__ import annotations
+
+import math
+import resource
+
+import numpy as np
+
+from contact import constrained_cg
+from meshes import (MESH_SIZE_RANGE_3D, SECTORS, WedgeGeometry, build_wedge_mesh,
+                    sector_pillars)
+from outcome import ContactResult, PillarForce
+from outcome.memory import memory_short
+from scenes import InputError, Scene, ScopeError, analytic
+from scenes.lattice import lattice_indices
+
+from .._driver import (RTOL_COMPLEMENTARITY, PhaseClock, contact_radius, fem_result,
+                       flat_candidate, refuse_rigid_pair, scaled_materials, verdict)
+from .contact import contact_area_share, contact_faces, line_profile, preconditioner
+from .fields import cell_stresses, write_vtu3d
+from .system import assemble_sector
+
+MODEL = "fem-3d"
+# Block radius and height over the focus radius: the truncation ~ 2 a_c / (pi L) for a
+# contact of radius a_c; the grading makes the large block cost a few shells of elements.
+BLOCK_FACTOR = 1e4
+MAX_CG_ITERATIONS = 2000
+# Smallest gap between neighbouring pillars, in diameters: at Phi = 0.9 (gap 0.0038 d) the
+# mesh still passes its quality check (q_min 0.047), at Phi = 0.9068 (5.5e-5 d) it fails.
+MIN_GAP = 2e-3
+# Size and peak memory, fitted on the lattice study's sectors (Phi 0.03-0.4, 2-17 pillars,
+# mesh_size 2.83-1.41, 13.6k-455k unknowns): ~6.8e3 unknowns per sector pillar at mesh_size
+# 2.83, x2 per sqrt(2) refinement (Phi = 0.03 grows slower: the estimate is conservative);
+# peak RSS 160 MiB + 11.5 kB per unknown (the PARDISO factor dominates).  A flat scene
+# meshes like one pillar.
+DOFS_PER_PILLAR = 6.8e3
+DOFS_REFERENCE_SIZE = 2.83
+BYTES_FIXED_3D = 160 * 2.0**20
+BYTES_PER_DOF_3D = 11.5e3
+
+
+def estimate_memory(scene: Scene, mesh_size: float = 1.0, *,
+                       sector_angle: float = math.pi / 6.0, reach_factor: float = 1.0) -> dict:
+    """Peak memory of :func:`solve` on ``scene`` (estimated; nothing is meshed).
+
+    Returns
+    -------
+    dict
+        ``bytes`` (peak), ``dofs`` (unknowns) and ``pillars`` (sector pillars meshed).
+
+    Raises
+    ------
+    InputError, ScopeError
+        As :func:`solve` for a bad option or a scene it cannot mesh.
+    """
+    _check_options(mesh_size, sector_angle, BLOCK_FACTOR, reach_factor, RTOL_COMPLEMENTARITY)
+    if scene.is_flat:
+        pillars = 0
+    else:
+        p = scene.pillars
+        _check_packing(p)
+        reach = _reach(scene.lens.radius_m, reach_factor * scene.indentation_m)
+        if reach / p.pitch_m > 3e3:  # beyond ~1e6 sector pillars: no need to list them
+            pillars = int(sector_angle / 2.0 * (reach / p.pitch_m) ** 2 * 2.0 / math.sqrt(3.0))
+        else:
+            pillars = len(sector_pillars(p.pitch_m, p.diameter_m, reach, sector_angle))
+    dofs = DOFS_PER_PILLAR * max(pillars, 1) * (DOFS_REFERENCE_SIZE / mesh_size) ** 2
+    return {"bytes": float(BYTES_FIXED_3D + BYTES_PER_DOF_3D * dofs), "dofs": float(dofs),
+            "pillars": pillars}
+
+
+def _check_packing(p) -> None:
+    if p.pitch_m - p.diameter_m < MIN_GAP * p.diameter_m:
+        raise ScopeError(
+            f"pillars.surface_fraction = {p.surface_fraction:.6g}: neighbouring pillars are "
+            f"{(p.pitch_m - p.diameter_m) * 1e9:.3g} nm apart, below {MIN_GAP:g} d; the "
+            "substrate between them cannot be meshed (fem-3d meshes up to Phi = 0.9; "
+            "use the BEM closer to close packing)")
+
+
+def _refuse_if_too_large(scene: Scene, mesh_size: float, sector_angle: float,
+                         reach_factor: float) -> None:
+    need = estimate_memory(scene, mesh_size, sector_angle=sector_angle,
+                              reach_factor=reach_factor)
+    short = memory_short(need["bytes"])
+    if short is not None:
+        raise ScopeError(
+            f"mesh_size = {mesh_size:g}: fem-3d would mesh {need['pillars']} pillars in its "
+            f"sector (~{need['dofs']:.3g} unknowns, about {need['bytes'] / 2**30:.3g} GiB), "
+            f"{short}; use a larger mesh_size, or the BEM for lattices this wide")
+
+
+def solve(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None, progress=None,
+                sector_angle: float = math.pi / 6.0, block_factor: float = BLOCK_FACTOR,
+                reach_factor: float = 1.0, tol: float = RTOL_COMPLEMENTARITY,
+                grading: dict | None = None) -> ContactResult:
+    """Solve ``scene`` with the 3D finite-element model of the lattice sector.
+
+    Parameters
+    ----------
+    scene : Scene
+        A flat (Hertz) scene or any pillar scene (zeta < h).
+    mesh_size : float
+        Dimensionless refinement factor; 0.5 halves every element size.
+    vtu_path : path-like, optional
+        Where to write the VTU of the sector (displacement in m, stresses in Pa) and its
+        JSON sidecar.
+    progress : callable, optional
+        ``progress(text)`` receives a line now and then (meshing, assembly, factorisation,
+        contact iterations with their residual).
+    sector_angle : float
+        pi/6 (the D6 wedge, default), pi/3 or pi/2 (a quadrant): wider sectors with their own
+        mirror planes, for symmetry checks.
+    block_factor : float
+        Block radius and height in focus radii (d/2, or the Hertz radius).
+    reach_factor : float
+        Pillars whose nearest top point has an undeformed gap <= reach_factor * zeta are
+        meshed (1 is exact; more adds unloaded pillars).
+    tol : float
+        Complementarity tolerance (min-map residual over zeta).
+    grading : dict, optional
+        ``elements_across_contact``, ``edge_ratio``, ``growth`` of :class:`WedgeGeometry`.
+
+    Returns
+    -------
+    ContactResult
+        ``model = "fem-3d"``.  ``pillar_top_profile``: pressure (Pa) at the mesh vertices of
+        the centre pillar top along theta = 0, r = 0 to d/2 (flat: along theta = 0 over the
+        candidate zone).  ``diagnostics["pillar_top_profile_alpha"]``: the same along
+        theta = alpha (pi/6 for the wedge).  ``pillar_forces``: every lattice pillar in
+        contact, unfolded from the sector by its mirror group (D6 for the wedge), each image
+        with its own (n, m) and centre.  ``diagnostics`` also holds ``linear_residual``,
+        ``contact_residual``, ``cg_iterations``, ``operator_asymmetry``, ``time_s`` by phase,
+        ``peak_rss_GiB``, the mesh quality, ``pillars_meshed`` and the truncation estimate.
+        ``fields`` holds the vertex pressures and positions, gaps at the P2 points and the
+        per-sector-pillar forces.
+
+    Raises
+    ------
+    ScopeError
+        A rigid lens on rigid pillars (no pressure distribution to compute).
+    SolveError
+        The factorisation fails or returns non-finite values.  A solution that misses a
+        tolerance comes back with ``converged = False`` and the reason in
+        ``diagnostics["message"]``.
+    """
+    _check_options(mesh_size, sector_angle, block_factor, reach_factor, tol)
+    _refuse_if_too_large(scene, mesh_size, sector_angle, reach_factor)
+    clock = PhaseClock(progress)
+    setup = _setup(scene, mesh_size, sector_angle, block_factor, reach_factor, grading or {})
+    mesh, skmesh, system, faces = _mesh_and_factorise(setup, mesh_size, sector_angle, clock)
+    contact = _contact(scene, setup, system, faces, tol, clock)
+    result = _result(scene, setup, mesh, system, faces, contact, mesh_size, sector_angle,
+                     reach_factor, clock)
+    if vtu_path is not None:
+        clock.say(f"writing {vtu_path}")
+        _write_fields(vtu_path, scene, setup, mesh, skmesh, system, contact["x"], result)
+    clock.say(f"done: F_T = {result.total_force_N:.6g} N, {contact['sol'].iterations} contact "
+              "iterations")
+    return result
+
+
+def _mesh_and_factorise(setup: dict, mesh_size: float, sector_angle: float,
+                        clock: PhaseClock):
+    """Mesh the sector, assemble it and its contact faces, factorise:
+    (mesh, scaled skfem mesh, system, faces)."""
+    geo = setup["geometry"]
+    clock.say(f"meshing the sector ({len(geo.pillars)} pillars, mesh_size {mesh_size:g})")
+    mesh = build_wedge_mesh(geo, progress=clock.say)
+    clock.done("mesh")
+    ell = setup["ell"]
+    clock.say(f"mesh: {mesh.nelements} tetrahedra; assembling")
+    skmesh = mesh.to_skfem().scaled([1.0 / ell] * 3)
+    system = assemble_sector(skmesh, setup["materials"], sector_angle=sector_angle,
+                             clamp_pillar_base=setup["clamp_pillar_base"],
+                             rigid_pillars=setup["rigid_pillars"], progress=clock.say)
+    faces = contact_faces(skmesh, system, lens_meshed=setup["lens_meshed"],
+                          lower=setup["lower"])
+    clock.done("assemble")
+    clock.say(f"factorising {system.n_reduced} unknowns (PARDISO)")
+    system.factorise()
+    clock.done("factorise")
+    return mesh, skmesh, system, faces
+
+
+def _contact(scene: Scene, setup: dict, system, faces, tol: float, clock: PhaseClock) -> dict:
+    """The mortar contact by constrained CG on the condensed operator D^T G K^-1 G^T D (one
+    back-substitution per iteration); then the displacement ``x`` under the contact load,
+    its residual, the pointwise gaps ``w`` and the operator's asymmetry."""
+    ell, E_ref = setup["ell"], setup["E_ref"]
+    R, zeta = scene.lens.radius_m, scene.indentation_m
+    r_pts = np.hypot(*faces.points) * ell
+    gap0 = (analytic.lens_gap(R, r_pts) - zeta) / ell
+    D, G = faces.D, faces.G
+
+    def apply(lam):
+        x, _ = system.solve(G.T @ (D @ lam), refine=0)
+        return D.T @ (G @ x)
+
+    springs = _springs(scene, setup, faces, E_ref, ell)
+    precondition, inv_d = preconditioner(faces.weights, faces.pillar_of_vertex, springs,
+                                         setup["face_compliance"] * E_ref)
+
+    def report(it, err):
+        if it % 10 == 0:
+            clock.say(f"contact iteration {it}: residual {err:.3g}")
+
+    clock.say(f"contact: {faces.n_vertices} pressure unknowns")
+    sol = constrained_cg(apply, D.T @ gap0, np.zeros(faces.n_vertices), scale=zeta / ell,
+                         tol=tol, max_iterations=MAX_CG_ITERATIONS, precondition=precondition,
+                         inverse_diagonal=inv_d, weights=faces.weights, callback=report)
+    lam = sol.pressure
+    clock.done("contact")
+    load = G.T @ (D @ lam)
+    x, residual = system.solve(load)
+    w = G @ x + gap0
+    asym = _asymmetry(apply, faces.n_vertices)
+    clock.done("post")
+    return {"sol": sol, "lam": lam, "x": x, "residual": residual, "w": w, "asymmetry": asym}
+
+
+def _result(scene: Scene, setup: dict, mesh, system, faces, contact: dict, mesh_size: float,
+            sector_angle: float, reach_factor: float, clock: PhaseClock) -> ContactResult:
+    """Forces unfolded from the sector, profiles, the verdict and the result, in SI units."""
+    ell, E_ref, geo = setup["ell"], setup["E_ref"], setup["geometry"]
+    zeta = scene.indentation_m
+    sol, lam, w, residual = (contact[k] for k in ("sol", "lam", "w", "residual"))
+    mult = 2.0 * math.pi / sector_angle
+    unit_force = E_ref * ell**2
+    f_vertex = faces.weights * lam
+    force = mult * float(np.sum(f_vertex)) * unit_force
+    pressure = lam * E_ref
+    vx, vy = faces.vertex_points
+    at_origin = np.argmin(np.hypot(vx, vy))
+    sigma0 = float(pressure[at_origin])
+    tol_line = 1e-9 * max(1.0, float(np.max(np.abs(faces.vertex_points))))
+    r0, p0 = line_profile(faces.vertex_points, pressure, 0.0, tol_line)
+    r1, p1 = line_profile(faces.vertex_points, pressure, sector_angle, tol_line)
+    pillar_forces, per_sector_pillar = [], {}
+    if scene.is_flat:
+        a = _flat_radius(faces, lam, w, tol_line) * ell
+        area = math.pi * a * a
+        reaches_end = a >= 0.999 * setup["candidate_m"]
+    else:
+        edge = 1.0 + tol_line  # centre pillar radius in mesh units
+        keep0, keep1 = r0 <= edge, r1 <= edge
+        r0, p0, r1, p1 = r0[keep0], p0[keep0], r1[keep1], p1[keep1]
+        touching = lam > 0
+        a = float(np.max(np.hypot(vx, vy)[touching])) * ell if touching.any() else 0.0
+        area = mult * contact_area_share(faces.weights, lam) * ell**2
+        reaches_end = False
+        pillar_forces, per_sector_pillar = _pillar_forces(scene, geo, faces, f_vertex,
+                                                          unit_force, sector_angle)
+    penetration = float(max(0.0, -w.min()) / (zeta / ell))
+    failures = verdict([force, a, sigma0, residual, sol.residual, *pressure], residual, sol,
+                       force, zeta, penetration,
+                       "contact reached the end of the candidate zone" if reaches_end else "")
+    diagnostics = {
+        "cg_iterations": int(sol.iterations), "cg_reentries": int(sol.reentries),
+        "operator_asymmetry": contact["asymmetry"],
+        "contact_vertices": int(faces.n_vertices), "vertices_in_contact": int(np.sum(lam > 0)),
+        "pillars_meshed": [p.name for p in geo.pillars], "reach_factor": reach_factor,
+        "factor_nonzeros": system.factor.factor_nonzeros,
+        "peak_rss_GiB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20,
+        "pillar_top_profile_alpha": {"theta_rad": float(sector_angle),
+                                     "r_m": (r1 * ell).tolist(), "pressure_Pa": p1.tolist()},
+    }
+    return fem_result(
+        MODEL, scene, clock, failures, mesh=mesh, system=system, mesh_size=mesh_size,
+        block_size_m=geo.block_size_m, ell=ell, E_ref=E_ref, residual=residual,
+        contact_residual=sol.residual, penetration=penetration, force=force,
+        centre_pressure=sigma0, contact_radius_m=a, area=area, pillar_forces=pillar_forces,
+        iterations=sol.iterations,
+        profile={"r_m": (r0 * ell).tolist(), "pressure_Pa": p0.tolist()},
+        fields={"vertex_x_m": vx * ell, "vertex_y_m": vy * ell, "contact_pressure_Pa": pressure,
+                "point_x_m": faces.points[0] * ell, "point_y_m": faces.points[1] * ell,
+                "gap_m": w * ell, "sector_pillar_force_N": per_sector_pillar,
+                "residual_history": np.asarray(sol.history)},
+        discretisation={"sector_angle_rad": float(sector_angle)}, diagnostics=diagnostics)
+
+
+def _write_fields(vtu_path, scene: Scene, setup: dict, mesh, skmesh, system, x,
+                  result) -> None:
+    """The sector's displacement (m) and stresses (Pa) as VTU, the lens translation removed."""
+    ell, zeta = setup["ell"], scene.indentation_m
+    u, p_body = system.full(x)
+    if setup["lens_meshed"]:
+        u[3 * np.unique(system.basis_s.get_dofs(elements="lens").all()) + 2] -= zeta / ell
+    cells = cell_stresses(system, u, p_body, setup["E_ref"])
+    nv = skmesh.p.shape[1]
+    disp = u[:3 * nv].reshape(-1, 3).T * ell  # vertex dofs come first (3 s + c)
+    write_vtu3d(vtu_path, mesh.points, mesh.tets, disp, cells,
+                {"model": MODEL, "scene": result.scene, "discretisation": result.discretisation})
+
+
+def _setup(scene: Scene, mesh_size, sector_angle, block_factor, reach_factor, grading) -> dict:
+    """Geometry, units, meshed bodies and constraints for ``scene``."""
+    lens, sub = scene.lens.material, scene.substrate
+    out = {"clamp_pillar_base": False, "rigid_pillars": [], "lens_meshed": not lens.rigid}
+    if scene.is_flat:
+        ell, candidate = flat_candidate(scene)
+        # The Hertz edge is smooth (sqrt): no edge refinement, finer contact faces (cheap here).
+        grading = {"edge_ratio": 1.0, "elements_across_contact": 8.0, **grading}
+        geo = WedgeGeometry(ell, block_factor * ell, contact_radius_m=candidate,
+                            sector_angle=sector_angle, mesh_size=mesh_size,
+                            bodies=tuple(b for b, m in (("lens", lens), ("substrate", sub))
+                                         if not m.rigid), **grading)
+        out.update(lower="fixed" if sub.rigid else "substrate", candidate_m=candidate)
+        pillar = None
+    else:
+        p = scene.pillars
+        pillar = p.material
+        _check_packing(p)
+        refuse_rigid_pair(lens, pillar, "rigid pillars")
+        ell = 0.5 * p.diameter_m
+        reach = _reach(scene.lens.radius_m, reach_factor * scene.indentation_m)
+        pillars = sector_pillars(p.pitch_m, p.diameter_m, reach, sector_angle)
+        bodies = tuple(b for b, m in (("lens", lens), ("pillar", pillar), ("substrate", sub))
+                       if not m.rigid)
+        geo = WedgeGeometry(ell, block_factor * ell, pillars=pillars,
+                            pillar_height_m=p.height_m, sector_angle=sector_angle,
+                            bodies=bodies, mesh_size=mesh_size, **grading)
+        if pillar.rigid:
+            out["lower"] = "rigid-pillar" if not sub.rigid else "fixed"
+            if not sub.rigid:
+                out["rigid_pillars"] = [(q.name, (q.x_m / ell, q.y_m / ell)) for q in pillars]
+        else:
+            out["lower"] = "pillar"
+            out["clamp_pillar_base"] = sub.rigid
+    E_ref, out["materials"] = scaled_materials(lens, pillar, sub, geo.bodies)
+    # (1 - nu^2) / E of the two faces in contact (1/Pa), for the contact preconditioner
+    out["face_compliance"] = lens.compliance + (sub.compliance if pillar is None else
+                                                (pillar.compliance or sub.compliance))
+    out.update(geometry=geo, ell=ell, E_ref=E_ref)
+    return out
+
+
+def _check_options(mesh_size, sector_angle, block_factor, reach_factor, tol) -> None:
+    def number(name, value, low, high, why=""):
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool) and \
+            math.isfinite(value) and low <= value <= high
+        if not ok:
+            raise InputError(f"{name} = {value!r}: allowed range is [{low:g}, {high:g}]{why}")
+
+    number("mesh_size", mesh_size, *MESH_SIZE_RANGE_3D)
+    number("block_factor", block_factor, 100.0, 1e7)
+    number("reach_factor", reach_factor, 1.0, 10.0,
+           " (below 1, pillars within the undeformed reach of the lens would be left out)")
+    number("tol", tol, 1e-14, 1e-2)
+    if not any(math.isclose(sector_angle, s, rel_tol=1e-12) for s in SECTORS):
+        raise InputError(f"sector_angle = {sector_angle!r}: allowed values are pi/6, pi/3 "
+                         "and pi/2 (both planes must be mirror planes of the lattice)")
+
+
+def _reach(R: float, gap: float) -> float:
+    """Radius where the undeformed lens gap R - sqrt(R^2 - r^2) equals ``gap``."""
+    return math.sqrt(max(0.0, 2.0 * R * gap - gap * gap))
+
+
+def _springs(scene, setup, faces, E_ref, ell):
+    """Hooke compliance of each sector pillar per unit sector force (mesh units), for the
+    preconditioner; None without elastic pillars."""
+    if scene.is_flat or setup["lower"] != "pillar":
+        return None
+    c = scene.pillar_spring_compliance * E_ref * ell  # dimensionless m/N
+    share = {p.name: p.share for p in setup["geometry"].pillars}
+    return [c / share[name] for name in faces.pillar_names]
+
+
+def _asymmetry(apply, n: int) -> float:
+    """|x.Ay - y.Ax| / (|x| |Ay|) for two seeded random vectors: the condensed operator's
+    symmetry as applied (two back-substitutions)."""
+    rng = np.random.default_rng(12345)
+    x, y = rng.random(n), rng.random(n)
+    ax, ay = apply(x), apply(y)
+    return float(abs(x @ ay - y @ ax) / max(np.linalg.norm(x) * np.linalg.norm(ay), 1e-300))
+
+
+def _flat_radius(faces, lam, w, tol):
+    """Hertz edge along theta = 0 from the gap law (:func:`._contact.contact_radius`)."""
+    x, y = faces.points
+    on = np.abs(y) <= tol
+    order = np.argsort(x[on])
+    r = x[on][order]
+    w_line = w[on][order]
+    vx, vy = faces.vertex_points
+    von = np.abs(vy) <= tol
+    vorder = np.argsort(vx[von])
+    lam_line = lam[von][vorder]
+    a, _ = contact_radius(r, lam_line, w_line)
+    return a
+
+
+def _pillar_forces(scene, geo, faces, f_vertex, unit_force, alpha):
+    """Force on every lattice pillar in contact, unfolded from the sector (N)."""
+    per = np.bincount(faces.pillar_of_vertex, weights=f_vertex,
+                      minlength=len(faces.pillar_names)) * unit_force
+    share = {p.name: p for p in geo.pillars}
+    pitch = scene.pillars.pitch_m
+    k = int(round(math.pi / alpha))
+    out, seen, per_sector = [], set(), {}
+    for name, f in zip(faces.pillar_names, per):
+        p = share[name]
+        per_sector[name] = float(f)
+        if f <= 0:
+            continue
+        total = float(f) / p.share
+        for flip in (False, True):
+            y0 = -p.y_m if flip else p.y_m
+            for j in range(k):
+                c, s = math.cos(2 * j * alpha), math.sin(2 * j * alpha)
+                x, y = c * p.x_m - s * y0, s * p.x_m + c * y0
+                n, m = (int(v) for v in lattice_indices(x, y, pitch))
+                if (n, m) not in seen:
+                    seen.add((n, m))
+                    out.append(PillarForce(n, m, float(x), float(y), total))
+    out.sort(key=lambda q: (math.hypot(q.x_m, q.y_m), math.atan2(q.y_m, q.x_m)))
+    return out, per_sector

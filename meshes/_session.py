@@ -1,0 +1,35 @@
+"""One gmsh session per mesh: both builders (axisymmetric and sector) open it here."""
+
+from __future__ import annotations
+
+from contextlib import contextmanager
+
+from ._common import MeshError
+
+__all__ = ["gmsh_model"]
+
+
+@contextmanager
+def gmsh_model(name: str, what: str):
+    """A fresh gmsh model named ``name`` (gmsh initialised here unless a caller already did,
+    and finalised, or the model removed, on the way out); a gmsh failure becomes a
+    MeshError naming ``what``."""
+    import gmsh
+
+    owner = not gmsh.isInitialized()
+    if owner:
+        # interruptible=False: gmsh must not install a SIGINT handler (threads, pytest).
+        gmsh.initialize(interruptible=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.add(name)
+        yield gmsh
+    except MeshError:
+        raise
+    except Exception as exc:  # gmsh raises plain Exception with its own message
+        raise MeshError(f"gmsh could not mesh {what}: {exc}") from exc
+    finally:
+        if owner:
+            gmsh.finalize()
+        else:
+            gmsh.model.remove()

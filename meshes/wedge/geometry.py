@@ -1,0 +1,229 @@
+"""What a 3D sector mesh describes: the sector of the lattice, its bodies, sizes and grading.
+
+Lengths are in metres.  The sector 0 <= theta <= alpha (alpha = pi/6, the D6 primitive
+wedge, or pi/3 / pi/2 for symmetry checks: every theta = k pi/6 is a mirror line of the
+lattice) is centred on pillar (0, 0).  The lens is a cylindrical sector block above the
+contact plane z = 0 with a flat bottom (its curvature is the gap g(r) = R - sqrt(R^2 - r^2)
+of the contact model); the pillars of diameter d and height h stand on a substrate block whose
+top is z = -h; without pillars (Hertz) the substrate top is z = 0.  Pillars centred on a
+mirror plane are cut by it (the centre pillar by both); no other pillar crosses a mirror plane
+(the nearest lattice row parallel to it lies e/2 >= d/2 away).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from .._common import BODIES, GeometryError
+
+SQRT3 = math.sqrt(3.0)
+
+# Sector angles whose two bounding planes are both mirror planes of the hexagonal lattice.
+SECTORS = (math.pi / 6.0, math.pi / 3.0, math.pi / 2.0)
+# The allowed mesh_size of the 3D sector meshes; the toolkit's --mesh-size range for fem-3d
+# reads it (validation.registry).
+MESH_SIZE_RANGE_3D = (0.05, 4.0)
+
+
+@dataclass(frozen=True)
+class SectorPillar:
+    """A pillar of the sector: lattice indices, centre (m) and the share of its top that
+    lies in the sector (1, 1/2 on one mirror plane, alpha / (2 pi) for the centre pillar)."""
+
+    n: int
+    m: int
+    x_m: float
+    y_m: float
+    share: float
+
+    @property
+    def name(self) -> str:
+        return f"{self.n}_{self.m}"
+
+
+@dataclass(frozen=True)
+class WedgeGeometry:
+    """Geometry and grading of a 3D sector model.
+
+    Parameters
+    ----------
+    focus_radius_m : float
+        Length unit of the size rule (m): the pillar radius d/2, or the Hertz radius a.
+    block_size_m : float
+        Radius and height L of the lens and substrate blocks (m); the truncation error of a
+        half-space is about 2 a_c / (pi L) for a contact of radius a_c.
+    pillars : tuple of SectorPillar
+        Pillars in the sector (empty for the flat geometry).
+    pillar_height_m : float, optional
+        Pillar height h (m); None for the flat geometry.
+    contact_radius_m : float, optional
+        Flat geometry: radius of the candidate contact sector on z = 0 (m).
+    sector_angle : float
+        alpha in radians, one of pi/6 (default), pi/3, pi/2.
+    bodies : tuple of str
+        Bodies to mesh, a subset of ("lens", "pillar", "substrate"); rigid bodies are left out
+        (their contact or bonded faces are still imprinted on the elastic ones).
+    mesh_size : float
+        Dimensionless refinement factor: every element size is multiplied by it.
+    elements_across_contact : float
+        Elements across the focus radius on a contact face at ``mesh_size`` = 1.
+    edge_ratio : float
+        Element size at the pillar-top edges and base corners (flat: the Hertz edge)
+        relative to the contact element size.
+    growth : float
+        Slope of the size rule, size = h_f + growth * distance (geometric grading).
+    """
+
+    focus_radius_m: float
+    block_size_m: float
+    pillars: tuple = ()
+    pillar_height_m: float | None = None
+    contact_radius_m: float | None = None
+    sector_angle: float = math.pi / 6.0
+    bodies: tuple = BODIES
+    mesh_size: float = 1.0
+    elements_across_contact: float = 4.0
+    edge_ratio: float = 0.25
+    growth: float = 0.35
+
+    def __post_init__(self):
+        def positive(name, value):
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise GeometryError(f"{name} = {value!r}: must be a finite number > 0")
+
+        for name in ("focus_radius_m", "block_size_m", "mesh_size", "elements_across_contact",
+                     "edge_ratio", "growth"):
+            positive(name, getattr(self, name))
+        if not any(math.isclose(self.sector_angle, s, rel_tol=1e-12) for s in SECTORS):
+            raise GeometryError(f"sector_angle = {self.sector_angle!r}: allowed values are pi/6, "
+                            "pi/3 and pi/2 (both planes must be mirror planes of the lattice)")
+        bodies = tuple(self.bodies)
+        unknown = [b for b in bodies if b not in BODIES]
+        if unknown or not bodies:
+            raise GeometryError(f"bodies = {bodies!r}: choose a non-empty subset of {BODIES}")
+        object.__setattr__(self, "bodies", bodies)
+        object.__setattr__(self, "pillars", tuple(self.pillars))
+        if self.pillar_height_m is None:
+            if "pillar" in bodies or self.pillars:
+                raise GeometryError("pillars given but pillar_height_m is None")
+            if self.contact_radius_m is None:
+                raise GeometryError("the flat geometry needs contact_radius_m (candidate zone)")
+            positive("contact_radius_m", self.contact_radius_m)
+        else:
+            positive("pillar_height_m", self.pillar_height_m)
+            if not self.pillars:
+                raise GeometryError("pillar_height_m given but no pillar lies in the sector")
+        lo, hi = MESH_SIZE_RANGE_3D
+        if self.mesh_size > hi or self.mesh_size < lo:
+            raise GeometryError(f"mesh_size = {self.mesh_size:g}: allowed range is "
+                                f"[{lo:g}, {hi:g}]")
+        inner = self.extent_m
+        if self.block_size_m < 4.0 * inner:
+            raise GeometryError(
+                f"block_size_m = {self.block_size_m:g} m: must be >= 4 x {inner:g} m (the "
+                "reach of the pillars or the contact zone); use L >= 1e3 x the contact radius")
+        if self.block_size_m > 1e8 * self.focus_radius_m:
+            raise GeometryError(f"block_size_m = {self.block_size_m:g} m: more than 1e8 x the "
+                            f"focus radius {self.focus_radius_m:g} m")
+
+    @property
+    def has_pillars(self) -> bool:
+        return self.pillar_height_m is not None
+
+    @property
+    def extent_m(self) -> float:
+        """Radius (m) that holds every pillar (or the candidate zone) and the pillar height."""
+        if not self.has_pillars:
+            return self.contact_radius_m
+        reach = max(math.hypot(p.x_m, p.y_m) for p in self.pillars) + self.focus_radius_m
+        return max(reach, self.pillar_height_m)
+
+    # --- size rule in units of the focus radius ------------------------------------------
+    def size_at(self, x: float, y: float, z: float) -> float:
+        """Target element size at (x, y, z), all in units of ``focus_radius_m``.
+
+        Minimum over features of h_f + growth * distance_f, times ``mesh_size``: the contact
+        faces (size 1/n), the pillar-top edges and base corners (flat: the Hertz edge circle)
+        (size edge_ratio / n), capped at a tenth of the block.
+        """
+        h_c = 1.0 / self.elements_across_contact
+        h_e = self.edge_ratio * h_c
+        g = self.growth
+        cap = 0.1 * self.block_size_m / self.focus_radius_m
+        if not self.has_pillars:
+            rho = math.hypot(x, y)
+            c = self.contact_radius_m / self.focus_radius_m
+            size = min(h_c + g * math.hypot(max(rho - c, 0.0), z),
+                       h_e + g * math.hypot(rho - 1.0, z))
+            return self.mesh_size * min(size, cap)
+        H = self.pillar_height_m / self.focus_radius_m
+        cx, cy = self._nearest_centre(x, y)
+        # Only the nearest pillar matters: pillars do not overlap, so the nearest centre is
+        # also nearest to every top, rim and base feature (and each size grows with distance).
+        rho = math.hypot(x - cx, y - cy)
+        size = min(cap, h_c + g * math.hypot(max(rho - 1.0, 0.0), z),
+                   h_e + g * math.hypot(rho - 1.0, min(abs(z), abs(z + H))))
+        return self.mesh_size * size
+
+    def _nearest_centre(self, x: float, y: float):
+        """Centre (focus units) of the meshed pillar nearest to (x, y): the lattice point
+        found by rounding the lattice coordinates, checked with its eight index
+        neighbours, or a scan of all pillars when none of those is meshed."""
+        table, e = self._lattice
+        if e > 0.0:
+            m0 = round(2.0 * y / (SQRT3 * e))
+            n0 = round((2.0 * x / e + m0) / 2.0)
+            best, where = math.inf, None
+            for dn in (-1, 0, 1):
+                for dm in (-1, 0, 1):
+                    c = table.get((n0 + dn, m0 + dm))
+                    if c is not None:
+                        d2 = (c[0] - x) ** 2 + (c[1] - y) ** 2
+                        if d2 < best:
+                            best, where = d2, c
+            if where is not None:
+                return where
+        return min(table.values(), key=lambda c: (c[0] - x) ** 2 + (c[1] - y) ** 2)
+
+    @property
+    def _lattice(self):
+        """({(n, m): centre in focus units}, pitch in focus units) of the meshed pillars."""
+        cached = self.__dict__.get("_lattice_cache")
+        if cached is None:
+            f = self.focus_radius_m
+            table = {(p.n, p.m): (p.x_m / f, p.y_m / f) for p in self.pillars}
+            ring = [p for p in self.pillars if (p.n, p.m) != (0, 0)]
+            e = 0.0
+            if ring:  # |c| = e sqrt(n^2 - n m + m^2)
+                p = ring[0]
+                e = math.hypot(p.x_m, p.y_m) / f / math.sqrt(p.n**2 - p.n * p.m + p.m**2)
+            cached = (table, e)
+            object.__setattr__(self, "_lattice_cache", cached)
+        return cached
+
+
+def sector_pillars(pitch_m: float, diameter_m: float, reach_m: float,
+                   sector_angle: float = math.pi / 6.0) -> tuple:
+    """Pillars of the lattice whose centre lies in the sector and whose top comes within
+    ``reach_m`` of the axis (nearest top point r = |c| - d/2 <= reach_m), as SectorPillar."""
+    from scenes.lattice import pillars_within
+
+    out = []
+    tol = 1e-9 * pitch_m
+    for n, m, x, y in pillars_within(reach_m + 0.5 * diameter_m, pitch_m):
+        theta = math.atan2(y, x)
+        r = math.hypot(x, y)
+        if r < tol:
+            out.append(SectorPillar(0, 0, 0.0, 0.0, sector_angle / (2.0 * math.pi)))
+            continue
+        # distances to the two planes (signed, positive inside)
+        d0 = y
+        d1 = -x * math.sin(sector_angle) + y * math.cos(sector_angle)
+        if d0 < -tol or d1 > tol:
+            continue
+        on_plane = abs(d0) <= tol or abs(d1) <= tol
+        if theta < -1e-12 or theta > sector_angle + 1e-12:
+            continue
+        out.append(SectorPillar(int(n), int(m), float(x), float(y), 0.5 if on_plane else 1.0))
+    return tuple(out)

@@ -1,0 +1,131 @@
+"""The one result schema that every model of the toolkit returns.
+
+A comparison, a convergence study or a plot reads these fields and never asks which model
+made the result.  ``to_json`` refuses NaN and inf: no non-finite number reaches a file.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, field
+from importlib import metadata
+from typing import Any
+
+SCHEMA_VERSION = 1
+
+
+def package_version() -> str:
+    try:
+        return metadata.version("pillar-xval")
+    except metadata.PackageNotFoundError:
+        return "0+unknown"
+
+
+@dataclass
+class PillarForce:
+    """Force on one pillar in contact: lattice indices (n, m), centre (m) and force (N)."""
+
+    n: int
+    m: int
+    x_m: float
+    y_m: float
+    force_N: float
+
+
+@dataclass
+class ContactResult:
+    """Answer of one model on one scene (SI units).
+
+    ``centre_pressure_Pa`` is the contact pressure at r = 0 (sigma_0); ``contact_radius_m`` the
+    radius of the outermost point of contact; ``real_contact_area_m2`` the area where the
+    pressure is positive; ``pillar_top_profile`` the pressure across the central pillar top
+    (``r_m`` from its centre, ``pressure_Pa``).  ``diagnostics`` holds model-specific
+    numbers (residuals, complementarity errors); ``fields`` holds arrays for plots and CSV
+    files and is not part of the JSON document.
+    """
+
+    model: str
+    scene: dict
+    discretisation: dict
+    total_force_N: float
+    centre_pressure_Pa: float
+    contact_radius_m: float
+    real_contact_area_m2: float
+    pillars_in_contact: int
+    pillar_forces: list[PillarForce]
+    converged: bool
+    iterations: int
+    wall_time_s: float
+    pillar_top_profile: dict = field(default_factory=lambda: {"r_m": [], "pressure_Pa": []})
+    diagnostics: dict = field(default_factory=dict)
+    version: str = field(default_factory=package_version)
+    schema_version: int = SCHEMA_VERSION
+    fields: dict = field(default_factory=dict, repr=False)
+
+    def to_dict(self) -> dict:
+        out = asdict(self)
+        out.pop("fields")
+        _check_finite(out, "result")
+        return out
+
+    def to_json(self, indent: int | None = 2) -> str:
+        return json.dumps(self.to_dict(), indent=indent, allow_nan=False)
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "ContactResult":
+        data = dict(data)
+        data["pillar_forces"] = [PillarForce(**p) for p in data.get("pillar_forces", [])]
+        return cls(**data)
+
+    @classmethod
+    def from_json(cls, text: str) -> "ContactResult":
+        return cls.from_dict(json.loads(text))
+
+    def summary(self) -> str:
+        """A few readable lines for the terminal."""
+        s = self.scene
+        lines = [
+            f"model            {self.model}  ({_fmt_disc(self.discretisation)})",
+            f"scene            {s.get('name', '?')}"
+            + ("" if s.get("pillars") is None
+               else f"  Phi = {s['pillars']['surface_fraction']:.4g}")
+            + f"  zeta = {s['load']['indentation_m'] * 1e6:.4g} um",
+            "materials        " + "; ".join(
+                f"{part} {_fmt_material(s[part])}" for part in ("lens", "pillars", "substrate")
+                if s.get(part) is not None),
+            f"total force      {self.total_force_N * 1e6:.6g} uN",
+            f"centre pressure  {self.centre_pressure_Pa * 1e-3:.6g} kPa",
+            f"contact radius   {self.contact_radius_m * 1e6:.6g} um",
+            f"real area        {self.real_contact_area_m2 * 1e12:.6g} um^2",
+            f"pillars touching {self.pillars_in_contact}",
+            f"converged        {self.converged} after {self.iterations} iterations, "
+            f"{self.wall_time_s:.3g} s",
+        ]
+        return "\n".join(lines)
+
+
+def _fmt_material(m: dict) -> str:
+    """``E = 1.6 MPa, nu = 0.5`` or ``rigid, nu = 0.5``."""
+    if m.get("rigid") or m.get("E_Pa") is None:
+        return f"rigid, nu = {m['nu']:.6g}"
+    E = m["E_Pa"]
+    for factor, unit in ((1e9, "GPa"), (1e6, "MPa"), (1e3, "kPa"), (1.0, "Pa")):
+        if abs(E) >= factor or factor == 1.0:
+            return f"E = {E / factor:.6g} {unit}, nu = {m['nu']:.6g}"
+
+
+def _fmt_disc(disc: dict) -> str:
+    return ", ".join(f"{k}={v}" for k, v in disc.items())
+
+
+def _check_finite(obj: Any, path: str) -> None:
+    if isinstance(obj, float):
+        if not math.isfinite(obj):
+            raise ValueError(f"{path} = {obj}: non-finite number in a result")
+    elif isinstance(obj, dict):
+        for k, v in obj.items():
+            _check_finite(v, f"{path}.{k}")
+    elif isinstance(obj, (list, tuple)):
+        for i, v in enumerate(obj):
+            _check_finite(v, f"{path}[{i}]")

@@ -1,0 +1,25 @@
+"""The CLI's exit statuses: one per outcome of the failure policy (:mod:`scenes._errors`).
+
+=========================  ======================================  ====
+what happened              reported as                             exit
+=========================  ======================================  ====
+done                                                               0
+solver missed tolerance    ``ContactResult.converged = False``     1
+bad input, or a scene      :class:`~scenes.InputError`             2
+outside a model            (:class:`~scenes.ScopeError`)
+a tool underneath failed   :class:`~scenes.ToolError`, memory,     3
+                           the file system
+an internal error (a bug)  any other exception                     4
+interrupted                Ctrl-C                                  130
+=========================  ======================================  ====
+"""
+
+EXIT_OK = 0
+EXIT_NOT_CONVERGED = 1
+EXIT_BAD_INPUT = 2
+EXIT_TOOL_FAILURE = 3
+# An exception that none of the failure policy's kinds covers is a bug of the toolkit: one
+# line and this status; --debug, or PILLAR_XVAL_DEBUG set to anything but "" or "0", shows
+# its traceback instead.
+EXIT_INTERNAL_ERROR = 4
+EXIT_INTERRUPTED = 130

@@ -1,0 +1,277 @@
+"""Figures of the studies (matplotlib, Agg): convergence, pressure profiles, the Gecit-like
+study and the time-accuracy trade-off.  Units as units (µm, kPa, µN); a figure whose data
+include a solve that missed its tolerance is stamped NOT CONVERGED
+(:func:`validation.output.report.stamp_not_converged`).  The renders of FEM fields are
+:mod:`validation.output.render` and :mod:`validation.output.render3d`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from matplotlib.ticker import NullFormatter
+
+from ..registry import QUANTITIES
+from .report import KPA, pyplot, save_figure, stamp_not_converged
+
+_MARKERS = "osd^v<>p"
+# Quantities in mathtext, for labels.
+_SYMBOL = {"F_T": "$F_T$", "sigma0": r"$\sigma_0$", "a": "$a$", "A": "$A$"}
+_TITLE = {"F_T": "total force $F_T$", "sigma0": r"centre pressure $\sigma_0$",
+          "a": "contact radius $a$", "A": "real contact area $A$"}
+# The short name of each ladder option, for labels of points: P = 11, N = 32, S = 0.5.
+_OPTION_LETTER = {"elements_per_diameter": "P", "cells_per_diameter": "N", "mesh_size": "S"}
+
+
+def _math(text: str) -> str:
+    """Moduli in mathtext: E_s = E_p -> $E_s = E_p$."""
+    return text.replace("E_s = E_p", "$E_s = E_p$")
+
+
+def _save(fig, path) -> Path:
+    return save_figure(fig, path, 120)
+
+
+def _unconverged_levels(data: dict) -> list[str]:
+    option = data["ladder"]["option"]
+    return [f"{data['model']} {option}={lv['value']}: {lv.get('message', '')}"
+            for lv in data["levels"] if not lv["converged"]]
+
+
+def plot_convergence(data: dict, path: Path) -> Path:
+    """Relative error against the relative cell size h, log-log, one line per quantity.
+
+    The error is |f - f_exact| / |f_exact| with the Richardson estimate when the study has
+    one, otherwise |f - f_finest| / |f_finest| on the coarser levels (marked 'vs finest').
+    A quantity equal on every level (to round-off) has no error to draw and says so.
+    """
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    hs_all, errs_all, flat = [], [], []
+    for i, q in enumerate(QUANTITIES):
+        key, label = q.key, q.label
+        s = data["studies"][key]
+        h, f = np.array(s["h"]), np.array(s["f"])
+        ref = s["gci"]["f_exact"]
+        how = "vs Richardson"
+        if ref is None:
+            ref, h, f, how = f[0], h[1:], f[1:], "vs finest"
+        err = np.abs(f - ref) / abs(ref) if ref else np.zeros_like(f)
+        keep = err > 0
+        if not keep.any() or s["gci"]["status"] == "round-off":
+            flat.append(_SYMBOL.get(key, key))
+            continue
+        p = s["gci"]["order"]
+        tag = f"{label} ({how}{'' if p is None else f', p = {p:.2f}'})"
+        ax.loglog(h[keep], err[keep], marker=_MARKERS[i % len(_MARKERS)], label=tag)
+        hs_all.extend(h[keep])
+        errs_all.extend(err[keep])
+    if hs_all:
+        hs = np.array(sorted(set(hs_all)))
+        for order, style in ((1, ":"), (2, "--")):
+            ax.loglog(hs, 0.5 * max(errs_all) * (hs / hs[-1]) ** order, "k" + style, lw=0.8,
+                      label=f"slope {order}")
+        ax.legend(fontsize=7)
+    if flat:
+        ax.text(0.02, 0.02, f"{', '.join(flat)}: equal on every level (round-off)",
+                transform=ax.transAxes, fontsize=8, color="0.3")
+    values = ", ".join(f"{lv['value']:g}" for lv in data["levels"])
+    option = data["ladder"]["option"]
+    ax.set_xlabel(f"relative cell size h ({data['ladder']['h_meaning']})")
+    ax.set_ylabel("relative error")
+    ax.set_title(f"{data['model']} on {data['scene'].get('name', '?')}: {option} = {values}",
+                 fontsize=10)
+    ax.grid(True, which="both", alpha=0.3)
+    stamp_not_converged(fig, _unconverged_levels(data))
+    return _save(fig, path)
+
+
+def plot_profiles(curves: list[dict], radius_m: float, path: Path, title: str,
+                  radius_label: str = "d/2", not_converged: list[str] = ()) -> Path:
+    """Pressure across the pillar top (or the Hertz contact) for several models.
+
+    ``curves`` holds dicts with ``label``, ``r_m``, ``pressure_Pa`` and optional ``style``;
+    r is plotted as r / ``radius_m``, the pressure in kPa.  The y range follows the curves
+    inside 0.8 ``radius_m``, so edge peaks (singular or mesh-bound) do not flatten the rest.
+    """
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    top = 0.0
+    for c in curves:
+        r = np.asarray(c["r_m"], dtype=float)
+        p = np.asarray(c["pressure_Pa"], dtype=float)
+        if r.size == 0:
+            continue
+        ax.plot(r / radius_m, p * KPA, c.get("style", "-"), label=c["label"], lw=1.4)
+        inner = r <= 0.8 * radius_m
+        if inner.any():
+            top = max(top, float(np.nanmax(p[inner])))
+    if top > 0:  # edge peaks (singular or mesh-bound) run off the top, by design
+        ax.set_ylim(0, 1.8 * top * KPA)
+    ax.set_xlim(0, 1.05)
+    ax.set_xlabel(f"r / ({radius_label})")
+    ax.set_ylabel("contact pressure (kPa)")
+    ax.set_title(title)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8, loc="upper left")
+    stamp_not_converged(fig, list(not_converged))
+    return _save(fig, path)
+
+
+def plot_gecit(rows: list[dict], path: Path, convention: str = "") -> Path:
+    """Four panels against E_p/E_l, one line per h/d: Hooke-BEM error in F_T and sigma_0 with
+    the BEM's GCI band as error bars, the fitted edge exponent, and the profile shape
+    (plateau and outer-10 % load fraction).  Rows that did not converge are drawn hollow and
+    the figure is stamped."""
+    plt = pyplot()
+    fig, axes = plt.subplots(2, 2, figsize=(10, 7.5), sharex=True)
+    aspects = sorted({r["aspect"] for r in rows})
+    panels = (
+        (axes[0, 0], "err_F_T", "U_BEM_F_T", r"error of the Hooke BEM in $F_T$ (%)", True),
+        (axes[0, 1], "err_sigma0", "U_BEM_sigma0", r"error of the Hooke BEM in $\sigma_0$ (%)",
+         True),
+        (axes[1, 0], "edge_exponent", None,
+         r"edge exponent $\lambda$, $\sigma \sim (d/2 - r)^{-\lambda}$", False),
+        (axes[1, 1], "plateau", None,
+         r"$\sigma(d/4)/\sigma_0$ (solid), outer-10 % load share (dashed)", False),
+    )
+    for ax, key, band, title, percent in panels:
+        for i, aspect in enumerate(aspects):
+            sel = sorted((r for r in rows if r["aspect"] == aspect), key=lambda r: r["ratio"])
+            x = np.array([r["ratio"] for r in sel])
+            scale = 100.0 if percent else 1.0
+            y = scale * np.array([np.nan if r.get(key) is None else r[key] for r in sel],
+                                 dtype=float)
+            m = _MARKERS[i % len(_MARKERS)]
+            if band is not None:
+                u = scale * np.array([0.0 if r.get(band) is None else r[band] for r in sel])
+                line = ax.errorbar(x, y, yerr=u, marker=m, capsize=3,
+                                   label=f"h/d = {aspect:g}").lines[0]
+            else:
+                (line,) = ax.plot(x, y, marker=m, label=f"h/d = {aspect:g}")
+            bad = np.array([r["status"] != "ok" for r in sel])
+            if bad.any():
+                ax.plot(x[bad], y[bad], "o", ms=11, mfc="none", mec="red", mew=1.5)
+            if key == "plateau":
+                y2 = np.array([np.nan if r.get("outer_load_fraction") is None
+                               else r["outer_load_fraction"] for r in sel], dtype=float)
+                ax.plot(x, y2, marker=m, ls="--", color=line.get_color())
+        ax.set_xscale("log")
+        ax.set_title(title, fontsize=9)
+        ax.ticklabel_format(axis="y", useOffset=False)
+        ax.grid(True, which="both", alpha=0.3)
+    for ax in axes[0]:
+        ax.axhline(0.0, color="k", lw=0.6)
+    axes[1, 0].axhline(0.5, color="k", lw=0.8, ls=":", label="rigid punch, 1/2")
+    for ax in axes[1]:
+        ax.set_xlabel("$E_p / E_l$")
+    for ax in (axes[0, 0], axes[1, 0]):
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=8)
+    fig.suptitle("Hooke-spring BEM against the elastic-pillar FEM (single pillar)"
+                 + (f"\n{_math(convention)}" if convention else "")
+                 + "; error bars: the BEM's GCI band", fontsize=10)
+    stamp_not_converged(fig, [f"E_p/E_l={r['ratio']:g} h/d={r['aspect']:g}" for r in rows
+                              if r["status"] == "not converged"])
+    return _save(fig, path)
+
+
+def plot_gecit_profiles(profiles: list[dict], path: Path, convention: str = "") -> Path:
+    """FEM pressure across the pillar top, sigma/sigma_0 against r/(d/2), one panel per h/d
+    and one line per E_p/E_l; ``profiles`` holds ``ratio``, ``aspect``, ``radius_m``,
+    ``sigma0_Pa``, ``r_m`` and ``pressure_Pa``."""
+    plt = pyplot()
+    aspects = sorted({p["aspect"] for p in profiles})
+    ratios = sorted({p["ratio"] for p in profiles})
+    fig, axes = plt.subplots(1, max(1, len(aspects)), figsize=(4.2 * max(1, len(aspects)), 4.4),
+                             sharey=True, squeeze=False)
+    cmap = plt.get_cmap("viridis")
+    for ax, aspect in zip(axes[0], aspects):
+        for p in sorted((p for p in profiles if p["aspect"] == aspect), key=lambda p: p["ratio"]):
+            k = ratios.index(p["ratio"]) / max(1, len(ratios) - 1)
+            r = np.asarray(p["r_m"]) / p["radius_m"]
+            ax.plot(r, np.asarray(p["pressure_Pa"]) / p["sigma0_Pa"], color=cmap(k),
+                    label=f"$E_p/E_l$ = {p['ratio']:g}")
+        ax.set_title(f"h/d = {aspect:g}")
+        ax.set_xlabel("r / (d/2)")
+        ax.set_ylim(0, 3.5)
+        ax.grid(True, alpha=0.3)
+    axes[0, 0].set_ylabel(r"$\sigma / \sigma_0$ (FEM)")
+    if axes[0, 0].get_legend_handles_labels()[0]:
+        axes[0, 0].legend(fontsize=7, loc="upper left")
+    fig.suptitle("Pressure across the pillar top, elastic pillar (FEM)"
+                 + (f"\n{_math(convention)}" if convention else ""), fontsize=10)
+    return _save(fig, path)
+
+
+# --- speed against accuracy --------------------------------------------------------------
+def pareto_front(points: list[tuple[float, float]]) -> list[int]:
+    """Indices of the points (time, error) that no other point beats in both, by time."""
+    order = sorted(range(len(points)), key=lambda i: (points[i][0], points[i][1]))
+    front, best = [], np.inf
+    for i in order:
+        if points[i][1] < best:
+            front.append(i)
+            best = points[i][1]
+    return front
+
+
+def rung_label(option: str, level) -> str:
+    """``P=11``, ``N=32``, ``S=0.5``: a rung by its refinement."""
+    return f"{_OPTION_LETTER.get(option, option)}={level:g}"
+
+
+def plot_tradeoff(doc: dict, path: Path) -> Path:
+    """Relative error against wall time, log-log, one panel per quantity and one colour per
+    model; every point labelled by its refinement, the Pareto front (no faster rung is more
+    accurate) drawn as a step line, rungs that did not converge crossed in red."""
+    plt = pyplot()
+    fig, axes = plt.subplots(2, 2, figsize=(11, 8.5))
+    colours = {m: f"C{i}" for i, m in enumerate(doc["models"])}
+    for ax, q in zip(axes.ravel(), QUANTITIES):
+        key = f"err_{q.key}"
+        rows = [r for r in doc["rows"] if r.get(key)]
+        for model in doc["models"]:
+            mine = [r for r in rows if r["model"] == model]
+            if not mine:
+                continue
+            t = [r["wall_time_s"] for r in mine]
+            e = [r[key] for r in mine]
+            ax.loglog(t, e, "o-", color=colours[model], lw=0.8, alpha=0.8, label=model)
+            for r in mine:
+                ax.annotate(rung_label(r["option"], r["level"]), (r["wall_time_s"], r[key]),
+                            textcoords="offset points", xytext=(4, 3), fontsize=7,
+                            color=colours[model])
+                if not r["converged"]:
+                    ax.plot(r["wall_time_s"], r[key], "x", color="red", ms=10, mew=2)
+        if rows:
+            pts = [(r["wall_time_s"], r[key]) for r in rows]
+            front = [pts[i] for i in pareto_front(pts)]
+            tf, ef = zip(*front)
+            ax.step(tf, ef, where="post", color="k", lw=1.2, ls="--", label="Pareto front")
+            ax.plot(tf, ef, "o", ms=10, mfc="none", mec="k")
+            lo, hi = min(e for _, e in pts), max(e for _, e in pts)
+            if hi < 1.5 * lo:  # errors equal to a few digits: show decades, not 1.61084e-6 x 6
+                ax.set_ylim(lo / 3, hi * 3)
+            ax.legend(fontsize=7, loc="best")
+        else:  # every error is zero (e.g. a contact radius fixed by the pillar's rim)
+            ax.text(0.5, 0.5, f"{_SYMBOL[q.key]}: every rung equals the reference",
+                    ha="center", transform=ax.transAxes)
+            ax.set_xticks([])
+            ax.set_yticks([])
+        ax.set(xlabel="wall time (s)", ylabel=f"relative error of {_SYMBOL[q.key]}")
+        ax.set_title(_TITLE[q.key], fontsize=10)
+        ax.grid(True, which="both", alpha=0.3)
+        for axis in (ax.xaxis, ax.yaxis):  # decades only: minor labels crowd a short axis
+            axis.set_minor_formatter(NullFormatter())
+    fig.suptitle(f"speed against accuracy on {doc['scene'].get('name', '?')}: each error "
+                 "against the Richardson reference of its own physics", fontsize=11)
+    refs = ["references: " + "; ".join(
+        f"{group} " + ", ".join(f"{_SYMBOL[k]} by {ref[k]['model']}" for k in ref)
+        for group, ref in doc["references"].items())]
+    fig.text(0.5, 0.022, refs[0], ha="center", fontsize=8, color="0.3")
+    fig.tight_layout(rect=(0, 0.04, 1, 1))  # the bottom edge: references, NOT CONVERGED note
+    stamp_not_converged(fig, [f"{r['model']} {rung_label(r['option'], r['level'])}"
+                              for r in doc["rows"] if not r["converged"]])
+    return save_figure(fig, path, 120, layout=False)

@@ -1,0 +1,310 @@
+"""Files written by ``pillar-xval solve --out DIR`` (result.json, elements.csv, pillars.csv and
+pressure.png: the paper's Fig. 3 layout, pressure map and sigma(r)), and what every report
+shares: figures saved atomically, stamped NOT CONVERGED when a solver missed its tolerance, and
+old report files cleared before a new report is computed."""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from pathlib import Path
+
+import numpy as np
+
+from outcome import ContactResult, write_atomic
+
+UM, KPA = 1e6, 1e-3  # display units: micrometres and kilopascals per SI unit
+# Above this many elements a scatter of sigma(r) is a grey blob: draw its density instead.
+SCATTER_MAX = 5000
+
+
+def _csv_text(header: list[str], rows) -> str:
+    buf = io.StringIO()
+    writer = csv.writer(buf)
+    writer.writerow(header)
+    for row in rows:
+        writer.writerow([f"{v:.10g}" if isinstance(v, float) else v for v in row])
+    return buf.getvalue()
+
+
+def pyplot():
+    """matplotlib.pyplot on the Agg backend (no display needed)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def figure_png(fig, dpi: int = 120, layout: bool = True) -> bytes:
+    """Lay out ``fig`` (unless ``layout`` is False: the caller did), close it and return its
+    PNG bytes (write them with write_atomic)."""
+    import matplotlib.pyplot as plt
+
+    if layout:
+        fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    plt.close(fig)
+    return buf.getvalue()
+
+
+def save_figure(fig, path, dpi: int = 120, layout: bool = True) -> Path:
+    """Write ``fig`` as a PNG atomically and close it (see :func:`figure_png`)."""
+    return write_atomic(path, figure_png(fig, dpi, layout))
+
+
+def stamp_not_converged(fig, what: list[str]) -> None:
+    """Mark a figure whose data come from a solve that missed its tolerance: NOT CONVERGED
+    across it, and which run and why along its bottom edge.  Nothing when ``what`` is empty."""
+    if not what:
+        return
+    fig.text(0.5, 0.5, "NOT CONVERGED", color="red", alpha=0.3, fontsize=44, rotation=18,
+             ha="center", va="center", weight="bold", zorder=1000)
+    text = "; ".join(what)
+    text = text if len(text) <= 160 else text[:157] + "..."
+    fig.text(0.005, 0.003, f"NOT CONVERGED: {text}", color="red", fontsize=7, ha="left",
+             va="bottom", zorder=1000)
+
+
+def clear_outputs(out: Path, names) -> None:
+    """Remove the files ``names`` of an earlier report from ``out`` before a new one is
+    computed: a report folder then never holds a mix of old and new files, even when the run
+    is killed (each study writes its main file last, so its presence means a whole report).
+    A file that cannot be removed is a ToolError (exit 3)."""
+    from scenes import ToolError
+
+    for name in names:
+        path = Path(out) / name
+        try:
+            if path.is_file() or path.is_symlink():
+                path.unlink()
+        except OSError as exc:
+            raise ToolError(f"cannot remove the old {path} ({exc.strerror or exc})") from None
+
+
+def write_solve_report(result: ContactResult, out: Path) -> None:
+    """elements.csv (models with an element map), pillars.csv, pressure.png, then
+    result.json (last: its presence means the folder is whole)."""
+    out = Path(out)
+    f = result.fields
+    if "x_m" in f:
+        cols = [c for c in ("x_m", "y_m", "pillar_orbit", "weight", "area_m2", "pressure_Pa",
+                            "force_N", "gap_m") if c in f]
+        rows = zip(*[np.asarray(f[c]).tolist() for c in cols])
+        write_atomic(out / "elements.csv", _csv_text(cols, rows))
+    write_atomic(out / "pillars.csv", _csv_text(
+        ["n", "m", "x_m", "y_m", "force_N"],
+        ([p.n, p.m, p.x_m, p.y_m, p.force_N] for p in result.pillar_forces)))
+    write_atomic(out / "pressure.png", pressure_figure(result))
+    write_atomic(out / "result.json", result.to_json() + "\n")
+
+
+def not_converged_note(result: ContactResult) -> list[str]:
+    """[] for a converged result, else one line naming the model and its message."""
+    if result.converged:
+        return []
+    return [f"{result.model}: {result.diagnostics.get('message', 'no message')}"]
+
+
+def pressure_figure(result: ContactResult) -> bytes:
+    """PNG bytes of :func:`pressure_plot`."""
+    return figure_png(pressure_plot(result))
+
+
+def pressure_plot(result: ContactResult):
+    """The matplotlib figure of a solve's pressure.
+
+    With an element map (the BEM models): the map of the computed elements (left; a regular
+    grid is drawn as an image) and sigma(r) of every element with the Hertz, spring-model and
+    Hertz-like curves (right), as in the paper's Fig. 3.  Without one (the FEM): the pressure
+    across the pillar top (or the Hertz contact) with its closed forms, on an axis sized to
+    it.  Stamped NOT CONVERGED when the solve missed its tolerance."""
+    from scenes import Scene
+
+    plt = pyplot()
+    scene = Scene.from_dict(result.scene)
+    if "x_m" in result.fields:
+        fig, (ax_map, ax_prof) = plt.subplots(1, 2, figsize=(12, 5))
+        _pressure_map(fig, ax_map, result, scene)
+        _element_profile(ax_prof, result, scene)
+    else:
+        fig, ax_prof = plt.subplots(figsize=(6.8, 4.8))
+        _top_profile(ax_prof, result, scene)
+    stamp_not_converged(fig, not_converged_note(result))
+    return fig
+
+
+def _colour_limit(p: np.ndarray) -> tuple[float, bool]:
+    """(upper colour limit in Pa, whether peaks above it are cut): the 95th percentile of the
+    loaded elements, at most 4 times their median, so that the edge peaks of the pillar tops
+    (5 to 15 % of the elements, 10 to 40 times the bulk on Fig. 3's scenes) do not turn the
+    map dark."""
+    loaded = p[p > 0]
+    if loaded.size == 0:
+        return 1.0, False
+    top = min(float(np.percentile(loaded, 95)), 4.0 * float(np.median(loaded)))
+    return (top, True) if p.max() > 1.05 * top else (float(p.max()), False)
+
+
+def _grid_image(f: dict):
+    """The cells of a regular grid as an image (NaN off the candidate cells) and its extent
+    in um, or None when the elements are not one regular grid."""
+    side = np.asarray(f.get("side_m", []), dtype=float)
+    if "cell_size_m" not in f or side.size == 0 or np.ptp(side) > 1e-9 * side[0] \
+            or np.any(np.asarray(f.get("angle_rad", 0.0)) != 0):
+        return None
+    L = float(f["cell_size_m"])
+    ix = np.rint(np.asarray(f["x_m"]) / L).astype(int)
+    iy = np.rint(np.asarray(f["y_m"]) / L).astype(int)
+    image = np.full((iy.max() - iy.min() + 1, ix.max() - ix.min() + 1), np.nan)
+    image[iy - iy.min(), ix - ix.min()] = f["pressure_Pa"]
+    extent = [(ix.min() - 0.5) * L * UM, (ix.max() + 0.5) * L * UM,
+              (iy.min() - 0.5) * L * UM, (iy.max() + 0.5) * L * UM]
+    return image, extent
+
+
+def _pressure_map(fig, ax, result: ContactResult, scene) -> None:
+    from matplotlib.collections import PolyCollection
+
+    f = result.fields
+    x, y, p = (np.asarray(f[k], dtype=float) for k in ("x_m", "y_m", "pressure_Pa"))
+    vmax, cut = _colour_limit(p)
+    grid = _grid_image(f)
+    if grid is not None:
+        image, extent = grid
+        shown = ax.imshow(image * KPA, origin="lower", extent=extent, cmap="viridis",
+                          vmin=0.0, vmax=vmax * KPA, interpolation="nearest")
+        what = f"all {p.size} grid cells"
+    else:
+        corners = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * 0.5
+        polys = []
+        for xi, yi, si, ai in zip(x, y, f["side_m"], f["angle_rad"]):
+            c, s = math.cos(ai), math.sin(ai)
+            local = corners * si
+            polys.append(np.column_stack([xi + c * local[:, 0] - s * local[:, 1],
+                                          yi + s * local[:, 0] + c * local[:, 1]]) * UM)
+        shown = PolyCollection(polys, array=p * KPA, cmap="viridis", edgecolors="none")
+        shown.set_clim(0.0, vmax * KPA)
+        ax.add_collection(shown)
+        what = f"{p.size} elements, one per symmetry orbit"
+    fig.colorbar(shown, ax=ax, label="pressure (kPa)", extend="max" if cut else "neither")
+    rmax = max(np.hypot(x, y).max() * UM * 1.05, 1.0)
+    if scene.pillars is not None:  # the lattice's primitive cell, 0 <= theta <= pi/6
+        for ang in (0.0, math.pi / 6):
+            ax.plot([0, rmax * math.cos(ang)], [0, rmax * math.sin(ang)], "r-.", lw=0.8)
+        what += "\nprimitive cell dash-dotted, contact radius dotted"
+    else:
+        what += "\ncontact radius dotted"
+    if result.contact_radius_m > 0:
+        t = np.linspace(0, 2 * math.pi if grid is not None else math.pi / 2, 200)
+        a = result.contact_radius_m * UM
+        ax.plot(a * np.cos(t), a * np.sin(t), "r:", lw=1)
+    lo = -0.1 * rmax if grid is None else min(extent[0], extent[2])
+    ax.set_xlim(lo, rmax)
+    ax.set_ylim(lo, rmax if grid is not None else 0.75 * rmax)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (µm)")
+    ax.set_ylabel("y (µm)")
+    ax.set_title(f"{result.model}: {what}"
+                 + (f"\ncolour capped at {vmax * KPA:.3g} kPa (peaks {p.max() * KPA:.3g} kPa)"
+                    if cut else ""), fontsize=9)
+
+
+def _limit(limit, scene):
+    """A closed-form limit of ``scene`` to draw as a reference, or None where it does not
+    apply (a rigid lens has no rigid-punch curve, say): a reference curve never turns a
+    finished solve into an error."""
+    from scenes import SceneError
+
+    try:
+        return limit(scene)
+    except SceneError:
+        return None
+
+
+def _closed_form_curves(ax, result: ContactResult, scene, r_end: float) -> float:
+    """Hertz, the spring model (pillars) and the paper's Hertz-like curve; returns the
+    larger centre pressure (Pa) of the model and of Hertz, to size the pressure axis."""
+    from scenes import analytic
+
+    hz = _limit(analytic.hertz, scene)
+    r_line = np.linspace(0, r_end, 400)
+    if hz is not None:
+        ax.plot(r_line * UM, hz.pressure(r_line) * KPA, "b-", lw=1.2, label="Hertz")
+    spring = _limit(analytic.spring_model, scene)
+    if spring is not None:
+        rp = np.linspace(0, 0.999 * scene.pillars.diameter_m / 2, 200)
+        ax.plot(rp * UM, spring.pressure(rp) * KPA, "g-", lw=1.2,
+                label="soft flat punch (spring model)")
+    if result.contact_radius_m > 0:
+        a, s0 = result.contact_radius_m, result.centre_pressure_Pa
+        ax.plot(r_line * UM, s0 * np.sqrt(np.clip(1 - (r_line / a) ** 2, 0, None)) * KPA,
+                "r--", lw=1.2, label=r"Hertz-like ($\sigma_0$, $a$ of the model)")
+    return max(result.centre_pressure_Pa, hz.centre_pressure if hz is not None else 0.0)
+
+
+def _element_profile(ax, result: ContactResult, scene) -> None:
+    f = result.fields
+    r = np.hypot(f["x_m"], f["y_m"]) * UM
+    p = np.asarray(f["pressure_Pa"], dtype=float) * KPA
+    from scenes import analytic
+
+    hz = _limit(analytic.hertz, scene)
+    r_end = max(hz.contact_radius if hz is not None else 0.0, result.contact_radius_m) * 1.05
+    # Room for the pillar-top edge peaks, or just above the Hertz dome on a flat substrate.
+    top = _closed_form_curves(ax, result, scene, r_end) * (6 if scene.pillars else 1.3) * KPA
+    if p.size <= SCATTER_MAX:
+        ax.plot(r, p, ".", ms=3, color="0.3", label=f"{result.model} elements", zorder=1)
+    else:  # hundreds of thousands of cells: their density, in grey
+        keep = p <= top
+        ax.hexbin(r[keep], p[keep], gridsize=(160, 80), bins="log", cmap="Greys", mincnt=1,
+                  extent=(0, max(r.max(), r_end * UM), 0, top), zorder=0)
+        ax.plot([], [], "s", color="0.4", label=f"{result.model} cells (density, log)")
+    ax.set_xlim(0, max(r.max(), r_end * UM))
+    ax.set_ylim(0, top)
+    ax.set_xlabel("r (µm)")
+    ax.set_ylabel("pressure (kPa)")
+    ax.legend(fontsize=8, loc="upper right")
+    ax.set_title(f"{result.scene.get('name', '')}: F = {result.total_force_N * UM:.3g} µN, "
+                 rf"$\sigma_0$ = {result.centre_pressure_Pa * KPA:.3g} kPa")
+
+
+def _top_profile(ax, result: ContactResult, scene) -> None:
+    """The pressure across the pillar top (or the Hertz contact) of a model without an
+    element map, with the closed forms, r from 0 to just past the edge."""
+    from scenes import analytic
+
+    prof = result.pillar_top_profile
+    r = np.asarray(prof.get("r_m", []), dtype=float)
+    p = np.asarray(prof.get("pressure_Pa", []), dtype=float)
+    if scene.pillars is not None:
+        edge, where = scene.pillars.diameter_m / 2, "pillar top"
+        rp = np.linspace(0, 0.999 * edge, 300)
+        for limit, style, label in ((analytic.spring_model, "g-.", "soft flat punch (spring "
+                                     "model)"), (analytic.rigid_punch, "k--", "rigid flat punch")):
+            curve = _limit(limit, scene)
+            if curve is not None:
+                ax.plot(rp * UM, curve.pressure(rp) * KPA, style, lw=1.2, label=label)
+    else:
+        hz = _limit(analytic.hertz, scene)
+        edge, where = 1.3 * (hz.contact_radius if hz else result.contact_radius_m), "contact"
+        if hz is not None:
+            rh = np.linspace(0, hz.contact_radius, 300)
+            ax.plot(rh * UM, hz.pressure(rh) * KPA, "b--", lw=1.2, label="Hertz", zorder=3)
+    ax.plot(r * UM, p * KPA, "-", color="0.15", lw=2.0, label=f"{result.model}")
+    inner = (r <= 0.8 * edge) & np.isfinite(p)
+    top = max(float(p[inner].max()) if inner.any() else 0.0, result.centre_pressure_Pa)
+    if top > 0:  # a singular edge runs off the top, by design; the caption gives its peak
+        ax.set_ylim(0, (2.0 if scene.pillars else 1.2) * top * KPA)
+    ax.set_xlim(0, 1.05 * edge * UM)
+    ax.set_xlabel("r (µm)")
+    ax.set_ylabel("contact pressure (kPa)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8, loc="upper left")
+    peak = f"; edge peak {p.max() * KPA:.3g} kPa" if p.size and p.max() > 2.0 * top else ""
+    ax.set_title(f"{result.scene.get('name', '')}: pressure across the {where}\n"
+                 f"F = {result.total_force_N * UM:.3g} µN, "
+                 rf"$\sigma_0$ = {result.centre_pressure_Pa * KPA:.3g} kPa{peak}", fontsize=10)

@@ -1,0 +1,284 @@
+"""The planner: which model a scene needs for a given accuracy, and what it will cost.
+
+For every candidate (a model at one option value, or a closed form; listed in the data) the
+planner predicts, per requested quantity,
+
+- the discretisation error: the candidate's error measured on calibration scenes against a
+  converged reference of the same physics, interpolated at this scene's features;
+- the model error: each measured error of the candidate's physics against a more complete
+  one (Hooke pillar against elastic pillar, flat punch against curved lens, Hertz against
+  the lattice, finite blocks against half-spaces), interpolated likewise;
+
+and adds them with their leave-one-out margins (:mod:`.tables`); its time and memory
+come from the cost fits (:mod:`.costs`). The choice is the cheapest candidate
+predicted within tolerance for every requested quantity. When the model error that every
+candidate carries exceeds the tolerance (the Hooke pillar's sigma0 in a lattice: 3-60 %,
+measured by the lattice study against fem-3d), none is within tolerance: the plan says so,
+takes the cheapest candidate within tolerance of that unavoidable error and names fem-3d,
+whose elastic pillars remove it. fem-3d is no candidate itself: validating its choice would
+take fem-3d references on every lattice scene of the validation (hours on this machine). A
+candidate that would not fit in memory, or exceeds ``budget`` seconds, is left out with the
+reason.
+"""
+
+from __future__ import annotations
+
+import math
+
+from outcome.memory import MEMORY_SHARE, available_memory
+from scenes import InputError, Scene, ScopeError
+
+from ..registry import QUANTITIES
+from .features import features, regime
+from .tables import PlannerData, load_data
+
+__all__ = ["DEFAULT_QUANTITIES", "DEFAULT_TOLERANCE", "check_request", "plan", "plan_text",
+           "solve_auto"]
+
+DEFAULT_TOLERANCE = 0.01
+DEFAULT_QUANTITIES = ("F_T", "sigma0")
+# "Closest" when nothing is within tolerance of the unavoidable error: candidates whose worst
+# error is within this factor of the smallest worst error count as equally close.
+CLOSEST_SLACK = 1.1
+
+_DATA: PlannerData | None = None
+
+
+def _data(data: PlannerData | None) -> PlannerData:
+    global _DATA
+    if data is not None:
+        return data
+    if _DATA is None:
+        _DATA = load_data()
+    return _DATA
+
+
+def check_request(tolerance, quantities, budget=None) -> tuple[float, tuple, float | None]:
+    """Validated (tolerance, quantities, budget); InputError naming the option otherwise."""
+    known = [q.key for q in QUANTITIES]
+    if isinstance(quantities, str):
+        quantities = [q.strip() for q in quantities.split(",") if q.strip()]
+    quantities = tuple(quantities or DEFAULT_QUANTITIES)
+    bad = [q for q in quantities if q not in known]
+    if bad:
+        raise InputError(f"--quantities {','.join(bad)}: unknown; allowed: {', '.join(known)}")
+    try:
+        tolerance = float(tolerance)
+    except (TypeError, ValueError):
+        raise InputError(f"--tolerance {tolerance!r}: expected a number") from None
+    if not (math.isfinite(tolerance) and 0.0 < tolerance < 1.0):
+        raise InputError(f"--tolerance {tolerance!r}: allowed range is (0, 1) (a relative "
+                         "error: 0.01 is 1 %)")
+    if budget is not None:
+        budget = float(budget)
+        if not (math.isfinite(budget) and budget > 0):
+            raise InputError(f"--budget {budget!r}: must be a number of seconds > 0")
+    return tolerance, quantities, budget
+
+
+def _candidate(scene, x, reg, cand, data, quantities, free) -> dict:
+    """Predictions for one candidate: errors per quantity, time, memory, eligibility."""
+    model, options = cand["model"], dict(cand.get("options", {}))
+    out = {"label": cand.get("label", model), "model": model, "options": options,
+           "errors": {}, "time_s": None, "memory_MB": None, "eligible": False, "why": ""}
+    if reg["name"] not in cand.get("regimes", ()):
+        out["why"] = cand.get("scope", f"not for {reg['label']} scenes")
+        return out
+    disc = [] if cand.get("closed_form") else data.tables_for(model, options, reg["name"],
+                                                              "discretisation")
+    if not cand.get("closed_form") and not disc:
+        out["why"] = f"no measured convergence for {reg['name']} scenes"
+        return out
+    components = data.tables_for(model, {}, reg["name"], "model")
+    scale = float(data.policy["margin_scale"])
+    extrapolated = set()
+    for q in quantities:
+        parts = {}
+        if disc:
+            pred = disc[0].predict(x, q)
+            if pred is None:
+                out["why"] = f"no measured convergence of {q} for {reg['name']} scenes"
+                return out
+            parts["discretisation"] = pred[0] * disc[0].margin(q, x, scale)
+            if pred[1]:
+                extrapolated.add(f"discretisation ({', '.join(disc[0].features)})")
+        for t in components:
+            pred = t.predict(x, q)
+            if pred is None:
+                continue
+            share = abs(pred[0]) + t.margin(q, x, scale)
+            parts[t.component] = parts.get(t.component, 0.0) + share
+            if pred[1]:
+                extrapolated.add(f"{t.component} ({', '.join(t.features)})")
+        model_part = sum(v for k, v in parts.items() if k != "discretisation")
+        if cand.get("closed_form") and not parts:
+            out["why"] = f"error of {q} not measured for {reg['name']} scenes"
+            return out
+        out["errors"][q] = {"total": parts.get("discretisation", 0.0) + model_part,
+                            "model": model_part, "parts": parts}
+    out["extrapolated"] = sorted(extrapolated)
+    fit = data.costs.get(model)
+    if fit is None:
+        out["why"] = "no cost measurement"
+        return out
+    try:
+        time_s, memory = fit.predict(scene, options)
+    except (InputError, ValueError) as exc:
+        out["why"] = f"refused: {exc}"
+        return out
+    out["time_s"], out["memory_MB"] = time_s, memory / 2**20
+    if memory > MEMORY_SHARE * free:
+        out["why"] = (f"needs ~{memory / 2**30:.3g} GiB, more than {MEMORY_SHARE:.0%} of the "
+                      f"{free / 2**30:.3g} GiB available")
+        return out
+    out["eligible"] = True
+    return out
+
+
+def plan(scene: Scene, tolerance: float = DEFAULT_TOLERANCE, quantities=DEFAULT_QUANTITIES,
+         budget: float | None = None, data: PlannerData | None = None) -> dict:
+    """The plan for ``scene``: regime, every candidate's predicted errors, time and memory,
+    and the choice with its reason (JSON-ready).
+
+    Parameters
+    ----------
+    scene : Scene
+    tolerance : float
+        Relative error allowed on every requested quantity (0.01 = 1 %).
+    quantities : sequence of str or str
+        Among F_T, sigma0, a, A (comma-separated string accepted).
+    budget : float, optional
+        Wall time (s) a candidate may take at most.
+    data : PlannerData, optional
+        Error and cost models (default: the shipped ones).
+    """
+    tolerance, quantities, budget = check_request(tolerance, quantities, budget)
+    data = _data(data)
+    reg = regime(scene)
+    x = features(scene, reg)
+    free = available_memory()
+    cands = [_candidate(scene, x, reg, c, data, quantities, free) for c in data.candidates]
+    for c in cands:
+        if c["eligible"] and budget is not None and c["time_s"] > budget:
+            c["eligible"], c["why"] = False, f"predicted {c['time_s']:.3g} s > budget {budget:g} s"
+    eligible = [c for c in cands if c["eligible"]]
+    choice, within, reason, floor = None, False, "", {}
+    if eligible:
+        floor = {q: min(c["errors"][q]["model"] for c in eligible) for q in quantities}
+        ok = [c for c in eligible if _worst(c, quantities, tolerance) <= 1.0]
+        if ok:
+            choice, within = min(ok, key=lambda c: c["time_s"]), True
+            reason = (f"{choice['label']} is the cheapest model predicted within "
+                      f"{_pct(tolerance)} for {', '.join(quantities)} "
+                      f"({_errors_text(choice, quantities)}; ~{_time_text(choice['time_s'])})")
+        else:
+            short = [q for q in quantities if floor[q] > tolerance]
+            near = [c for c in eligible
+                    if all(c["errors"][q]["total"] <= floor[q] + tolerance for q in quantities)]
+            if near:
+                choice = min(near, key=lambda c: c["time_s"])
+                why_none = "; ".join(
+                    f"{q}: every available model carries >= {_pct(floor[q])} of model error"
+                    f" ({_main_component(eligible, q)})" for q in short) or \
+                    "no candidate's discretisation reaches it"
+                reason = (f"none is predicted within {_pct(tolerance)} ({why_none}); "
+                          f"{choice['label']} is the cheapest within {_pct(tolerance)} of "
+                          f"that unavoidable error ({_errors_text(choice, quantities)}; "
+                          f"~{_time_text(choice['time_s'])})")
+                if reg["name"] == "multi" and any(
+                        _main_component(eligible, q) == "hooke" for q in short):
+                    reason += ("; fem-3d's elastic pillars remove the Hooke error "
+                               "(`--model fem-3d`, minutes)")
+            else:
+                worst = {id(c): max(c["errors"][q]["total"] for q in quantities)
+                         for c in eligible}
+                best = min(worst.values())
+                close = [c for c in eligible if worst[id(c)] <= CLOSEST_SLACK * best]
+                choice = min(close, key=lambda c: c["time_s"])
+                reason = (f"none is predicted within {_pct(tolerance)}; {choice['label']} "
+                          f"comes closest ({_errors_text(choice, quantities)}; "
+                          f"~{_time_text(choice['time_s'])})")
+    else:
+        reason = "no candidate can run this scene: " + "; ".join(
+            f"{c['label']}: {c['why']}" for c in cands)
+    return {"scene": scene.to_dict(), "regime": reg, "features": x, "tolerance": tolerance,
+            "quantities": list(quantities), "budget_s": budget, "candidates": cands,
+            "unavoidable_error": floor,
+            "choice": None if choice is None else {
+                "label": choice["label"], "model": choice["model"],
+                "options": choice["options"], "within_tolerance": within,
+                "predicted_errors": {q: choice["errors"][q]["total"] for q in quantities},
+                "time_s": choice["time_s"], "memory_MB": choice["memory_MB"]},
+            "reason": reason, "data": data.provenance}
+
+
+def _worst(c: dict, quantities, tolerance: float) -> float:
+    return max(c["errors"][q]["total"] for q in quantities) / tolerance
+
+
+def _main_component(cands: list, q: str) -> str:
+    best = min(cands, key=lambda c: c["errors"][q]["model"])
+    parts = {k: v for k, v in best["errors"][q]["parts"].items() if k != "discretisation"}
+    return max(parts, key=parts.get) if parts else "model"
+
+
+def _pct(x: float) -> str:
+    return f"{100 * x:.2g} %"
+
+
+def _time_text(t: float) -> str:
+    return f"{t:.2g} s" if t >= 0.01 else "< 0.01 s"
+
+
+def _errors_text(c: dict, quantities) -> str:
+    return ", ".join(f"{q} {_pct(c['errors'][q]['total'])}" for q in quantities)
+
+
+def plan_text(p: dict) -> str:
+    """The plan as a readable table."""
+    reg = p["regime"]
+    qs = p["quantities"]
+    lines = [f"scene     {p['scene'].get('name', '?')}",
+             f"regime    {reg['label']}: {reg['why']}",
+             f"request   {', '.join(qs)} within {_pct(p['tolerance'])}"
+             + (f", at most {p['budget_s']:g} s" if p["budget_s"] else ""), "",
+             f"{'candidate':<22}{'time':>9}{'memory':>9}"
+             + "".join(f"{'err ' + q:>11}" for q in qs) + "  note"]
+    for c in p["candidates"]:
+        t = "-" if c["time_s"] is None else _time_text(c["time_s"])
+        m = "-" if c["memory_MB"] is None else f"{c['memory_MB']:.0f} MB"
+        errs = "".join(f"{_pct(c['errors'][q]['total']) if q in c['errors'] else '-':>11}"
+                       for q in qs)
+        mark = "<- chosen" if p["choice"] and c["label"] == p["choice"]["label"] else ""
+        note = mark or (c["why"] if not c["eligible"] else "")
+        if c.get("extrapolated") and c["eligible"]:
+            note = (note + " " if note else "") + "(extrapolated)"
+        lines.append(f"{c['label']:<22}{t:>9}{m:>9}{errs}  {note}")
+    lines += ["", f"choice    {p['choice']['label'] if p['choice'] else 'none'}",
+              f"reason    {p['reason']}"]
+    return "\n".join(lines)
+
+
+def compact(p: dict) -> dict:
+    """The plan without the per-candidate details (what a result records)."""
+    return {"regime": p["regime"]["label"], "tolerance": p["tolerance"],
+            "quantities": p["quantities"], "choice": p["choice"], "reason": p["reason"],
+            "unavoidable_error": p["unavoidable_error"],
+            "candidates": [{"label": c["label"], "eligible": c["eligible"],
+                            "time_s": c["time_s"],
+                            "errors": {q: v["total"] for q, v in c["errors"].items()}}
+                           for c in p["candidates"]]}
+
+
+def solve_auto(scene: Scene, tolerance: float = DEFAULT_TOLERANCE,
+               quantities=DEFAULT_QUANTITIES, budget: float | None = None):
+    """Run the planner's choice on ``scene``; the result records the plan in
+    ``diagnostics["plan"]``.  ScopeError when no candidate can run the scene."""
+    from ..registry import run_model
+
+    p = plan(scene, tolerance, quantities, budget)
+    if p["choice"] is None:
+        raise ScopeError(f"auto: {p['reason']}")
+    result = run_model(p["choice"]["model"], scene, **p["choice"]["options"])
+    result.diagnostics["plan"] = compact(p)
+    return result

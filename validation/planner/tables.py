@@ -1,0 +1,315 @@
+"""Measured error tables and cost fits: the data the planner reads, and how it reads them.
+
+The data files (``validation/planner/data/error_models.json``, ``cost_models.json``) are written by
+``pillar-xval calibrate`` and shipped with the package.  Everything model-specific is data:
+a new model, a new rung or a new study adds candidates, tables and fits, not code.
+
+An error table holds one measured relative error per calibration scene (a point in a
+feature space, :mod:`.features`) and quantity.  ``kind`` says what it measures:
+
+- ``discretisation``: |f(option) - f_ref| / |f_ref| of one candidate (a model at one option
+  value) against a converged reference of the same physics; interpolated in log10;
+- ``model``: the signed relative error of a model's physics against a more complete one
+  (``component`` names it: the Hooke pillar against the elastic pillar, the flat punch
+  against the curved lens, a closed form against the lattice, a finite block against a
+  half-space); interpolated linearly.
+
+Interpolation is piecewise linear on the Delaunay triangulation of the points (features
+scaled to [0, 1] by their measured range), and the nearest point outside it: a prediction
+outside the measured range is marked ``extrapolated``.  ``loo`` holds each point's
+leave-one-out misfit (|log10 predicted / measured| for discretisation tables, |predicted -
+measured| for model tables); interpolated at a scene's features it is the local margin the
+planner adds to a prediction, so rough regions of a table carry wide margins and smooth
+ones narrow.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from functools import cached_property
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from scenes import InputError
+
+__all__ = ["CostFit", "DATA_FORMAT", "ErrorTable", "PlannerData", "load_data"]
+
+DATA_FORMAT = "pillar-xval planner data 1"
+# Errors below this are round-off, not discretisation: floor of the log10 interpolation.
+ERROR_FLOOR = 1e-9
+# Discretisation misfits are counted where the measured error is at least this: below it a
+# factor-2 misprediction cannot carry an error past any useful tolerance.
+LOO_RELEVANT = 1e-3
+# The planner's margin: the local leave-one-out misfit times this scale.
+DEFAULT_POLICY = {"margin_scale": 1.0}
+EXTRAPOLATION_SLACK = 0.05
+
+
+@dataclass
+class ErrorTable:
+    """One measured error table (see the module docstring)."""
+
+    kind: str
+    models: list
+    regimes: list
+    features: list
+    points: list
+    errors: dict
+    component: str = "discretisation"
+    option: dict = field(default_factory=dict)
+    source: str = ""
+    note: str = ""
+    loo: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return {k: getattr(self, k) for k in ("kind", "component", "models", "option",
+                                               "regimes", "features", "points", "errors",
+                                               "loo", "source", "note")}
+
+    @property
+    def log_scale(self) -> bool:
+        return self.kind == "discretisation"
+
+    def applies(self, model: str, option: dict, regime: str) -> bool:
+        if model not in self.models or regime not in self.regimes:
+            return False
+        return all(option.get(k) == v for k, v in self.option.items())
+
+    @cached_property
+    def _scaled(self):
+        pts = np.asarray(self.points, dtype=float).reshape(len(self.points), len(self.features))
+        lo, hi = (pts.min(axis=0), pts.max(axis=0)) if len(pts) else (None, None)
+        span = np.where(hi - lo > 0, hi - lo, 1.0) if len(pts) else None
+        return pts, lo, hi, span
+
+    def _values(self, quantity: str) -> tuple[np.ndarray, np.ndarray]:
+        """(points scaled to the unit box, values) where the quantity was measured (a
+        calibration scene without a converged reference of a quantity holds None)."""
+        pts, lo, hi, span = self._scaled
+        v = np.array([np.nan if e is None else e for e in self.errors[quantity]], dtype=float)
+        keep = np.isfinite(v)
+        v = v[keep]
+        v = np.log10(np.maximum(np.abs(v), ERROR_FLOOR)) if self.log_scale else v
+        return (pts[keep] - lo) / span, v
+
+    def predict(self, x: dict, quantity: str) -> tuple[float, bool] | None:
+        """(error, extrapolated) at features ``x``; None when the table lacks the quantity."""
+        if quantity not in self.errors or not self.points:
+            return None
+        pts, lo, hi, span = self._scaled
+        scaled, vals = self._values(quantity)
+        if not len(vals):
+            return None
+        q = np.array([float(x[f]) for f in self.features])
+        value, _ = _interpolate(scaled, vals, (q - lo) / span)
+        # Beyond the measured range by more than EXTRAPOLATION_SLACK of it: extrapolated
+        # (inside the range but outside the triangulation, the nearest point stands in).
+        slack = EXTRAPOLATION_SLACK * span
+        outside = bool(self.features) and bool(np.any(q < lo - slack) or np.any(q > hi + slack))
+        return (10.0 ** value if self.log_scale else value), outside
+
+    def margin(self, quantity: str, x: dict, scale: float = 1.0) -> float:
+        """The local leave-one-out misfit at ``x`` (the misfits of the measured points,
+        interpolated like the errors), times ``scale``: a factor for discretisation tables,
+        an absolute error for model ones; none (1 or 0) where it was not measured."""
+        misfits = self.loo.get(quantity)
+        none = 1.0 if self.log_scale else 0.0
+        if not misfits:
+            return none
+        pts, lo, hi, span = self._scaled
+        m = np.array([np.nan if v is None else v for v in misfits], dtype=float)
+        keep = np.isfinite(m)
+        if not keep.any():
+            return none
+        q = np.array([float(x[f]) for f in self.features])
+        value, _ = _interpolate((pts[keep] - lo) / span, m[keep], (q - lo) / span)
+        value = max(value, 0.0) * scale
+        return 10.0 ** value if self.log_scale else value
+
+    def leave_one_out(self) -> dict:
+        """Each measured point's leave-one-out misfit (the point predicted from the others):
+        |log10 ratio| in discretisation tables, where the measured error is at least
+        :data:`LOO_RELEVANT` (None below); |difference| in model tables.  Lists aligned with
+        ``errors``; a quantity measured on fewer than three points has none."""
+        out = {}
+        pts, lo, hi, span = self._scaled
+        for quantity, raw in self.errors.items():
+            v = np.array([np.nan if e is None else e for e in raw], dtype=float)
+            idx = np.nonzero(np.isfinite(v))[0]
+            if len(idx) < 3:
+                continue
+            vals = np.log10(np.maximum(np.abs(v), ERROR_FLOOR)) if self.log_scale else v
+            scaled = (pts - lo) / span
+            miss = [None] * len(raw)
+            for i in idx:
+                if self.log_scale and vals[i] < np.log10(LOO_RELEVANT):
+                    continue
+                others = idx[idx != i]
+                pred, _ = _interpolate(scaled[others], vals[others], scaled[i])
+                miss[i] = float(abs(pred - vals[i]))
+            out[quantity] = miss
+        return out
+
+
+def _interpolate(points: np.ndarray, values: np.ndarray, q: np.ndarray) -> tuple[float, bool]:
+    """Piecewise-linear interpolation of scattered ``values`` at ``q`` (all scaled to the
+    unit box): multilinear on a tensor grid (:func:`_grid_interpolate`), else on the Delaunay
+    triangulation; nearest neighbour outside it.  Returns (value, outside)."""
+    n, dim = points.shape if points.ndim == 2 else (len(points), 0)
+    if dim == 0 or n == 1:
+        return float(np.mean(values)), False
+    if dim == 1:
+        order = np.argsort(points[:, 0])
+        x, v = points[order, 0], values[order]
+        outside = bool(q[0] < x[0] or q[0] > x[-1])
+        return float(np.interp(q[0], x, v)), outside
+    grid = _grid_interpolate(points, values, q)
+    if grid is not None:
+        return grid
+    if n > dim:
+        from scipy.interpolate import LinearNDInterpolator
+        from scipy.spatial import QhullError
+
+        try:
+            value = float(LinearNDInterpolator(points, values)(q[None, :])[0])
+        except (QhullError, ValueError):
+            value = math.nan
+        if math.isfinite(value):
+            return value, False
+    nearest = int(np.argmin(np.sum((points - q[None, :]) ** 2, axis=1)))
+    return float(values[nearest]), True
+
+
+# A table is a tensor grid when its points take few distinct values per feature and fill at
+# least this share of their combinations (failed calibration cases leave holes).
+GRID_FILL = 0.6
+
+
+def _grid_interpolate(points, values, q):
+    """Multilinear interpolation when the points lie on a tensor grid (a Gecit-like study):
+    a triangulation of an anisotropic grid makes long thin simplices that mix far rows.  The
+    cell's missing corners are left out and the weights renormalised (all missing: the
+    nearest measured point); outside the grid the query is clamped to it.  None when the
+    points are no grid."""
+    axes = [np.unique(np.round(points[:, k], 12)) for k in range(points.shape[1])]
+    cells = math.prod(len(a) for a in axes)
+    if any(len(a) < 2 for a in axes) or cells > 10 * len(points) or \
+            len(points) < GRID_FILL * cells:
+        return None
+    index = tuple(np.searchsorted(a, np.round(points[:, k], 12)) for k, a in enumerate(axes))
+    table = np.full([len(a) for a in axes], np.nan)
+    table[index] = values
+    if np.count_nonzero(np.isfinite(table)) != len(values):
+        return None  # repeated points: not a grid
+    outside = False
+    lower, frac = [], []
+    for k, a in enumerate(axes):
+        x = float(np.clip(q[k], a[0], a[-1]))
+        outside |= x != q[k]
+        i = min(int(np.searchsorted(a, x, side="right")) - 1, len(a) - 2)
+        lower.append(i)
+        frac.append((x - a[i]) / (a[i + 1] - a[i]))
+    total = weight = 0.0
+    for corner in np.ndindex(*(2,) * len(axes)):
+        v = table[tuple(i + c for i, c in zip(lower, corner))]
+        w = math.prod(f if c else 1.0 - f for f, c in zip(frac, corner))
+        if np.isfinite(v) and w > 0:
+            total += w * v
+            weight += w
+    if weight <= 1e-12:  # every corner missing: the nearest measured node
+        return float(values[np.argmin(np.sum((points - q[None, :]) ** 2, axis=1))]), True
+    return total / weight, outside
+
+
+@dataclass
+class CostFit:
+    """Time and memory of one model's solves on this machine.
+
+    time (s) = sum_k coef_k n^powers_k with n = exp(``term``) of the size function ``size``
+    of :mod:`.costs` applied to the model option ``option`` (n: the dense BEM's
+    unknowns, the FFT's padded points, the FEM's unknowns; a constant for closed forms), so
+    that a fixed start-up, assembly (n^2) and dense solves (n^3) each keep their own law when
+    extrapolated; ``rms`` is the fit's residual in ln(time).  ``memory``:
+    ``{"kind": "estimate"}`` takes the size function's own estimate,
+    ``{"kind": "per_point", "fixed": B, "per_point": b}`` a line in the FFT's padded points,
+    ``{"kind": "fixed", "fixed": B}`` a constant (bytes).
+    """
+
+    model: str
+    size: str
+    option: str | None
+    term: str | None
+    powers: list
+    coef: list
+    rms: float = 0.0
+    memory: dict = field(default_factory=dict)
+    samples: int = 0
+
+    def to_dict(self) -> dict:
+        return {k: getattr(self, k) for k in ("model", "size", "option", "term", "powers",
+                                               "coef", "rms", "memory", "samples")}
+
+    def time(self, n: float) -> float:
+        return float(sum(c * n**p for c, p in zip(self.coef, self.powers)))
+
+    def predict(self, scene, options: dict) -> tuple[float, float]:
+        """(wall time s, peak memory bytes) of the model with ``options`` on ``scene``."""
+        from .costs import size_terms
+
+        value = options.get(self.option) if self.option else None
+        terms, estimate = size_terms(self.size, scene, value)
+        n = math.exp(terms[self.term]) if self.term else 1.0
+        kind = self.memory.get("kind", "fixed")
+        if kind == "estimate" and estimate is not None:
+            memory = estimate
+        elif kind == "per_point":
+            memory = self.memory["fixed"] + self.memory["per_point"] * math.exp(
+                terms["log_points"])
+        else:
+            memory = self.memory.get("fixed", 0.0)
+        return self.time(n), float(memory)
+
+
+@dataclass
+class PlannerData:
+    """The candidates, error tables and cost fits the planner works from."""
+
+    candidates: list
+    tables: list
+    costs: dict
+    provenance: dict = field(default_factory=dict)
+    policy: dict = field(default_factory=lambda: dict(DEFAULT_POLICY))
+
+    def tables_for(self, model: str, option: dict, regime: str, kind: str) -> list:
+        return [t for t in self.tables if t.kind == kind and t.applies(model, option, regime)]
+
+
+def data_dir() -> Path:
+    return Path(str(resources.files("validation.planner") / "data"))
+
+
+def load_data(folder: str | Path | None = None) -> PlannerData:
+    """Read ``error_models.json`` and ``cost_models.json`` (default: the shipped ones)."""
+    folder = Path(folder) if folder is not None else data_dir()
+    try:
+        errors = json.loads((folder / "error_models.json").read_text())
+        costs = json.loads((folder / "cost_models.json").read_text())
+    except FileNotFoundError as exc:
+        raise InputError(f"planner data: {exc.filename} is missing; run "
+                         "`pillar-xval calibrate --out validation/planner/data` (make calibrate)") \
+            from None
+    for doc, name in ((errors, "error_models.json"), (costs, "cost_models.json")):
+        if doc.get("format") != DATA_FORMAT:
+            raise InputError(f"planner data: {folder / name} is not in the format "
+                             f"{DATA_FORMAT!r}; regenerate it with make calibrate")
+    return PlannerData(
+        candidates=errors["candidates"],
+        tables=[ErrorTable(**t) for t in errors["tables"]],
+        costs={m: CostFit(**c) for m, c in costs["models"].items()},
+        provenance={"errors": errors.get("provenance", {}),
+                    "costs": costs.get("provenance", {})},
+        policy={**DEFAULT_POLICY, **errors.get("policy", {})})

@@ -1,0 +1,101 @@
+"""The model registry: one declaration per model (:mod:`.models`), and the one path that runs
+a model (:func:`run_model`), used by the CLI, the engine and the planner.
+
+- :class:`Model` (:mod:`.model`): name, solver, options with their allowed values, ladder,
+  physics, expected order, planner scopes, cost law, the studies' settings;
+- :class:`OptionSpec` and the option specs (:mod:`.options`), read from the solvers' own
+  constants; :func:`check_option`, :func:`flag`;
+- :class:`Ladder` and the compared :data:`QUANTITIES` (:mod:`.ladders`).
+
+Everything else is derived from the declarations: :data:`MODEL_OPTIONS` (the CLI's option
+vocabulary, :func:`option_vocabulary`), :func:`ladders`, :func:`candidates` (the planner's),
+... : functions of :data:`MODELS`, so that a model registered later (a test's fake) joins them.
+"""
+
+from __future__ import annotations
+
+from outcome import ContactResult
+from scenes import InputError, Scene
+
+from .ladders import QUANTITIES, Ladder, Quantity, quantity_values
+from .model import CostLaw, Model
+from .models import DECLARED
+from .options import OptionSpec, check_option, flag
+
+__all__ = ["MODELS", "QUANTITIES", "CostLaw", "Ladder", "Model", "OptionSpec", "Quantity",
+           "candidates", "check_option", "family_options", "flag", "get_model", "ladder_for",
+           "ladders", "model_names", "option_vocabulary", "quantity_values", "run_model"]
+
+# Every model by its --model name, in declaration order (tests register fakes here).
+MODELS: dict[str, Model] = {m.name: m for m in DECLARED}
+
+
+def model_names() -> list[str]:
+    return sorted(MODELS)
+
+
+def get_model(name: str) -> Model:
+    """The declaration of ``name``; InputError (one line) for an unknown name."""
+    if name not in MODELS:
+        raise InputError(f"--model {name!r}: unknown; available: {', '.join(model_names())}")
+    return MODELS[name]
+
+
+def run_model(name: str, scene: Scene, *, vtu_path=None, progress=None,
+              **options) -> ContactResult:
+    """Run model ``name`` on ``scene``: the one path of the CLI, the engine and the planner.
+
+    Options the model does not take, and those that are None (the model's default), are left
+    out; ``vtu_path`` and ``progress`` go to a solver that has them (:meth:`Model.run`)."""
+    return get_model(name).run(scene, options, vtu_path=vtu_path, progress=progress)
+
+
+def option_vocabulary() -> dict[str, OptionSpec]:
+    """Every option of every registered model, by name, with one spec per name (the hull of
+    the models' ranges where they differ: :meth:`OptionSpec.hull`)."""
+    out: dict[str, OptionSpec] = {}
+    for model in MODELS.values():
+        for name, spec in model.options.items():
+            out[name] = out[name].hull(spec) if name in out else spec
+    return out
+
+
+def family_options() -> list[str]:
+    """The refinement options, one per model family."""
+    return [name for name, spec in option_vocabulary().items() if spec.family]
+
+
+def ladders() -> dict[str, Ladder]:
+    """The ladder of every model that has one, in declaration order."""
+    return {m.name: m.ladder for m in MODELS.values() if m.ladder is not None}
+
+
+def ladder_for(model: str) -> Ladder:
+    """The refinement ladder of ``model``; InputError (one line) for a model without one."""
+    known = ladders()
+    if model not in known:
+        raise InputError(f"--model {model!r}: no refinement ladder; known: "
+                         f"{', '.join(sorted(known))}")
+    return known[model]
+
+
+def candidates() -> list[dict]:
+    """The planner's candidates: each rung of each candidate model's ladder, then the closed
+    forms, with the regimes where each may run and why not elsewhere."""
+    out = []
+    for model in MODELS.values():
+        if not model.candidate or model.ladder is None:
+            continue
+        ladder = model.ladder
+        short = model.options[ladder.option].short or ladder.option
+        for value in ladder.rungs:
+            out.append({"model": model.name, "options": ladder.options_at(value),
+                        "label": f"{model.name} {short}={value:g}",
+                        "regimes": list(model.scopes), "scope": model.scope_note,
+                        "closed_form": False})
+    for model in MODELS.values():
+        if model.candidate and model.ladder is None:
+            out.append({"model": model.name, "options": {}, "label": model.name,
+                        "regimes": list(model.scopes), "scope": model.scope_note,
+                        "closed_form": True})
+    return out

@@ -1,0 +1,290 @@
+"""The paper's Figs. 3-8 drawn from the data of :mod:`validation.studies.figures`.
+
+Each function takes the figure's data (SI inside, as the study returns it) and a path, and
+writes one PNG; axes are in the paper's units (um, kPa, uN) and scales (log where the paper's
+quantities span decades).  Every title states the paper's convention E_s = E_p.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ...output.report import save_figure
+
+UM, KPA = 1e6, 1e-3
+CONVENTION = "Table 1, E_s = E_p"
+RATIO_STYLES = {1e-3: "-.", 1.0: "-", 1e6: "--"}
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _ratio_label(ratio: float) -> str:
+    k = math.log10(ratio)
+    if abs(k - round(k)) < 1e-9 and k != 0:
+        return f"E_p/E_l = 10{_superscript(int(round(k)))}"
+    return f"E_p/E_l = {ratio:g}"
+
+
+def _superscript(k: int) -> str:
+    return str(k).translate(str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹"))
+
+
+def _dress(ax, xlabel: str, ylabel: str, title: str, legend: str | None = None, **legend_kw):
+    """Labels, a title, a light grid and (unless ``legend`` is None) a small legend."""
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=10, pad=legend_kw.pop("pad", None))
+    ax.grid(True, which="both", alpha=0.25)
+    if legend is not None:
+        ax.legend(fontsize=7, loc=legend, **legend_kw)
+
+
+def _ratio_colours(ratios):
+    """Hard (red) to soft (violet), as in the paper's Fig. 4a."""
+    plt = _pyplot()
+    logs = np.log10(ratios)
+    span = (logs.max() - logs.min()) or 1.0
+    return {r: plt.cm.rainbow(0.95 * (lg - logs.min()) / span) for r, lg in zip(ratios, logs)}
+
+
+# --- Fig. 3 -----------------------------------------------------------------------------
+def plot_fig3(panels: list[dict], path: Path, pixels: int = 520, dpi: int = 120) -> Path:
+    """Pressure maps (left, images on the element grid) and sigma(r) along theta = 0 (right),
+    one row per scene.  ``panels``: dicts with ``result``, ``map`` (ElementMap), ``extent``,
+    ``hertz``, ``punch`` (closed forms) and ``phi``."""
+    plt = _pyplot()
+    from matplotlib import cm, colors
+
+    fig, axes = plt.subplots(len(panels), 2, figsize=(12.5, 4.9 * len(panels)),
+                             gridspec_kw={"width_ratios": [1.25, 1]}, squeeze=False)
+    for (ax_map, ax_prof), p in zip(axes, panels):
+        res, emap = p["result"], p["map"]
+        img, ext = emap.image(p["extent"], pixels)
+        positive = img[np.isfinite(img) & (img > 0)]
+        vmax = float(np.percentile(positive, 99.0)) * KPA if positive.size else 1.0
+        norm = colors.Normalize(0.0, vmax)
+        rgba = cm.viridis(norm(np.nan_to_num(img) * KPA))
+        rgba[np.isfinite(img) & (img <= 0)] = (0.86, 0.86, 0.86, 1.0)  # top out of contact
+        rgba[~np.isfinite(img)] = (1.0, 1.0, 1.0, 1.0)                 # between the pillars
+        um_ext = [v * UM for v in ext]
+        ax_map.imshow(rgba, origin="lower", extent=um_ext, interpolation="nearest")
+        fig.colorbar(cm.ScalarMappable(norm, "viridis"), ax=ax_map, extend="max",
+                     label="contact pressure σ (kPa)")
+        reach = um_ext[1]
+        for angle in (0.0, math.pi / 6):
+            ax_map.plot([0, reach * math.cos(angle)], [0, reach * math.sin(angle)], "r-.",
+                        lw=1.0, label="primitive cell" if angle else None)
+        a = res.contact_radius_m * UM
+        t = np.linspace(0, math.pi / 2, 200)
+        ax_map.plot(a * np.cos(t), a * np.sin(t), "r:", lw=1.4, label="contact radius a")
+        ax_map.set_xlim(um_ext[0], um_ext[1])
+        ax_map.set_ylim(um_ext[2], um_ext[3])
+        ax_map.set_aspect("equal")
+        ax_map.set_xlabel("x (µm)")
+        ax_map.set_ylabel("y (µm)")
+        ax_map.legend(loc="upper right", fontsize=8, framealpha=0.9)
+        ax_map.set_title(f"Φ = {p['phi']:g}: {res.pillars_in_contact} pillars in contact, "
+                         f"F_T = {res.total_force_N * UM:.3g} µN", fontsize=10)
+
+        r, s = emap.along_x(max(res.contact_radius_m * 1.1, p["hertz"].contact_radius * 1.05))
+        ax_prof.plot(r * UM, np.where(np.isfinite(s), s, np.nan) * KPA, color="0.2", lw=1.0,
+                     label="BEM, along θ = 0")
+        ax_prof.plot(r * UM, p["hertz"].pressure(r) * KPA, "b-", lw=1.2, label="Hertz")
+        d2 = emap.radius
+        rp = np.linspace(0, 0.995 * d2, 300)
+        ax_prof.plot(rp * UM, p["punch"].pressure(rp) * KPA, "g-", lw=1.2,
+                     label="soft flat punch (eq. S0SFP)")
+        s0 = res.centre_pressure_Pa
+        ah = res.contact_radius_m
+        ax_prof.plot(r * UM, s0 * np.sqrt(np.clip(1 - (r / ah) ** 2, 0, None)) * KPA, "r--",
+                     lw=1.2, label="Hertz-like (σ₀, a of the BEM)")
+        ax_prof.set_ylim(0, 4.0 * max(s0, p["hertz"].centre_pressure) * KPA)
+        ax_prof.set_xlim(0, r[-1] * UM)
+        ax_prof.set_xlabel("r (µm)")
+        ax_prof.set_ylabel("σ (kPa)")
+        ax_prof.legend(fontsize=8)
+        ax_prof.set_title(f"σ₀ = {s0 * KPA:.3g} kPa, a = {ah * UM:.3g} µm",
+                          fontsize=10)
+    fig.suptitle(f"Fig. 3: contact pressure at ζ = 0.3 µm, "
+                 f"E_p = E_s = E_l = 1.6 MPa ({CONVENTION})", fontsize=11)
+    return save_figure(fig, path, dpi)
+
+
+# --- Fig. 4 -----------------------------------------------------------------------------
+def plot_fig4(curves: dict, area_rows: list[dict], path: Path, dpi: int = 120) -> Path:
+    """(a) sigma_0(Phi) at zeta = 0.3 um per E_p/E_l with the fitted master curves;
+    (b) A against pi a^2 at E_p = E_l per Phi, with A = Phi pi a^2."""
+    plt = _pyplot()
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(14.5, 5.4),
+                                 gridspec_kw={"width_ratios": [1.25, 1]})
+    colours = _ratio_colours(sorted(curves, reverse=True))
+    for ratio in sorted(curves, reverse=True):
+        c = curves[ratio]
+        ax.loglog(c["phi"], np.asarray(c["sigma0_Pa"]) * KPA, "o", ms=4,
+                  color=colours[ratio], label=_ratio_label(ratio))
+        phis = np.geomspace(min(c["phi"]), max(c["phi"]), 200)
+        ax.loglog(phis, np.asarray(c["master_Pa"](phis)) * KPA, "-", lw=1.0,
+                  color=colours[ratio])
+    # Ten stiffness ratios: the legend goes beside the axes, clear of the curves.
+    _dress(ax, "surface fraction Φ", "centre pressure σ₀ (kPa)",
+           "(a) σ₀ at ζ = 0.3 µm; lines: master curve with fitted Φ_S, Φ_H", "upper left",
+           bbox_to_anchor=(1.01, 1.0), frameon=False)
+
+    phis = sorted({r["phi"] for r in area_rows}, reverse=True)
+    cmap = plt.cm.rainbow
+    for k, phi in enumerate(phis):
+        rows = sorted((r for r in area_rows if r["phi"] == phi), key=lambda r: r["zeta_m"])
+        apparent = np.array([math.pi * r["a_m"] ** 2 for r in rows]) * UM**2
+        real = np.array([r["A_m2"] for r in rows]) * UM**2
+        colour = cmap(0.95 * k / max(1, len(phis) - 1))
+        bx.loglog(apparent, real, "o-", ms=3.5, lw=0.8, color=colour, label=f"Φ = {phi:g}")
+        # A = Phi pi a^2 where it exceeds one pillar top: the large-zeta asymptote.
+        start = max(apparent.min(), 0.8 * real.min() / phi)
+        if start < apparent.max():
+            line = np.geomspace(start, apparent.max(), 20)
+            bx.loglog(line, phi * line, "--", lw=0.8, color=colour)
+    _dress(bx, "apparent contact area π a² (µm²)", "real contact area A (µm²)",
+           "(b) E_p = E_l, ζ = 0.005-0.5 µm; dashed: A = Φ π a²", "upper left")
+    fig.suptitle(f"Fig. 4 ({CONVENTION})", fontsize=11)
+    return save_figure(fig, path, dpi)
+
+
+# --- Fig. 5 -----------------------------------------------------------------------------
+def plot_fig5(rows: list[dict], closed_form, rigid_Pa: float, path: Path,
+              dpi: int = 120) -> Path:
+    """sigma_0S against E_l/E_p at Phi = 2.3e-3 with eq. S0BvsE (``closed_form(x)``, Pa)."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7, 5))
+    x = np.array([r["El_over_Ep"] for r in rows])
+    y = np.array([r["sigma0_Pa"] for r in rows])
+    line = np.geomspace(x.min() / 2, x.max() * 2, 300)
+    ax.semilogx(line, closed_form(line) * KPA, "r-", lw=1.3, label="eq. S0BvsE (spring model)")
+    ax.semilogx(x, y * KPA, "ko", ms=5, label="exact BEM, one pillar")
+    ax.axhline(rigid_Pa * KPA, color="0.5", ls=":", lw=1,
+               label="rigid punch, σ₀S(E_p → ∞)")
+    _dress(ax, "E_l/E_p", "σ₀S (kPa)",
+           f"Fig. 5: single pillar, Φ = 2.3e-3, ζ = 0.3 µm ({CONVENTION})", "lower left")
+    return save_figure(fig, path, dpi)
+
+
+# --- Fig. 6 -----------------------------------------------------------------------------
+def plot_fig6(points: list[dict], area_exponent: float | None, path: Path,
+              dpi: int = 120) -> Path:
+    """(a) sigma_0* against Phi* with (1 + Phi*)^-3; (b) A* against Phi with Phi^0.7 (and
+    our fitted exponent).  ``points``: dicts with ``zeta_m``, ``ratio``, ``phi``,
+    ``phi_star``, ``sigma_star``, ``area_star``."""
+    plt = _pyplot()
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(13, 5.2))
+    zetas = sorted({p["zeta_m"] for p in points})
+    norm = plt.Normalize(min(zetas) * UM, max(zetas) * UM)
+    markers = {1e-3: "v", 1.0: "o", 1e6: "^"}
+    for ratio in sorted({p["ratio"] for p in points}):
+        sel = [p for p in points if p["ratio"] == ratio]
+        xs = np.array([p["phi_star"] for p in sel])
+        ys = np.array([p["sigma_star"] for p in sel])
+        cs = np.array([p["zeta_m"] for p in sel]) * UM
+        keep = (xs > 0) & (ys > 0)
+        sc = ax.scatter(xs[keep], ys[keep], c=cs[keep], cmap="viridis", norm=norm, s=14,
+                        marker=markers.get(ratio, "s"), label=_ratio_label(ratio))
+        a_star = np.array([p["area_star"] for p in sel])
+        phis = np.array([p["phi"] for p in sel])
+        keep_a = a_star > 0
+        bx.scatter(phis[keep_a], a_star[keep_a], c=cs[keep_a], cmap="viridis", norm=norm, s=14,
+                   marker=markers.get(ratio, "s"), label=_ratio_label(ratio))
+    line = np.geomspace(1e-2, 10, 200)
+    ax.loglog(line, (1 + line) ** -3, "k-", lw=1.3, label="(1 + Φ*)⁻³ (paper)")
+    ax.set_xlim(1e-2, 10)
+    ax.set_ylim(1e-3, 2)
+    _dress(ax, "Φ* = (Φ - Φ_S)/Φ_H", "σ₀* = (σ₀ - σ₀H)/(σ₀S - σ₀H)",
+           "(a) reduced centre pressure (points with Φ* > 0, σ₀* > 0)", "lower left")
+    fig.colorbar(sc, ax=ax, label="ζ (µm)")
+    lphi = np.geomspace(1e-3, 1, 100)
+    bx.loglog(lphi, lphi**0.7, "k-", lw=1.3, label="Φ^0.7 (paper)")
+    if area_exponent is not None:
+        bx.loglog(lphi, lphi**area_exponent, "k--", lw=1.0,
+                  label=f"Φ^{area_exponent:.2f} (fitted)")
+    _dress(bx, "surface fraction Φ", "A* = (A - A_S)/(A_H - A_S)",
+           "(b) reduced real contact area (points with A* > 0)", "lower right")
+    fig.suptitle(f"Fig. 6: master curves, ζ = 0.05-0.5 µm ({CONVENTION})",
+                 fontsize=11)
+    return save_figure(fig, path, dpi)
+
+
+# --- Figs. 7 and 8 ----------------------------------------------------------------------
+def plot_fig7(t: dict, path: Path, dpi: int = 120) -> Path:
+    """(a) Phi_S and (b) Phi_H against zeta/h: fitted, exact and closed-form."""
+    plt = _pyplot()
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(13, 5.2))
+    for ratio, style in RATIO_STYLES.items():
+        rows = sorted((r for r in t["curves"] if r["ratio"] == ratio), key=lambda r: r["zeta_h"])
+        exact = sorted((r for r in t["exact"] if r["ratio"] == ratio), key=lambda r: r["zeta_h"])
+        if not rows:
+            continue
+        z = np.array([r["zeta_h"] for r in rows])
+        ax.loglog(z, [r["phi_s_fit"] for r in rows], "o", color="tab:blue", ms=4,
+                  mfc="none" if ratio != 1.0 else "tab:blue")
+        ax.loglog([r["zeta_h"] for r in exact], [r["phi_s"] for r in exact], style, color="k",
+                  lw=1.2, label=f"exact (bisection), {_ratio_label(ratio)}")
+        ax.loglog([r["zeta_h"] for r in exact], [r["phi_s_paper"] for r in exact], style,
+                  color="tab:brown", lw=1.0)
+        bx.semilogx(z, [r["phi_h_fit"] for r in rows], "o" + style, color="tab:purple", ms=4,
+                    lw=1.0, label=f"fitted, {_ratio_label(ratio)}")
+        band = [(r["zeta_h"], r["phi_h_band"]) for r in rows if r["phi_h_band"] is not None]
+        if band:
+            bx.semilogx(*zip(*band), "s" + style, color="tab:green", ms=3.5, lw=0.9,
+                        label=f"within {t['band']:.0%} of Hertz, {_ratio_label(ratio)}")
+    ax.plot([], [], "o", color="tab:blue", ms=4, label="fitted (master curve); open: "
+            "E_p/E_l = 10⁻³, 10⁶")
+    ax.plot([], [], "-", color="tab:brown", label="eqs. rSzeta, PhiSrS (paper)")
+    zl = np.array(t["large_zeta"]["zeta_h"])
+    ax.loglog(zl, t["large_zeta"]["phi_s"], "r:", lw=1.6,
+              label="large-ζ limit π d²/(4√3 R ζ)")
+    _dress(ax, "ζ/h", "Φ_S", "(a) single-pillar threshold Φ_S", "upper right")
+    _dress(bx, "ζ/h", "Φ_H", "(b) Hertz threshold Φ_H", "best")
+    fig.suptitle(f"Fig. 7: thresholds against the reduced indentation ({CONVENTION})",
+                 fontsize=11)
+    return save_figure(fig, path, dpi)
+
+
+def plot_fig8(t: dict, path: Path, dpi: int = 120) -> Path:
+    """Phase diagram in (Phi, zeta/h): Hertz beyond Phi_H, one pillar below Phi_S."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(11, 6))
+    for ratio, style in RATIO_STYLES.items():
+        rows = sorted((r for r in t["curves"] if r["ratio"] == ratio), key=lambda r: r["zeta_h"])
+        exact = sorted((r for r in t["exact"] if r["ratio"] == ratio), key=lambda r: r["zeta_h"])
+        if not rows:
+            continue
+        z = [r["zeta_h"] for r in rows]
+        ax.semilogx([r["phi_h_fit"] for r in rows], z, style, color="darkviolet", lw=1.6,
+                    label=f"Φ_H (fit), {_ratio_label(ratio)}")
+        ax.semilogx([r["phi_s_fit"] for r in rows], z, style, color="deepskyblue", lw=1.6,
+                    label=f"Φ_S (fit), {_ratio_label(ratio)}")
+        ax.semilogx([r["phi_s"] for r in exact], [r["zeta_h"] for r in exact], style,
+                    color="k", lw=0.9, label=f"Φ_S (exact), {_ratio_label(ratio)}")
+        ax.semilogx([r["phi_s_paper"] for r in exact], [r["zeta_h"] for r in exact], style,
+                    color="tab:brown", lw=1.0)
+        ax.axhline(t["zeta_t_over_h"][str(ratio)], color="0.6", ls=style, lw=0.8)
+    ax.plot([], [], color="tab:brown", label="eqs. rSzeta, PhiSrS")
+    ax.plot([], [], color="0.6", label="ζ_T/h (Hertz σ₀ = single-pillar σ₀)")
+    zl = np.array(t["large_zeta"]["zeta_h"])
+    ax.semilogx(t["large_zeta"]["phi_s"], zl, "r:", lw=1.8,
+                label="π d²/(4√3 R ζ)")
+    ax.set_xlim(1e-3, 1)
+    ax.set_ylim(0, max(zl) * 1.05)
+    ax.text(0.55, 0.5 * max(zl), "Hertz", ha="center", fontsize=12, color="darkviolet")
+    ax.text(1.6e-3, 0.6 * max(zl), "one pillar\n(SFP)", ha="left", fontsize=11,
+            color="deepskyblue")
+    _dress(ax, "surface fraction Φ", "ζ/h", f"Fig. 8: contact regimes ({CONVENTION})",
+           "upper left", bbox_to_anchor=(1.02, 1.0), frameon=False)
+    return save_figure(fig, path, dpi)

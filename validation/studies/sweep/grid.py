@@ -1,0 +1,265 @@
+"""The grid of a sweep: values (lists, linear and log ranges), axes (crossed, or zipped keys
+that vary together), models with option grids, and the spec file that declares them.  The
+format is documented in :mod:`validation.studies.sweep`."""
+
+from __future__ import annotations
+
+import itertools
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from scenes import InputError, Scene, SceneError, scene_loader
+
+from ...engine import Case
+from ...registry import check_option
+
+_RANGE_KEYS = {"linear", "log", "num"}
+
+
+def linear(start: float, stop: float, num: int) -> list[float]:
+    """``num`` values from ``start`` to ``stop``, evenly spaced, both ends included."""
+    _check_range("linear", start, stop, num)
+    if num == 1:
+        return [float(start)]
+    return [start + (stop - start) * i / (num - 1) for i in range(num)]
+
+
+def log(start: float, stop: float, num: int) -> list[float]:
+    """``num`` values from ``start`` to ``stop``, evenly spaced in log, both ends included."""
+    _check_range("log", start, stop, num)
+    if start <= 0 or stop <= 0:
+        raise InputError(f"log = [{start}, {stop}]: both ends must be > 0")
+    if num == 1:
+        return [float(start)]
+    ratio = math.log(stop / start) / (num - 1)
+    return [start * math.exp(ratio * i) for i in range(num - 1)] + [float(stop)]
+
+
+def _check_range(kind, start, stop, num) -> None:
+    if not isinstance(num, int) or isinstance(num, bool) or num < 1:
+        raise InputError(f"{kind} range: num = {num!r}: must be an integer >= 1")
+    for v in (start, stop):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise InputError(f"{kind} = [{start}, {stop}]: ends must be finite numbers")
+
+
+def _values(key: str, spec) -> list:
+    """A list, or a range table ``{linear|log = [start, stop], num = N}``."""
+    if isinstance(spec, list):
+        if not spec:
+            raise InputError(f"{key} = []: give at least one value")
+        return list(spec)
+    if isinstance(spec, dict) and set(spec) <= _RANGE_KEYS and "num" in spec:
+        kinds = [k for k in ("linear", "log") if k in spec]
+        if len(kinds) != 1 or not isinstance(spec[kinds[0]], list) or len(spec[kinds[0]]) != 2:
+            raise InputError(f"{key} = {spec}: expected {{linear = [start, stop], num = N}} "
+                             "or {log = [start, stop], num = N}")
+        fn = linear if kinds[0] == "linear" else log
+        return fn(*spec[kinds[0]], spec["num"])
+    return [spec]  # a single value: a fixed key of the grid
+
+
+# --- the grid ------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Axis:
+    """One axis of the grid: one or more scene keys whose values vary together."""
+
+    values: dict
+
+    def __post_init__(self):
+        lengths = {k: len(v) for k, v in self.values.items()}
+        if not lengths:
+            raise InputError("an axis needs at least one key")
+        if len(set(lengths.values())) != 1:
+            raise InputError(f"zipped keys need equal lengths; got {lengths}")
+        points = [repr(p) for p in zip(*self.values.values())]
+        repeated = sorted({p for p in points if points.count(p) > 1})
+        if repeated:
+            raise InputError(f"{', '.join(self.values)}: value(s) given more than once "
+                             f"({', '.join(repeated)}); each point of the grid is one case")
+
+    def __len__(self) -> int:
+        return len(next(iter(self.values.values())))
+
+    def point(self, i: int) -> dict:
+        return {k: v[i] for k, v in self.values.items()}
+
+
+def crossed(key: str, values) -> Axis:
+    """An axis of one key (``values``: a list or a range from :func:`linear`/:func:`log`)."""
+    return Axis({key: list(values)})
+
+
+def zipped(values: dict) -> Axis:
+    """An axis of several keys varying together: ``{key: [v0, v1, ...], ...}``."""
+    return Axis({k: list(v) for k, v in values.items()})
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """A model and its options; an option whose value is a list is crossed."""
+
+    name: str
+    options: dict = field(default_factory=dict)
+
+    def option_sets(self) -> list[dict]:
+        keys = sorted(self.options)
+        lists = [v if isinstance(v, list) else [v] for v in (self.options[k] for k in keys)]
+        return [dict(zip(keys, combo)) for combo in itertools.product(*lists)]
+
+
+@dataclass(frozen=True)
+class SweepCase:
+    """One row of the table: the grid point (file units), its scene and the engine case."""
+
+    point: dict
+    scene: Scene
+    case: Case
+
+
+def _override(key: str, value) -> str:
+    if isinstance(value, bool):
+        return f"{key}={'true' if value else 'false'}"
+    return f"{key}={value!r}"
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """A base scene, the axes of its grid (crossed with each other) and the models."""
+
+    scene: str
+    axes: tuple = ()
+    models: tuple = ()
+    overrides: tuple = ()
+    name: str = "sweep"
+    on_invalid: str = "error"
+
+    def __post_init__(self):
+        if not self.models:
+            raise InputError("a sweep needs at least one [[models]] table")
+        if self.on_invalid not in ("error", "skip"):
+            raise InputError(f"on_invalid = {self.on_invalid!r}: allowed: error, skip")
+        keys = [k for a in self.axes for k in a.values]
+        repeated = sorted({k for k in keys if keys.count(k) > 1})
+        if repeated:
+            raise InputError(f"sweep keys given twice: {', '.join(repeated)}")
+
+    @property
+    def keys(self) -> list[str]:
+        return [k for a in self.axes for k in a.values]
+
+    def points(self) -> list[dict]:
+        """Every grid point, the first axis varying slowest."""
+        out = []
+        for idx in itertools.product(*(range(len(a)) for a in self.axes)):
+            point = {}
+            for a, i in zip(self.axes, idx):
+                point.update(a.point(i))
+            out.append(point)
+        return out
+
+    def cases(self) -> tuple[list[SweepCase], list[tuple[dict, str]]]:
+        """(cases, skipped points with the reason).  A point the scene refuses raises an
+        InputError naming the point, unless ``on_invalid = "skip"``."""
+        from ...registry import MODELS, model_names
+
+        for m in self.models:
+            if m.name not in MODELS:
+                raise InputError(f"[[models]] name = {m.name!r}: unknown; available: "
+                                 f"{', '.join(model_names())}")
+            declared = MODELS[m.name].options
+            bad = sorted(set(m.options) - set(declared))
+            if bad:
+                raise InputError(f"[[models]] {m.name}: unknown option(s) {', '.join(bad)}; "
+                                 f"allowed: {', '.join(declared)}")
+            for opts in m.option_sets():  # values the model would refuse, before any solve
+                for k, v in opts.items():
+                    check_option(k, v, where=f"[[models]] {m.name}: {k} =", spec=declared[k])
+        out, skipped = [], []
+        load = scene_loader(self.scene)  # the scene file is read once, not once per point
+        for point in self.points():
+            sets = [*self.overrides, *(_override(k, v) for k, v in point.items())]
+            try:
+                scene = load(sets)
+            except SceneError as exc:
+                if self.on_invalid == "skip":
+                    skipped.append((point, str(exc)))
+                    continue
+                raise SceneError(f"sweep point {_describe(point)}: {exc}") from None
+            for m in self.models:
+                for opts in m.option_sets():
+                    out.append(SweepCase(point, scene, Case(m.name, scene, opts,
+                                                            tag=_describe(point))))
+        return out, skipped
+
+    # --- files ---
+    @classmethod
+    def from_toml(cls, path: str | Path) -> "Sweep":
+        path = Path(path)
+        try:
+            data = tomllib.loads(path.read_text())
+        except FileNotFoundError:
+            raise InputError(f"sweep spec {str(path)!r}: no such file") from None
+        except OSError as exc:
+            raise InputError(f"sweep spec {str(path)!r}: cannot read it "
+                             f"({exc.strerror or exc})") from None
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+            raise InputError(f"sweep spec {path}: not valid TOML ({exc})") from None
+        return cls.from_dict(data, base_dir=path.parent, default_name=path.stem)
+
+    @classmethod
+    def from_dict(cls, data: dict, base_dir: Path = Path("."),
+                  default_name: str = "sweep") -> "Sweep":
+        allowed = {"name", "description", "scene", "set", "on_invalid", "grid", "zip", "models"}
+        unknown = sorted(set(data) - allowed)
+        if unknown:
+            raise InputError(f"sweep spec: unknown key(s) {unknown}; allowed: {sorted(allowed)}")
+        if "scene" not in data:
+            raise InputError("sweep spec: 'scene' (a preset or a scene file) is missing")
+        scene = str(data["scene"])
+        if not _is_preset(scene) and not Path(scene).is_absolute():
+            scene = str(Path(base_dir) / scene)
+        overrides = data.get("set", [])
+        if not isinstance(overrides, list) or not all(isinstance(s, str) for s in overrides):
+            raise InputError("sweep spec: 'set' must be a list of \"table.key=value\" strings")
+        axes = [Axis({k: _values(k, v)}) for k, v in _flatten(data.get("grid", {})).items()]
+        for group in data.get("zip", []):
+            axes.append(Axis({k: _values(k, v) for k, v in _flatten(group).items()}))
+        models = []
+        for m in data.get("models", []):
+            if not isinstance(m, dict) or "name" not in m:
+                raise InputError("sweep spec: every [[models]] table needs a name")
+            models.append(ModelSpec(str(m["name"]), {k: v for k, v in m.items() if k != "name"}))
+        name = str(data.get("name", default_name))
+        if name in ("", ".", "..") or Path(name).name != name or "\\" in name or "\0" in name:
+            raise InputError(f"sweep spec: name = {name!r}: the table files' stem must be a plain "
+                             "file name (no folder, not '..'), so the table stays inside --out")
+        return cls(scene, tuple(axes), tuple(models), tuple(overrides),
+                   name, str(data.get("on_invalid", "error")))
+
+
+def _is_preset(name: str) -> bool:
+    from scenes import preset_names
+
+    return name in preset_names()
+
+
+def _flatten(table: dict, prefix: str = "") -> dict:
+    """Nested TOML tables to dotted keys; range tables are leaves."""
+    if not isinstance(table, dict):
+        raise InputError(f"sweep spec: [grid] and [[zip]] must be tables, got {table!r}")
+    out = {}
+    for k, v in table.items():
+        key = f"{prefix}{k}"
+        if isinstance(v, dict) and not (set(v) <= _RANGE_KEYS and "num" in v):
+            out.update(_flatten(v, key + "."))
+        else:
+            out[key] = v
+    return out
+
+
+def _describe(point: dict) -> str:
+    return " ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}"
+                    for k, v in point.items()) or "base scene"
