@@ -74,3 +74,52 @@ def test_fem3d_converges_at_a_1e9_contrast():
     """The hardest corner of fem-3d in the fast suite (the whole ladder runs under slow)."""
     test_every_model_converges_on_stiff_pillars_and_reaches_the_rigid_limit(
         "fem-3d", {"mesh_size": 4.0}, 1e9)
+
+
+def test_an_option_given_twice_is_refused(cli):
+    code, _, err = cli("solve", "--scene", "hertz", "--elements-per-diameter", "5",
+                       "--elements-per-diameter=7")
+    assert code == 2 and "--elements-per-diameter given twice" in err
+    code, _, _ = cli("solve", "--scene", "hertz", "--elements-per-diameter", "5",
+                     "--set", "lens.nu=0.4", "--set", "lens.E_Pa=1e6", "--json")
+    assert code == 0  # --set repeats by design
+
+
+def _cli(*argv, **kwargs):
+    import subprocess
+    import sys
+
+    return subprocess.Popen([sys.executable, "-c", "import sys; from validation.cli import main; "
+                             "sys.exit(main(sys.argv[1:]))", *map(str, argv)], text=True,
+                            stderr=subprocess.PIPE, **kwargs)
+
+
+def test_closed_stdout_is_refused_before_any_work():
+    """`solve >&-` once solved and exited 0 with the result printed nowhere."""
+    import os
+
+    proc = _cli("solve", "--scene", "hertz", "--json", preexec_fn=lambda: os.close(1))
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 2 and "standard output is closed" in err
+
+
+def test_sigterm_ends_a_sweep_with_one_line_and_keeps_its_cases(tmp_path):
+    import signal
+    import subprocess
+    import time
+
+    spec = tmp_path / "spec.toml"
+    spec.write_text('scene = "single-pillar"\n[grid]\n"load.indentation_um" = '
+                    '{ log = [0.1, 1.0], num = 8 }\n[[models]]\nname = "fem-axisym"\n'
+                    'mesh_size = 0.5\n')
+    proc = _cli("sweep", spec, "--out", tmp_path / "out", "--executor", "serial",
+                stdout=subprocess.DEVNULL)
+    deadline = time.monotonic() + 120
+    while not (tmp_path / "out" / "cases" / "journal.jsonl").exists():
+        assert time.monotonic() < deadline and proc.poll() is None
+        time.sleep(0.2)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143
+    assert err.strip().splitlines()[-1].endswith("terminated (SIGTERM); finished cases are kept")
+    assert "Traceback" not in err

@@ -16,6 +16,7 @@ line on stderr, never a traceback.
 4     an internal error, i.e. a bug: ``--debug`` (or ``PILLAR_XVAL_DEBUG=1``) shows its
       traceback
 130   interrupted (Ctrl-C)
+143   terminated (SIGTERM): one line, and the finished cases of a study stay on disk
 ====  ===========================================================================
 """
 
@@ -24,6 +25,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import signal
 import sys
 import warnings
 
@@ -31,7 +33,8 @@ from outcome import package_version
 from scenes import InputError, ToolError
 
 from ._args import DEBUG_ENV, Parser, add_scene_arguments, one_line
-from ._exit import EXIT_BAD_INPUT, EXIT_INTERNAL_ERROR, EXIT_INTERRUPTED, EXIT_TOOL_FAILURE
+from ._exit import (EXIT_BAD_INPUT, EXIT_INTERNAL_ERROR, EXIT_INTERRUPTED, EXIT_TERMINATED,
+                    EXIT_TOOL_FAILURE)
 
 __all__ = ["COMMANDS", "DEBUG_ENV", "EXIT_INTERNAL_ERROR", "add_scene_arguments",
            "build_parser", "main"]
@@ -50,7 +53,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "units in results; scene files state theirs in the key names.",
         epilog="Exit status: 0 done, 1 not converged, 2 bad input, 3 a tool failed "
                f"(gmsh, a linear solver, files, memory), {EXIT_INTERNAL_ERROR} internal error "
-               "(--debug shows the traceback), 130 interrupted.")
+               "(--debug shows the traceback), 130 interrupted, 143 terminated.")
     parser.add_argument("--version", action="version",
                         version=f"pillar-xval {package_version()}")
     parser.add_argument("--debug", action="store_true",
@@ -79,8 +82,37 @@ def _one_line_warnings(prog: str):
     return show
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread: it unwinds like Ctrl-C (the engine kills its
+    workers, finished cases stay on disk) and exits 143."""
+
+
+def _terminate(signum, frame):
+    raise Terminated()
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run one command; returns the exit status (see the module docstring)."""
+    if sys.stdout is None:  # started with stdout closed: every printed result would be lost
+        print("pillar-xval: error: standard output is closed; redirect it to a file or "
+              "/dev/null", file=sys.stderr or sys.__stderr__)
+        return EXIT_BAD_INPUT
+    previous = _install(signal.SIGTERM, _terminate)
+    try:
+        return _main(argv)
+    finally:
+        _install(signal.SIGTERM, previous)
+
+
+def _install(signum, handler):
+    """Set a signal handler where Python allows it (the main thread); returns the old one."""
+    try:
+        return signal.signal(signum, handler)
+    except (ValueError, TypeError):  # not the main thread, or no handler to restore
+        return None
+
+
+def _main(argv: list[str] | None) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
@@ -93,6 +125,9 @@ def main(argv: list[str] | None = None) -> int:
             warnings.showwarning = _one_line_warnings(prog)
         try:
             return int(args.func(args) or 0)
+        except Terminated:
+            print(f"{prog}: terminated (SIGTERM); finished cases are kept", file=sys.stderr)
+            return EXIT_TERMINATED
         except KeyboardInterrupt:
             print(f"{prog}: interrupted", file=sys.stderr)
             return EXIT_INTERRUPTED

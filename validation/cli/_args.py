@@ -111,7 +111,28 @@ def option_type(name: str):
 
 
 class Parser(argparse.ArgumentParser):
-    """argparse with one-line errors: ``pillar-xval CMD: error: ... (see ... --help)``."""
+    """argparse with one-line errors: ``pillar-xval CMD: error: ... (see ... --help)``, and
+    an option given twice refused (argparse keeps the last silently), unless it is one that
+    repeats by design (``--set``)."""
+
+    def parse_known_args(self, args=None, namespace=None):
+        self._refuse_repeats(list(sys.argv[1:] if args is None else args))
+        return super().parse_known_args(args, namespace)
+
+    def _refuse_repeats(self, args: list[str]) -> None:
+        seen: dict[argparse.Action, str] = {}
+        commands = any(isinstance(a, argparse._SubParsersAction) for a in self._actions)
+        for token in args:
+            if token == "--" or (commands and not token.startswith("-")):
+                break  # the rest is the command's (its own parser checks it) or positional
+            action = self._option_string_actions.get(token.split("=", 1)[0])
+            if action is None or isinstance(action, (argparse._AppendAction,
+                                                     argparse._CountAction)):
+                continue
+            if action in seen:
+                self.error(f"{seen[action]} given twice: give it once (argparse would keep "
+                           "the last silently)")
+            seen[action] = token.split("=", 1)[0]
 
     def error(self, message: str):
         print(f"{self.prog}: error: {one_line(message)} (see {self.prog} --help)",

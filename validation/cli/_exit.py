@@ -11,6 +11,7 @@ a tool underneath failed   :class:`~scenes.ToolError`, memory,     3
                            the file system
 an internal error (a bug)  any other exception                     4
 interrupted                Ctrl-C                                  130
+terminated                 SIGTERM                                 143
 =========================  ======================================  ====
 """
 
@@ -23,3 +24,4 @@ EXIT_TOOL_FAILURE = 3
 # its traceback instead.
 EXIT_INTERNAL_ERROR = 4
 EXIT_INTERRUPTED = 130
+EXIT_TERMINATED = 143  # 128 + SIGTERM, as a shell reports a process the signal ended

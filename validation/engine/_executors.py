@@ -36,6 +36,7 @@ def default_workers() -> int:
 def _die_with_parent(parent_pid: int) -> None:
     """Pool worker initializer: end this process when ``parent_pid`` ends."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # not the CLI's handler, if forked from it
     armed = False
     if sys.platform.startswith("linux"):
         try:
