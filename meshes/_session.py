@@ -20,6 +20,7 @@ def gmsh_model(name: str, what: str):
     if owner:
         # interruptible=False: gmsh must not install a SIGINT handler (threads, pytest).
         gmsh.initialize(interruptible=False)
+        _restore_python_handlers()
     try:
         gmsh.option.setNumber("General.Terminal", 0)
         gmsh.model.add(name)
@@ -33,3 +34,19 @@ def gmsh_model(name: str, what: str):
             gmsh.finalize()
         else:
             gmsh.model.remove()
+
+
+def _restore_python_handlers() -> None:
+    """gmsh's initialize installs its own C handler for SIGTERM (it then ends the process
+    at once, so the CLI's one-line exit 143 and the engine's clean-up never ran): give the
+    signals back to the handlers Python holds for them (main thread only)."""
+    import signal
+
+    for signum in (signal.SIGTERM, signal.SIGINT):
+        handler = signal.getsignal(signum)
+        if handler is None:
+            continue
+        try:
+            signal.signal(signum, handler)
+        except ValueError:  # not the main thread: Python cannot set handlers there
+            pass

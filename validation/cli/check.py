@@ -30,10 +30,12 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
+    from ..output.report import clear_outputs
     from ..studies.check import junit_xml, load_spec, run_checks, table_text
 
     specs = load_spec(args.spec)
     out = check_out(args.out or Path("out") / "check" / args.spec.stem)
+    clear_outputs(out, ("check.json",), "check")
     if args.junit_xml is not None:
         check_out(args.junit_xml.parent, "--junit-xml's folder")
     start = time.perf_counter()

@@ -46,7 +46,7 @@ def run(args) -> int:
     check_ladder(args.model, args.levels, coarsest)
     scene = load_scene(args.scene, args.overrides)
     out = check_out(args.out or Path("out") / "converge" / f"{scene.name}-{args.model}")
-    clear_outputs(out, OUTPUTS)
+    clear_outputs(out, OUTPUTS, "converge")
     with engine_from_args(args, "converge") as engine:
         data = converge_study(args.model, scene, args.levels, out / "cases",
                               coarsest=coarsest, engine=engine)

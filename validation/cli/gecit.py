@@ -64,7 +64,7 @@ def run(args) -> int:
                       mesh_size, args.elements_per_diameter)
     scenes = study_scenes(args.scene, args.overrides, args.ratios, args.aspect)
     out = check_out(args.out or Path("out") / "gecit")
-    clear_outputs(out, OUTPUTS)
+    clear_outputs(out, OUTPUTS, "gecit")
     with engine_from_args(args, "gecit") as engine:
         doc = gecit_study(scenes, out / "cases", engine=engine, mesh_size=mesh_size,
                           elements_per_diameter=args.elements_per_diameter,

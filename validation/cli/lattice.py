@@ -48,7 +48,7 @@ def run(args) -> int:
     levels = ((study.QUICK_FEM_LEVELS, study.QUICK_BEM_LEVELS) if args.quick
               else (study.FEM_LEVELS, study.BEM_LEVELS))
     out = check_out(args.out or Path("out") / "lattice")
-    clear_outputs(out, study.OUTPUTS)
+    clear_outputs(out, study.OUTPUTS, "lattice")
     with engine_from_args(args, "lattice") as engine:
         report = study.lattice_study(out, engine=engine, points=points, fem_levels=levels[0],
                                      bem_levels=levels[1])

@@ -51,7 +51,7 @@ def run(args) -> int:
         from ..output.report import clear_outputs
 
         check_out(args.out)
-        clear_outputs(args.out, OUTPUTS)
+        clear_outputs(args.out, OUTPUTS, "solve")
         vtu_path = args.out / "fields.vtu"  # models with volume fields write them
     result = _solve(args.model, scene, options, vtu_path)
     if args.out is not None:

@@ -55,7 +55,7 @@ def run(args) -> int:
               f"(rough per-model cost model)")
         return 0
     check_out(out)
-    clear_outputs(out, (f"{sweep.name}.csv", f"{sweep.name}.parquet"))
+    clear_outputs(out, (f"{sweep.name}.csv", f"{sweep.name}.parquet"), "sweep")
     with engine_from_args(args, "sweep") as engine:
         pairs = run_sweep_cases(sweep, out, engine=engine)
     rows = table_rows(sweep, pairs)

@@ -67,7 +67,7 @@ def run(args) -> int:
     check_options(names, **options)
     scene = load_scene(args.scene, args.overrides)
     out = check_out(args.out or Path("out") / f"tradeoff-{scene.name}")
-    clear_outputs(out, OUTPUTS)
+    clear_outputs(out, OUTPUTS, "tradeoff")
     with engine_from_args(args, "tradeoff") as engine:
         doc = tradeoff(scene, names, out / "cases", engine=engine, **options)
     write_outputs(doc, out)

@@ -69,13 +69,39 @@ def stamp_not_converged(fig, what: list[str]) -> None:
              va="bottom", zorder=1000)
 
 
-def clear_outputs(out: Path, names) -> None:
-    """Remove the files ``names`` of an earlier report from ``out`` before a new one is
-    computed: a report folder then never holds a mix of old and new files, even when the run
-    is killed (each study writes its main file last, so its presence means a whole report).
-    A file that cannot be removed is a ToolError (exit 3)."""
-    from scenes import ToolError
+# Marks a report folder with the command whose report it holds (one line: the command).
+REPORT_MARK = ".pillar-xval-report"
+# Each command's main file (written last), to know the owner of a folder made before marks.
+MAIN_FILES = {"solve": "result.json", "compare": "report.json", "converge": "converge.json",
+              "tradeoff": "tradeoff.json", "gecit": "gecit.json", "lattice": "lattice.json",
+              "check": "check.json"}
 
+
+def report_owner(out: Path) -> str | None:
+    """The command whose report ``out`` holds (its mark, else its main file), None if none."""
+    out = Path(out)
+    try:
+        mark = (out / REPORT_MARK).read_text(encoding="utf-8").strip()
+    except (OSError, UnicodeDecodeError):
+        mark = ""
+    if mark:
+        return mark
+    return next((cmd for cmd, name in MAIN_FILES.items() if (out / name).is_file()), None)
+
+
+def clear_outputs(out: Path, names, command: str) -> None:
+    """Claim ``out`` for ``command``'s report and remove the files ``names`` of its earlier
+    report before a new one is computed: a report folder then never holds a mix of old and
+    new files, even when the run is killed (each study writes its main file last, so its
+    presence means a whole report), nor the reports of two commands (InputError, exit 2: the
+    other report is the user's and stays).  A file that cannot be removed is a ToolError
+    (exit 3)."""
+    from scenes import InputError, ToolError
+
+    owner = report_owner(out)
+    if owner not in (None, command):
+        raise InputError(f"--out {out}: holds a report of `pillar-xval {owner}`; a report "
+                         f"folder holds one command's report: give {command} another folder")
     for name in names:
         path = Path(out) / name
         try:
@@ -83,6 +109,7 @@ def clear_outputs(out: Path, names) -> None:
                 path.unlink()
         except OSError as exc:
             raise ToolError(f"cannot remove the old {path} ({exc.strerror or exc})") from None
+    write_atomic(Path(out) / REPORT_MARK, command + "\n")
 
 
 def write_solve_report(result: ContactResult, out: Path) -> None:

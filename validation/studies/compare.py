@@ -267,7 +267,7 @@ def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None, leve
     fem_cases = level_cases(fem, scene, levels, coarsest=fem_coarsest, tag="fem",
                             vtu_finest=True)
     bem_cases = level_cases(BEM, scene, levels, coarsest=elements_per_diameter, tag="bem")
-    clear_outputs(out, OUTPUTS)
+    clear_outputs(out, OUTPUTS, "compare")
     own = engine is None
     engine = engine or Engine("serial")
     try:
