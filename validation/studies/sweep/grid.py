@@ -150,6 +150,18 @@ class Sweep:
     def keys(self) -> list[str]:
         return [k for a in self.axes for k in a.values]
 
+    def point_count(self) -> int:
+        """How many grid points (the product of the axes' lengths), without listing them."""
+        return math.prod(len(a) for a in self.axes)
+
+    def point(self, index: int) -> dict:
+        """Grid point ``index`` in :meth:`points` order (mixed radix, the last axis fastest)."""
+        point = {}
+        for a in reversed(self.axes):
+            index, i = divmod(index, len(a))
+            point = {**a.point(i), **point}
+        return point
+
     def points(self) -> list[dict]:
         """Every grid point, the first axis varying slowest."""
         out = []
@@ -160,9 +172,10 @@ class Sweep:
             out.append(point)
         return out
 
-    def cases(self) -> tuple[list[SweepCase], list[tuple[dict, str]]]:
-        """(cases, skipped points with the reason).  A point the scene refuses raises an
-        InputError naming the point, unless ``on_invalid = "skip"``."""
+    def cases(self, indices=None) -> tuple[list[SweepCase], list[tuple[dict, str]]]:
+        """(cases, skipped points with the reason), of every point or of the points
+        ``indices``.  A point the scene refuses raises an InputError naming the point, unless
+        ``on_invalid = "skip"``."""
         from ...registry import MODELS, model_names
 
         for m in self.models:
@@ -179,7 +192,8 @@ class Sweep:
                     check_option(k, v, where=f"[[models]] {m.name}: {k} =", spec=declared[k])
         out, skipped = [], []
         load = scene_loader(self.scene)  # the scene file is read once, not once per point
-        for point in self.points():
+        points = self.points() if indices is None else [self.point(i) for i in indices]
+        for point in points:
             sets = [*self.overrides, *(_override(k, v) for k, v in point.items())]
             try:
                 scene = load(sets)

@@ -94,17 +94,31 @@ def estimate_seconds(case: Case) -> float:
         return UNMEASURED_SECONDS
 
 
+# The time of more uncached cases than this is the mean of a seeded sample times their
+# number: a cost estimate takes milliseconds a case, a million cases would take an hour.
+COST_SAMPLE = 500
+
+
 def estimate_cost(cases: list[SweepCase], folder: Path | None, workers: int) -> dict:
     """Case count, how many are cached already, and the estimated time of the rest."""
+    import random
+
     store = CaseStore(folder) if folder is not None else None
     per_model: dict[str, dict] = {}
+    todo: dict[str, list] = {}
     for c in cases:
         m = per_model.setdefault(c.case.model, {"cases": 0, "cached": 0, "seconds": 0.0})
         m["cases"] += 1
         if store is not None and store.load(c.case)[0] is not None:
             m["cached"] += 1
         else:
-            m["seconds"] += estimate_seconds(c.case) * c.case.repeats
+            todo.setdefault(c.case.model, []).append(c.case)
+    for model, pending in todo.items():
+        sample = pending if len(pending) <= COST_SAMPLE else \
+            random.Random(0).sample(pending, COST_SAMPLE)
+        mean = sum(estimate_seconds(case) * case.repeats for case in sample) / len(sample)
+        per_model[model]["seconds"] = mean * len(pending)
+        per_model[model]["sampled"] = len(sample) < len(pending)
     total = sum(m["seconds"] for m in per_model.values())
     return {"cases": len(cases), "cached": sum(m["cached"] for m in per_model.values()),
             "cpu_seconds": total, "wall_seconds": total / max(1, workers),
