@@ -51,7 +51,7 @@ class Progress:
         if self._bar is not None:
             self._bar.write(f"[{self.label}] {text}", file=self.stream)
         else:
-            print(f"[{self.label}] {text}", file=self.stream, flush=True)
+            write_line(self.stream, f"[{self.label}] {text}")
 
     def started(self, what: str) -> None:
         if self._bar is None:
@@ -72,6 +72,13 @@ class Progress:
         if self._bar is not None:
             self._bar.close()
             self._bar = None
+
+
+def write_line(stream, text: str) -> None:
+    """One whole line in one write: the lines of pool workers that share a terminal or a
+    pipe never break into each other (a pipe write up to 4 KiB is atomic)."""
+    stream.write(text + "\n")
+    stream.flush()
 
 
 class SolveProgress:
@@ -134,5 +141,5 @@ class SolveProgress:
             if not due:
                 return
             self._last, self._changed, state = now, False, self._state
-        print(f"[{self.label}] {state} ({_eta(elapsed)})", file=self.stream, flush=True)
+        write_line(self.stream, f"[{self.label}] {state} ({_eta(elapsed)})")
         self.lines += 1
