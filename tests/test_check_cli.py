@@ -39,7 +39,7 @@ def test_a_failing_check_exits_1_with_its_reason(tmp_path, cli):
                        "--junit-xml", junit, "--executor", "serial")
     assert code == 1
     assert "1 passed, 1 failed" in out
-    assert "rtol 0.005; source: measured 2.1 % at P = 11" in out
+    assert "rtol 0.005; source: measured 2.2 % at P = 11" in out
     failure = ET.parse(junit).getroot().find("testsuite/testcase/failure")
     assert failure is not None and "F_T: actual" in failure.text
     assert failure.get("message").startswith("assert_close")

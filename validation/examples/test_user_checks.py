@@ -9,7 +9,7 @@ from validation.testing import assert_close, assert_converged, assert_matches_cl
 
 # Tolerances named by their source (measured on this toolkit's own verification).
 RTOL_HERTZ_BEM = 0.02   # dense BEM at P = 9 on the Hertz scene: measured within 1 %
-RTOL_BEM_FEM = 0.03     # dense BEM (P = 11) against fem-axisym, rigid punch: measured 2.1 %
+RTOL_BEM_FEM = 0.03     # dense BEM (P = 11) against fem-axisym, rigid punch: measured 2.2 %
 
 
 def test_dense_bem_reaches_hertz(xval):
@@ -25,4 +25,4 @@ def test_bem_against_fem_on_one_pillar(xval):
     bem = xval.run("bem", scene, elements_per_diameter=11)
     fem = xval.run("fem-axisym", scene, mesh_size=2.0)
     assert_close(bem, fem, ("F_T",), rtol=RTOL_BEM_FEM,
-                 source="dense BEM P = 11 against fem-axisym, measured 2.1 %")
+                 source="dense BEM P = 11 against fem-axisym, measured 2.2 %")
