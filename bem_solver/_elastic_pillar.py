@@ -1,0 +1,152 @@
+"""The elastic pillar on the BEM's cells: ``pillars="elastic"`` (PHYSICS.md, "The
+elastic-pillar BEM").
+
+The Hooke BEM writes the displacement of a pillar top as the half-space response (gamma_l +
+gamma_s) Love plus a uniform shortening c_h = 4 h / (pi d^2 E_p) per unit force on the pillar.
+The elastic model replaces c_h by the pillar's excess compliance X, a dense block per pillar
+(the same block for every pillar of a scene, in the pillar's own frame, since a cylinder is a
+body of revolution):
+
+    X[a, b] = 1/(E_p a) sum_{n <= N} w_n phi(r_a)^T S_n phi(r_b) cos(n (theta_a - theta_b))
+              + (gamma_p - gamma_s) / pi * D(x_a; square_b) / area_b,
+
+S_n the smooth difference of the mode-n compliance of the pillar on its substrate and of a
+half-space of pillar material on the P2 points of the top (:mod:`fem_reference`, computed
+once per pillar kind and cached), phi the P2 hats of those points, (r, theta) cell collocation
+points relative to the pillar centre, and the second term the local singular part, on the same
+Love coefficients as the half-space term.  Both terms are symmetric (the second as the BEM
+symmetrises Love's coefficients).  Pillar-to-pillar coupling stays in the half-space term.
+
+The compliance comes from :mod:`fem_reference` (imported when first needed, the one place
+where the boundary-element package uses the finite-element one) unless the caller passes a
+``ModalCompliance`` as ``compliance``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.sparse as sp
+
+from scenes import Scene
+
+from ._love import unit_force_influence
+
+PILLAR_MODELS = ("hooke", "elastic")
+
+
+def check_pillars(pillars: str) -> None:
+    if pillars not in PILLAR_MODELS:
+        raise ValueError(f"pillars = {pillars!r}: allowed values are {', '.join(PILLAR_MODELS)}")
+
+
+def uses_elastic_block(scene: Scene, pillars: str) -> bool:
+    """True when ``pillars="elastic"`` changes the operator: a pillar scene whose pillar has a
+    compliance (pillars and substrate both rigid: the two models coincide, X = 0)."""
+    check_pillars(pillars)
+    return (pillars == "elastic" and scene.pillars is not None
+            and not (scene.pillars.material.rigid and scene.substrate.rigid))
+
+
+def scene_compliance(scene: Scene, compliance=None, modes: int | None = None,
+                     mesh_size: float = 1.0):
+    """The ``ModalCompliance`` of the scene's pillar kind (cached on disk), or ``compliance``
+    when given (checked against the scene's kind)."""
+    from fem_reference import DEFAULT_MODES, PillarKind, modal_compliance
+
+    kind = PillarKind.of_scene(scene)
+    if compliance is not None:
+        if compliance.kind != kind:
+            raise ValueError(f"compliance is for {compliance.kind}, the scene's pillar kind is "
+                             f"{kind}")
+        return compliance
+    return modal_compliance(kind, DEFAULT_MODES if modes is None else modes, mesh_size)
+
+
+def _constants(scene: Scene, compliance):
+    """(1 / (E_p* a), gamma_p* - gamma_s): E_p* the modelled pillar modulus."""
+    p, s = scene.pillars, scene.substrate
+    E_s = s.E_Pa
+    E_p = compliance.kind.effective_pillar_modulus(E_s, p.material.E_Pa)
+    gamma_p = (1.0 - p.material.nu ** 2) / E_p
+    return 1.0 / (E_p * 0.5 * p.diameter_m), gamma_p - s.compliance
+
+
+def excess_block(scene: Scene, x, y, side, compliance) -> np.ndarray:
+    """X (m/N) between cells of one pillar: collocation points (x, y) relative to the pillar
+    centre (m, in the frame of its cell grid), equivalent-square sides ``side`` (m, squares
+    aligned with that frame); symmetric."""
+    x, y, side = (np.asarray(v, dtype=float) for v in (x, y, side))
+    a = 0.5 * scene.pillars.diameter_m
+    fem_scale, local = _constants(scene, compliance)
+    r = np.hypot(x, y) / a
+    theta = np.arctan2(y, x)
+    phi = compliance.trace_basis(r)
+    w = compliance.mode_weights()
+    S = compliance.excess
+    dtheta = theta[:, None] - theta[None, :]
+    X = np.zeros((len(x), len(x)))
+    for n in range(compliance.modes + 1):
+        X += w[n] * (phi @ S[n] @ phi.T) * np.cos(n * dtheta)
+    X *= fem_scale
+    L = unit_force_influence(x[:, None], y[:, None], x[None, :], y[None, :], 0.0,
+                             side[None, :])
+    X += local / math.pi * L
+    return 0.5 * (X + X.T)
+
+
+def image_cells(disc, pattern, diameter: float) -> np.ndarray:
+    """Index into ``pattern`` (a :class:`~bem_solver._cells.CellPattern`) of the cell that
+    every image element of ``disc`` is, found from its position in its pillar's frame (the
+    grid cell that holds it; the patterns are symmetric, so mirrored images are cells too).
+    One frame per pillar, so that X sees the true relative position of two cells."""
+    P = int(round(1.0 / pattern.cell_side))
+    centre = disc.pillar_xy[disc.img_pillar]
+    dx, dy = disc.img_x - centre[:, 0], disc.img_y - centre[:, 1]
+    # A pillar's grid points along its radial direction; the centre pillar's along x (its
+    # images under a rotation by pi carry the angle pi, but lie on the same grid).
+    on_centre = np.hypot(centre[:, 0], centre[:, 1]) < 1e-9 * diameter
+    angle = np.where(on_centre, 0.0, np.arctan2(centre[:, 1], centre[:, 0]))
+    c, s = np.cos(angle), np.sin(angle)
+    lx, ly = (c * dx + s * dy) / diameter, (-s * dx + c * dy) / diameter
+    b = pattern.cell_side
+    key = lambda u, v: (np.floor(u / b + P / 2.0).astype(np.int64) * (P + 2)  # noqa: E731
+                        + np.floor(v / b + P / 2.0).astype(np.int64))
+    table = key(pattern.grid_x, pattern.grid_y)
+    order = np.argsort(table)
+    k = key(lx, ly)
+    pos = np.clip(np.searchsorted(table, k, sorter=order), 0, len(order) - 1)
+    cell = order[pos]
+    if not np.array_equal(table[cell], k):
+        raise RuntimeError("an image element matches no cell of its pillar's pattern")
+    return cell
+
+
+def reduced_block(disc, X: np.ndarray, img_cell: np.ndarray) -> np.ndarray:
+    """B[i, j] = sum over the images b of rep j on rep i's own pillar of X[cell(i), cell(b)]
+    (m/N, not yet weighted by the orbit size of i: :func:`reduced_operator` does that)."""
+    n = disc.n_unknowns
+    B = np.zeros((n, n))
+    own = disc.img_pillar[disc.rep_start[:-1]]  # image 0 of a rep is the rep itself
+    rep_cell = img_cell[disc.rep_start[:-1]]
+    by_pillar = {}
+    for i, p in enumerate(own):
+        by_pillar.setdefault(int(p), []).append(i)
+    for p, reps in by_pillar.items():
+        imgs = np.nonzero(disc.img_pillar == p)[0]
+        reps = np.asarray(reps)
+        S = sp.csr_matrix((np.ones(len(imgs)), (np.arange(len(imgs)), disc.img_rep[imgs])),
+                          shape=(len(imgs), n))
+        B[reps] += (S.T @ X[np.ix_(rep_cell[reps], img_cell[imgs])].T).T
+    return B
+
+
+def full_block(disc, X: np.ndarray, img_cell: np.ndarray) -> np.ndarray:
+    """The excess compliance over every image element (m/N): X between cells of one pillar."""
+    same = disc.img_pillar[:, None] == disc.img_pillar[None, :]
+    return np.where(same, X[np.ix_(img_cell, img_cell)], 0.0)
+
+
+__all__ = ["PILLAR_MODELS", "check_pillars", "excess_block", "full_block", "image_cells",
+           "reduced_block", "scene_compliance", "uses_elastic_block"]
