@@ -18,8 +18,8 @@ from scenes.memory import MEMORY_SHARE, memory_short
 
 from ._cells import VARIANTS, cell_pattern
 from ._discretise import Discretisation, discretise, overlap_radius
-from ._elastic_pillar import (check_pillars, excess_block, image_cells, reduced_block,
-                              scene_compliance, uses_elastic_block)
+from ._elastic_pillar import (cached_excess_block, check_pillars, image_cells, reduced_block,
+                              representative_rows, scene_compliance, uses_elastic_block)
 from ._operator import reduced_operator
 
 MAX_UNKNOWNS = 12_000  # dense reduced operator: 1.2 GB at this size
@@ -87,8 +87,9 @@ def solve_dense(scene: Scene, elements_per_diameter: int = 11, cells: str = "cov
         modal = scene_compliance(scene, compliance)
         pattern = cell_pattern(P, cells)
         cells_m = pattern.scaled(scene.pillars.diameter_m)
-        elastic = {"modal": modal, "pattern": pattern,
-                   "X": excess_block(scene, cells_m["x"], cells_m["y"], cells_m["side"], modal)}
+        rows = representative_rows(scene, pattern)
+        elastic = {"modal": modal, "pattern": pattern, "rows": rows,
+                   "X": cached_excess_block(scene, cells_m, modal, rows, (P, cells))}
     r_max = overlap_radius(scene)
     hertz_radius = math.sqrt(scene.lens.radius_m * scene.indentation_m)
     radius = _initial_radius(scene, contact)
@@ -110,7 +111,7 @@ def solve_dense(scene: Scene, elements_per_diameter: int = 11, cells: str = "cov
         block = None
         if elastic is not None:
             img_cell = image_cells(disc, elastic["pattern"], scene.pillars.diameter_m)
-            block = reduced_block(disc, elastic["X"], img_cell)
+            block = reduced_block(disc, elastic["X"], img_cell, elastic["rows"])
         M = reduced_operator(scene, disc, block)
         # Rows of the reduced operator are weighted by the orbit sizes: gap_i / w_i is in m.
         b = disc.rep_weight * (lens_gap(scene, disc.rep_x, disc.rep_y) - scene.indentation_m)
@@ -265,7 +266,8 @@ def _outside_violations(scene, disc, q, reach, radius, r_max, elastic=None):
     within rho of x_F (the Hooke shortening, also >= 0, is left out of the bound); where the
     lens gap plus this bound stays positive, no contact is possible.  An elastic pillar's own
     top may rise where it tilts: on a loaded pillar the bound takes the lens term alone plus
-    F times the smallest entry of X when negative (a lower bound of gamma_s Love + X).
+    F times the smallest entry of X when negative (a lower bound of gamma_s Love + X; the rows
+    kept hold every entry up to the pattern's symmetry).
     """
     if reach is None or radius >= r_max * (1.0 - 1e-12):
         return None

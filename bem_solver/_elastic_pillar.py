@@ -73,27 +73,74 @@ def _constants(scene: Scene, compliance):
     return 1.0 / (E_p * 0.5 * p.diameter_m), gamma_p - s.compliance
 
 
-def excess_block(scene: Scene, x, y, side, compliance) -> np.ndarray:
+def excess_block(scene: Scene, x, y, side, compliance, rows=None) -> np.ndarray:
     """X (m/N) between cells of one pillar: collocation points (x, y) relative to the pillar
     centre (m, in the frame of its cell grid), equivalent-square sides ``side`` (m, squares
-    aligned with that frame); symmetric."""
+    aligned with that frame); symmetric.  ``rows`` (indices): only those rows of X, the
+    rows that a reduced operator needs."""
     x, y, side = (np.asarray(v, dtype=float) for v in (x, y, side))
+    rows = np.arange(len(x)) if rows is None else np.asarray(rows)
     a = 0.5 * scene.pillars.diameter_m
     fem_scale, local = _constants(scene, compliance)
     r = np.hypot(x, y) / a
     theta = np.arctan2(y, x)
     phi = compliance.trace_basis(r)
     w = compliance.mode_weights()
-    S = compliance.excess
-    dtheta = theta[:, None] - theta[None, :]
-    X = np.zeros((len(x), len(x)))
+    # sum_n w_n (phi S_n phi^T) cos(n (theta_a - theta_b)) = U W U^T, with U the columns
+    # cos(n theta) phi and sin(n theta) phi of every mode and W = diag(w_n S_n, w_n S_n):
+    # one matrix product instead of an elementwise cosine per mode.
+    U, WU = [], []
     for n in range(compliance.modes + 1):
-        X += w[n] * (phi @ S[n] @ phi.T) * np.cos(n * dtheta)
+        Sn = w[n] * compliance.excess[n]
+        for trig in ((np.cos,) if n == 0 else (np.cos, np.sin)):
+            Un = trig(n * theta)[:, None] * phi
+            U.append(Un)
+            WU.append(Un[rows] @ Sn)
+    X = np.hstack(WU) @ np.hstack(U).T
     X *= fem_scale
-    L = unit_force_influence(x[:, None], y[:, None], x[None, :], y[None, :], 0.0,
-                             side[None, :])
-    X += local / math.pi * L
-    return 0.5 * (X + X.T)
+    if local != 0.0:  # zero when pillar and substrate have the same compliance
+        # Love's coefficients, symmetrised (the same for every pair of cells of a pillar).
+        L = unit_force_influence(x[rows, None], y[rows, None], x[None, :], y[None, :], 0.0,
+                                 side[None, :])
+        L += unit_force_influence(x[:, None], y[:, None], x[None, rows], y[None, rows], 0.0,
+                                  side[None, rows]).T
+        X += 0.5 * local / math.pi * L
+    return X
+
+
+_BLOCKS: dict = {}
+_BLOCKS_KEPT = 8
+
+
+def cached_excess_block(scene: Scene, cells: dict, compliance, rows, resolution) -> np.ndarray:
+    """:func:`excess_block` of the cells ``cells`` (``x``, ``y``, ``side`` in m), kept in
+    memory for the last few (compliance, pillar physics, resolution, rows): a ladder or a
+    sweep over the load pays for it once."""
+    p, s = scene.pillars, scene.substrate
+    key = (id(compliance), p.diameter_m, p.material.E_Pa, p.material.nu, s.E_Pa, s.nu,
+           tuple(resolution), tuple(np.asarray(rows).tolist()))
+    hit = _BLOCKS.get(key)
+    if hit is not None and hit[0] is compliance:
+        return hit[1]
+    X = excess_block(scene, cells["x"], cells["y"], cells["side"], compliance, rows)
+    X.setflags(write=False)
+    if len(_BLOCKS) >= _BLOCKS_KEPT:
+        _BLOCKS.pop(next(iter(_BLOCKS)))
+    _BLOCKS[key] = (compliance, X)
+    return X
+
+
+def representative_rows(scene: Scene, pattern) -> np.ndarray:
+    """Cells of the pattern that can be representatives: the centre pillar's quadrant, and
+    every cell when another pillar can touch (its orbit's representatives are all its cells
+    or one half)."""
+    from ._discretise import overlap_radius
+
+    quadrant = (pattern.grid_x >= -1e-12) & (pattern.grid_y >= -1e-12)
+    p = scene.pillars
+    if p.pitch_m - 0.5 * p.diameter_m < overlap_radius(scene):
+        return np.arange(len(pattern.x))
+    return np.nonzero(quadrant)[0]
 
 
 def image_cells(disc, pattern, diameter: float) -> np.ndarray:
@@ -123,13 +170,21 @@ def image_cells(disc, pattern, diameter: float) -> np.ndarray:
     return cell
 
 
-def reduced_block(disc, X: np.ndarray, img_cell: np.ndarray) -> np.ndarray:
+def reduced_block(disc, X: np.ndarray, img_cell: np.ndarray, rows=None) -> np.ndarray:
     """B[i, j] = sum over the images b of rep j on rep i's own pillar of X[cell(i), cell(b)]
-    (m/N, not yet weighted by the orbit size of i: :func:`reduced_operator` does that)."""
+    (m/N, not yet weighted by the orbit size of i: :func:`reduced_operator` does that).
+    ``rows``: the cells that the rows of X hold (default: all, in order)."""
+    if rows is not None:
+        row_of = np.full(X.shape[1], -1)
+        row_of[np.asarray(rows)] = np.arange(len(rows))
     n = disc.n_unknowns
     B = np.zeros((n, n))
     own = disc.img_pillar[disc.rep_start[:-1]]  # image 0 of a rep is the rep itself
     rep_cell = img_cell[disc.rep_start[:-1]]
+    if rows is not None:
+        rep_cell = row_of[rep_cell]
+        if np.any(rep_cell < 0):
+            raise RuntimeError("a representative's cell is not among the rows of X")
     by_pillar = {}
     for i, p in enumerate(own):
         by_pillar.setdefault(int(p), []).append(i)
@@ -148,5 +203,5 @@ def full_block(disc, X: np.ndarray, img_cell: np.ndarray) -> np.ndarray:
     return np.where(same, X[np.ix_(img_cell, img_cell)], 0.0)
 
 
-__all__ = ["PILLAR_MODELS", "check_pillars", "excess_block", "full_block", "image_cells",
-           "reduced_block", "scene_compliance", "uses_elastic_block"]
+__all__ = ["PILLAR_MODELS", "cached_excess_block", "check_pillars", "excess_block", "full_block", "image_cells",
+           "reduced_block", "representative_rows", "scene_compliance", "uses_elastic_block"]

@@ -33,7 +33,7 @@ from skfem import BilinearForm
 def mode_strain(u, r, n):
     """(eps_rr, eps_zz, eps_rz, eps_tt, eps_rt, eps_tz) of a mode-n field u = (u_r, u_t, u_z)."""
     g = u.grad  # g[i][j] = d u_i / d x_j, i over (r, t, z), j over (r, z)
-    ur, ut, uz = u.value
+    ur, ut, uz = u[0], u[1], u[2]
     return (g[0][0], g[2][1], 0.5 * (g[0][1] + g[2][0]), (ur + n * ut) / r,
             0.5 * (g[1][0] - (ut + n * ur) / r), 0.5 * (g[1][1] - n * uz / r))
 
@@ -53,5 +53,5 @@ def mode_divergence_coupling(u, q, w):
     """Integral of q div u r dr dz for mode ``w.n`` (trial u: 3-component P2, test q: P1)."""
     r, n = w.x[0], w.n
     g = u.grad
-    ur, ut, _ = u.value
+    ur, ut = u[0], u[1]
     return q * (r * (g[0][0] + g[2][1]) + ur + n * ut)
