@@ -50,7 +50,10 @@ bench-bem: $(STAMP)
 	$(PY) -m validation.bench.bem --out $(OUT)/bench-bem
 	$(MAKE) bench-fft
 
-# FFT BEM: cells vs time vs memory, and ContactMechanics side by side (optional extra).
+# FFT BEM against its floor (the bare FFT pair on its padded grid) and ContactMechanics (the
+# optional [bench] extra) on the same grid, 3e5 and 1e6 cells, rigid and Hooke pillars, medians
+# of 3 interleaved runs: the table in $(OUT)/bench-fft/bench_fft.md (about 30 minutes, most of
+# it ContactMechanics at 1e6 cells).
 bench-fft: $(STAMP)
 	$(PY) -m pip install --quiet -e '.[bench]' || echo "bench-fft: ContactMechanics not installed; the comparison will be skipped"
 	$(PY) -m validation.bench.fft --out $(OUT)/bench-fft

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve, solve_triangular
+from scipy.linalg.blas import dsymv as symv
+from scipy.linalg.lapack import dpotrs as potrs
 from scipy.optimize import nnls
 from threadpoolctl import threadpool_limits
 
@@ -66,8 +68,9 @@ def _solve(A, b, scale, weights, groups, initial, tol, max_iterations) -> Contac
     n = len(b)
     if n == 0:
         return ContactSolution(np.zeros(0), np.zeros(0), True, 0, 0.0, "empty", "converged")
+    # The diagonally scaled problem S A S, S = diag(A)^-1/2, applied as s * (A @ (s * p)):
+    # forming it would cost a fresh n x n array (page faults included) on every solve.
     s = 1.0 / np.sqrt(np.diag(A))
-    As = A * s[:, None] * s[None, :]
     bs = b * s
     active = bs < 0 if initial is None else (np.asarray(initial, bool) & (bs < 0))
     seen = set()
@@ -77,14 +80,14 @@ def _solve(A, b, scale, weights, groups, initial, tol, max_iterations) -> Contac
         p_prev, p = p, np.zeros(n)
         if active.any():
             idx = np.nonzero(active)[0]
-            sub, ok = _spd_solve(As[np.ix_(idx, idx)], -bs[idx], p_prev[idx],
+            sub, ok = _spd_solve(A, s, idx, -bs[idx], p_prev[idx],
                                  None if groups is None else groups[idx])
             if not ok:
                 return _finish(A, b, p_prev * s, scale, weights, tol, it, method,
                                f"conjugate gradients missed {CG_RTOL:g} on an active set of "
                                f"{len(idx)} unknowns")
             p[idx] = sub
-        gap = As @ p + bs
+        gap = s * _symmetric_product(A, s * p) + bs
         new = p - gap > 0
         if np.array_equal(new, active):
             return _finish(A, b, p * s, scale, weights, tol, it, method)
@@ -95,7 +98,7 @@ def _solve(A, b, scale, weights, groups, initial, tol, max_iterations) -> Contac
         active = new
     method = "nnls"
     try:
-        L = np.linalg.cholesky(As)
+        L = np.linalg.cholesky(A * s[:, None] * s[None, :])
     except np.linalg.LinAlgError as exc:
         return _finish(A, b, p * s, scale, weights, tol, it, method,
                        f"operator is not positive definite ({exc})")
@@ -118,29 +121,60 @@ def _finish(A, b, p, scale, weights, tol, iterations, method, failure="") -> Con
                            method, message)
 
 
-def _spd_solve(A, rhs, x0, groups=None) -> tuple[np.ndarray, bool]:
-    """Solve A x = rhs (SPD): Cholesky when small, else block-preconditioned CG."""
+def _symmetric_product(A, x):
+    """A @ x for a symmetric float64 A: BLAS symv on one triangle (half the memory traffic of
+    a general product, which bounds these products); A.T is the same matrix in Fortran
+    order, the layout symv reads without a copy."""
+    At = A.T
+    if A.dtype == np.float64 and At.flags.f_contiguous:
+        return symv(1.0, At, x)
+    return A @ x
+
+
+def _scaled(A, s, rows, cols):
+    """(S A S)[rows, cols] for the diagonal scaling s (the same products, in the same order,
+    as scaling the whole matrix first)."""
+    return A[np.ix_(rows, cols)] * s[rows][:, None] * s[cols][None, :]
+
+
+def _spd_solve(A, s, idx, rhs, x0, groups=None) -> tuple[np.ndarray, bool]:
+    """Solve (S A S)[idx, idx] x = rhs (SPD): Cholesky when small, else block-preconditioned
+    CG whose products use the whole of A (a zero-padded vector) instead of a copy of the
+    submatrix."""
     if len(rhs) <= CHOLESKY_MAX:
-        return cho_solve(cho_factor(A), rhs), True
+        return cho_solve(cho_factor(_scaled(A, s, idx, idx)), rhs), True
     if groups is None:
         groups = np.zeros(len(rhs), int)
     blocks = []
     for g in np.unique(groups):
-        idx = np.nonzero(groups == g)[0]
-        if len(idx) > CHOLESKY_MAX:  # a block too large to factor: Jacobi on its diagonal
-            blocks.append((idx, None))
+        sel = np.nonzero(groups == g)[0]
+        if len(sel) > CHOLESKY_MAX:  # a block too large to factor: Jacobi on its diagonal
+            blocks.append((sel, None))
         else:
-            blocks.append((idx, cho_factor(A[np.ix_(idx, idx)])))
-    diag = np.diag(A)
+            blocks.append((sel, cho_factor(_scaled(A, s, idx[sel], idx[sel]))))
+    si = s[idx]
+    diag = A[idx, idx] * si * si
+    padded = np.zeros(len(s))
+
+    def product(d):
+        padded[idx] = si * d
+        return si * _symmetric_product(A, padded)[idx]
 
     def precondition(r):
         z = np.empty_like(r)
-        for idx, factor in blocks:
-            z[idx] = r[idx] / diag[idx] if factor is None else cho_solve(factor, r[idx])
+        for sel, factor in blocks:
+            if factor is None:
+                z[sel] = r[sel] / diag[sel]
+            else:
+                # cho_solve's own LAPACK call, without its per-call checks (27 blocks a
+                # CG iteration on the largest paper scene: the checks cost more than it).
+                z[sel], info = potrs(factor[0], r[sel], lower=factor[1])
+                if info != 0:
+                    raise np.linalg.LinAlgError(f"potrs: info = {info}")
         return z
 
     x = x0.copy()
-    r = rhs - A @ x
+    r = rhs - product(x)
     z = precondition(r)
     d = z.copy()
     rz = r @ z
@@ -148,7 +182,7 @@ def _spd_solve(A, rhs, x0, groups=None) -> tuple[np.ndarray, bool]:
     for _ in range(10 * len(rhs)):
         if np.linalg.norm(r) <= stop:
             return x, True
-        Ad = A @ d
+        Ad = product(d)
         alpha = rz / (d @ Ad)
         x += alpha * d
         r -= alpha * Ad

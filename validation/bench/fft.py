@@ -1,19 +1,29 @@
-"""Benchmark of the FFT boundary-element solver: cells vs time vs memory, and a side-by-side run
-against ContactMechanics (Polonsky-Keer CG on its free-boundary FFT half-space).
+"""Benchmark of the FFT boundary-element model against its floor and its peer
+(``python -m validation.bench.fft --out DIR``, ``make bench-fft``).
 
-Run as ``python -m validation.bench.fft --out DIR`` (``make bench-fft``).  Each solve runs in
-its own subprocess, so the peak resident memory (``ru_maxrss``) belongs to that solve alone.
+Side by side with ContactMechanics (Polonsky-Keer CG on its free-boundary FFT half-space), on
+the same discrete problem: paper-fig3-dense (Phi = 0.82), a rigid substrate, the lens a
+half-space of compliance gamma_l, the same grid of square cells (ours: pillar-top cells within
+the disk g(r) <= zeta; ContactMechanics: the same cells as the unmasked points of a masked
+topography), Love's uniform-pressure cell kernel in both, and the same tolerance on the gap
+(1e-8 zeta).  Two pillar cases: rigid pillars, and elastic pillars as Hooke springs (the
+preset's E_p, c = 4 h / (pi d^2 E_p) per pillar), given to ContactMechanics as a substrate
+whose displacement adds c times each pillar's force to its cells (its CG is unchanged).  Our
+solver runs with ``edge_correction=False`` (edge cells loaded and collocated at their
+centres: exactly the masked-grid problem); our default model (edge cells as equivalent
+squares at their centroids) runs on the same grid too and is reported beside it (its F_T
+differs by its smaller discretisation error).
 
-The side-by-side problem is the same discrete problem for both codes: rigid pillars and a rigid
-substrate (no Hooke term), the lens a half-space of compliance gamma_l, the same grid of square
-cells (ours: pillar-top cells within the disk g(r) <= zeta; ContactMechanics: the same cells as
-the unmasked points of a masked topography), Love's uniform-pressure cell kernel in both, and
-the same tolerance on the gap (1e-8 zeta).  For that run our solver is called with
-``edge_correction=False`` (edge cells loaded and collocated at their centres, exactly the
-masked-grid problem); our default model, whose edge cells act as equivalent squares at their
-centroids, runs on the same grid too and is reported beside it (its F_T differs from both by
-its smaller discretisation error).  ContactMechanics is an optional benchmark extra
-(``pip install -e '.[bench]'``); without it the comparison is skipped and the reason printed.
+For each case: grid cells; our CG iterations on the finest grid (and on the coarser
+warm-start levels); our time per fine iteration against the floor, the bare FFT pair
+(scipy.fft rfft2 + irfft2, 2 workers) on our padded grid timed in the same process right after
+the solve; our wall time and ContactMechanics', their ratio, ContactMechanics' iterations and
+the relative difference of F_T.  Each solve runs in a fresh interpreter (its peak resident
+memory is its own); the repeats are interleaved (ours, peer, default model at every level, then
+again) and every column is the median over the repeats.  Prints the table and writes it with
+the runs to ``bench_fft.json`` and ``bench_fft.md``.  ContactMechanics is the optional
+``[bench]`` extra (``pip install -e '.[bench]'``); without it the peer's columns are skipped and
+the reason printed.  ``--scaling`` adds our default model alone over a ladder of grids.
 """
 
 from __future__ import annotations
@@ -22,17 +32,38 @@ import argparse
 import json
 import platform
 import resource
+import statistics
 import subprocess
 import sys
 import time
 from pathlib import Path
 
 SCENE = "paper-fig3-dense"
-RIGID = ("pillars.rigid=true", "substrate.rigid=true", "substrate.nu=0.5")
+PILLARS = {
+    "rigid": ("pillars.rigid=true", "substrate.rigid=true", "substrate.nu=0.5"),
+    "elastic": ("substrate.rigid=true", "substrate.nu=0.5"),
+}
 SCALING_LEVELS = (8, 12, 16, 24, 32, 48, 64)
 # 32 and 58 cells per diameter give bounding grids of 3.1e5 and 1.0e6 cells on this scene.
 CM_LEVELS = (32, 58)
 TOL = 1e-8
+FLOOR_REPEATS = 7
+WORKERS = 2
+
+
+def fft_floor(shape, workers=WORKERS, repeats=FLOOR_REPEATS) -> float:
+    """Median wall time (s) of the bare FFT pair, rfft2 then irfft2 with scipy.fft on a float64
+    array of ``shape``: what one convolution on that padded grid cannot go below."""
+    import numpy as np
+    import scipy.fft as sfft
+
+    a = np.random.default_rng(0).random(tuple(shape))
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        sfft.irfft2(sfft.rfft2(a, workers=workers), s=a.shape, workers=workers)
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
 
 
 def _ours(scene_name, overrides, n, tol, edge_correction=True):
@@ -42,18 +73,23 @@ def _ours(scene_name, overrides, n, tol, edge_correction=True):
 
     scene = load_scene(scene_name, list(overrides))
     start = time.perf_counter()
-    res = solve_fft(scene, n, tol=tol, edge_correction=edge_correction)
+    res = solve_fft(scene, n, tol=tol, edge_correction=edge_correction, workers=WORKERS)
     wall = time.perf_counter() - start
     d = res.diagnostics
     name = "bem-fft" if edge_correction else "bem-fft-grid"
+    solve = d["timings_s"]["solve"]
     return {"solver": name, "cells_per_diameter": n, "wall_time_s": wall,
             "iterations": res.iterations, "operator_applications": d["operator_applications"],
             # Nested iteration: work on the coarser levels (each 1/4 of the next one's cells).
             "warm_start_iterations": sum(v["iterations"] for v in d["warm_start_levels"]),
-            "candidate_cells": d["candidate_cells"],
+            "timings_s": d["timings_s"], "candidate_cells": d["candidate_cells"],
             "grid_cells": d["grid_shape"][0] * d["grid_shape"][1],
             "fft_shape": d["fft_shape"], "total_force_N": res.total_force_N,
-            "converged": res.converged, "contact_residual": d["contact_residual"]}
+            "converged": res.converged, "contact_residual": d["contact_residual"],
+            "preconditioner": d["preconditioner"],
+            "time_per_iteration_s": solve / max(res.iterations, 1),
+            "time_per_application_s": solve / max(d["operator_applications"], 1),
+            "fft_pair_s": fft_floor(d["fft_shape"])}
 
 
 def _contactmechanics(scene_name, overrides, n, tol):
@@ -78,10 +114,15 @@ def _contactmechanics(scene_name, overrides, n, tol):
     heights[grid.flat_index] = -lens_gap(scene.lens.radius_m, np.hypot(grid.x, grid.y))
     outside[grid.flat_index] = False
     masked = np.ma.masked_array(heights.reshape(ny, nx), mask=outside.reshape(ny, nx))
+    spring = scene.pillar_spring_compliance  # m/N; 0 for rigid pillars
+    owner = np.full(ny * nx, -1)
+    owner[grid.flat_index] = grid.pillar
     start = time.perf_counter()
     # ContactMechanics' "young" is the contact modulus E* with u = (1 / (pi E*)) int p / r.
-    substrate = FreeFFTElasticHalfSpace((ny, nx), 1.0 / scene.half_space_compliance,
-                                        (ny * L, nx * L))
+    args = ((ny, nx), 1.0 / scene.half_space_compliance, (ny * L, nx * L))
+    substrate = FreeFFTElasticHalfSpace(*args)
+    if spring > 0.0:
+        _add_hooke_term(substrate, owner, spring, (ny, nx))
     topography = Topography(masked, physical_sizes=(ny * L, nx * L))
     # Forces: tolerate a tensile pixel force of tol times a mean contact pixel force
     # (F ~ d zeta / gamma per pillar over ~ (d/L)^2 cells).
@@ -96,6 +137,31 @@ def _contactmechanics(scene_name, overrides, n, tol):
             "total_force_N": float(np.sum(res.jac)), "converged": bool(res.success)}
 
 
+def _add_hooke_term(substrate, owner, spring, shape):
+    """Give ContactMechanics' free-boundary half-space the Hooke shortening of each pillar:
+    u = (half-space) + spring * (force on the cell's pillar) on the pillar cells (our
+    operator's Hooke term; ``owner`` is the pillar index of each point of the (ny, nx) grid,
+    -1 off the tops).  Its CG passes arrays on the padded grid, the physical one in the
+    corner [:ny, :nx].  (An instance attribute: the class checks its own exact type.)"""
+    import numpy as np
+
+    ny, nx = shape
+    on_top = (owner >= 0).reshape(ny, nx)
+    labels = owner[owner >= 0]
+    n_pillars = int(labels.max()) + 1 if labels.size else 0
+    half_space = substrate.evaluate_disp
+
+    def evaluate_disp(forces, *args, **kwargs):
+        disp = half_space(forces, *args, **kwargs)
+        f = -np.asarray(forces)[:ny, :nx][on_top]  # its convention: u = K(-forces)
+        shortening = spring * np.bincount(labels, weights=f, minlength=n_pillars)
+        disp[:ny, :nx][on_top] += shortening[labels]
+        return disp
+
+    substrate.evaluate_disp = evaluate_disp
+    return substrate
+
+
 def _worker(spec: dict) -> dict:
     args = (spec["scene"], spec["overrides"], spec["n"], spec["tol"])
     if spec["solver"] == "contactmechanics":
@@ -104,12 +170,14 @@ def _worker(spec: dict) -> dict:
         out = _ours(*args, edge_correction=spec["solver"] == "bem-fft")
     # ru_maxrss is in KiB on Linux.
     out["peak_rss_MB"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    out["pillars"] = spec.get("pillars")
     return out
 
 
-def run_case(solver, scene, overrides, n, tol=TOL, timeout=1800) -> dict:
+def run_case(solver, scene, overrides, n, tol=TOL, timeout=3600, pillars=None) -> dict:
     """One solve in a fresh interpreter; returns its measurements or {'error': ...}."""
-    spec = {"solver": solver, "scene": scene, "overrides": list(overrides), "n": n, "tol": tol}
+    spec = {"solver": solver, "scene": scene, "overrides": list(overrides), "n": n, "tol": tol,
+            "pillars": pillars}
     return run_worker("validation.bench.fft", spec, timeout)
 
 
@@ -142,143 +210,223 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m validation.bench.fft", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", type=Path, default=Path("out/bench-fft"))
-    ap.add_argument("--levels", type=int, nargs="*", default=list(SCALING_LEVELS),
-                    help="cells per diameter of the scaling study")
     ap.add_argument("--cm-levels", type=int, nargs="*", default=list(CM_LEVELS),
-                    help="cells per diameter of the ContactMechanics comparison")
-    ap.add_argument("--repeats", type=int, default=1, help="repeats of each timing (median)")
+                    help="cells per diameter of the side-by-side table (default 32 58)")
+    ap.add_argument("--pillars", nargs="*", default=list(PILLARS), choices=list(PILLARS),
+                    help="pillar cases of the side-by-side table (default rigid elastic)")
+    ap.add_argument("--repeats", type=int, default=3,
+                    help="interleaved repeats of every run; columns are medians (default 3)")
+    ap.add_argument("--levels", type=int, nargs="*", default=[],
+                    help="cells per diameter of an optional scaling study of our default "
+                         f"model alone (e.g. {' '.join(map(str, SCALING_LEVELS))})")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.worker:
         print(json.dumps(_worker(json.loads(args.worker))))
         return 0
+    reason = contactmechanics_available()
+    solvers = ["bem-fft-grid"] + ([] if reason else ["contactmechanics"]) + ["bem-fft"]
+    runs = []
+    for rep in range(args.repeats):
+        for n in args.cm_levels:
+            for pillars in args.pillars:
+                for solver in solvers:
+                    print(f"bench-fft: repeat {rep + 1}/{args.repeats}: {solver} N = {n} "
+                          f"({pillars} pillars)", file=sys.stderr, flush=True)
+                    runs.append(run_case(solver, SCENE, PILLARS[pillars], n, pillars=pillars))
     scaling = []
     for n in args.levels:
         print(f"bench-fft: scaling N = {n}", file=sys.stderr, flush=True)
-        scaling.append(_median(
-            [run_case("bem-fft", SCENE, (), n) for _ in range(args.repeats)]))
-    side = []
-    reason = contactmechanics_available()
-    if not reason:
-        for n in args.cm_levels:
-            for solver in ("bem-fft-grid", "contactmechanics", "bem-fft"):
-                print(f"bench-fft: {solver} N = {n} (rigid pillars)", file=sys.stderr,
-                      flush=True)
-                side.append(_median(
-                    [run_case(solver, SCENE, RIGID, n) for _ in range(args.repeats)]))
-    meta = {"scene": SCENE, "side_by_side_overrides": list(RIGID), "tolerance": TOL,
+        scaling.append(_median([run_case("bem-fft", SCENE, (), n, pillars="preset")
+                                for _ in range(args.repeats)]))
+    meta = {"scene": SCENE, "pillars": {k: list(PILLARS[k]) for k in args.pillars},
+            "tolerance": TOL, "repeats": args.repeats, "fft_workers": WORKERS,
             "python": platform.python_version(), "machine": platform.machine(),
+            "load_average": _load(), "contactmechanics": _version("contactmechanics"),
             "contactmechanics_skipped": reason}
-    table = write_report(args.out, scaling, side, meta)
+    table = write_report(args.out, runs, scaling, meta)
     print(table)
     return 0
 
 
-def write_report(out: Path, scaling: list, side: list, meta: dict) -> str:
-    """Write bench_fft.json and bench_fft.png into ``out``; return the printed table."""
+def _load() -> list:
+    import os
+
+    return [round(v, 2) for v in os.getloadavg()]
+
+
+def _version(dist: str) -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version(dist)
+    except PackageNotFoundError:
+        return ""
+
+
+def side_by_side(runs: list) -> list:
+    """One row per (pillars, N): medians over the repeats of every column; the ratio of the
+    peer's time to ours is the median of the ratios of runs made in the same repeat."""
+    rows = []
+    keys = sorted({(r.get("pillars"), r.get("cells_per_diameter", r.get("n"))) for r in runs},
+                  key=lambda k: (k[1], str(k[0])))
+    for pillars, n in keys:
+        mine = [r for r in runs if r.get("pillars") == pillars
+                and r.get("cells_per_diameter", r.get("n")) == n]
+
+        def ok(solver):
+            return [r for r in mine if r.get("solver") == solver and "error" not in r]
+
+        ours, cm, default = ok("bem-fft-grid"), ok("contactmechanics"), ok("bem-fft")
+        errors = [f"{r['solver']}: {r['error']}" for r in mine if "error" in r]
+        row = {"pillars": pillars, "cells_per_diameter": n, "errors": errors}
+        if ours:
+            row.update(_our_columns(ours, ""))
+        if default:
+            row.update(_our_columns(default, "default_"))
+        if cm:
+            row.update({"cm_s": _med(cm, "wall_time_s"), "cm_iterations": _med(cm, "iterations"),
+                        "cm_applications": _med(cm, "operator_applications"),
+                        "cm_rss_MB": _med(cm, "peak_rss_MB"),
+                        "cm_force_N": cm[0]["total_force_N"],
+                        "cm_converged": all(r["converged"] for r in cm)})
+        if ours and cm:
+            pairs = list(zip(ours, cm))  # same order: one of each per repeat
+            row["ratio_cm_over_ours"] = statistics.median(
+                c["wall_time_s"] / o["wall_time_s"] for o, c in pairs)
+            row["force_rel_diff"] = (row["total_force_N"] - row["cm_force_N"]) \
+                / abs(row["cm_force_N"])
+        if default and cm:
+            row["default_ratio_cm_over_ours"] = statistics.median(
+                c["wall_time_s"] / o["wall_time_s"] for o, c in zip(default, cm))
+            row["default_force_rel_diff"] = (row["default_total_force_N"] - row["cm_force_N"]) \
+                / abs(row["cm_force_N"])
+        rows.append(row)
+    return rows
+
+
+def _med(runs, key):
+    return statistics.median(r[key] for r in runs)
+
+
+def _our_columns(runs: list, prefix: str) -> dict:
+    first = runs[0]
+    return {prefix + k: v for k, v in {
+        "grid_cells": first["grid_cells"], "candidate_cells": first["candidate_cells"],
+        "fft_shape": first["fft_shape"], "iterations": _med(runs, "iterations"),
+        "warm_start_iterations": _med(runs, "warm_start_iterations"),
+        "operator_applications": _med(runs, "operator_applications"),
+        "wall_time_s": _med(runs, "wall_time_s"),
+        "solve_s": statistics.median(r["timings_s"]["solve"] for r in runs),
+        "time_per_iteration_s": _med(runs, "time_per_iteration_s"),
+        "time_per_application_s": _med(runs, "time_per_application_s"),
+        "fft_pair_s": _med(runs, "fft_pair_s"),
+        # Each run's time per iteration over the floor timed in the same process.
+        "iteration_over_fft_pair": statistics.median(
+            r["time_per_iteration_s"] / r["fft_pair_s"] for r in runs),
+        "rss_MB": _med(runs, "peak_rss_MB"), "total_force_N": first["total_force_N"],
+        "converged": all(r["converged"] for r in runs),
+        "wall_times_s": [r["wall_time_s"] for r in runs]}.items()}
+
+
+def format_table(rows: list, meta: dict) -> str:
+    """The side-by-side table (markdown)."""
+    peer = not meta["contactmechanics_skipped"]
+    lines = [f"FFT model (edge_correction=False) against the FFT pair floor"
+             + (" and ContactMechanics " + meta["contactmechanics"] if peer else "")
+             + f": {meta['scene']}, rigid substrate, same grid and equations, tol "
+             f"{meta['tolerance']:g} zeta; medians of {meta['repeats']} interleaved runs; "
+             f"load average {meta['load_average']}",
+             "",
+             "| pillars | cells | it ours (fine + coarse) | ms/it | FFT pair ms (padded) | "
+             "it / pair | ours s | CM it | CM s | CM / ours | F_T ours vs CM | default model s "
+             "(it) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+
+    def f(row, key, fmt, missing="-"):
+        v = row.get(key)
+        return missing if v is None else format(v, fmt)
+
+    for r in rows:
+        if "iterations" not in r:
+            lines.append(f"| {r['pillars']} | N = {r['cells_per_diameter']} | error: "
+                         + "; ".join(r["errors"]) + " |")
+            continue
+        shape = "x".join(str(v) for v in r["fft_shape"])
+        lines.append(
+            f"| {r['pillars']} | {r['grid_cells']:.2e} (d/{r['cells_per_diameter']}) | "
+            f"{r['iterations']:g} + {r['warm_start_iterations']:g} | "
+            f"{1e3 * r['time_per_iteration_s']:.1f} | {1e3 * r['fft_pair_s']:.1f} ({shape}) | "
+            f"{r['iteration_over_fft_pair']:.2f} | {r['wall_time_s']:.2f} | "
+            f"{f(r, 'cm_iterations', 'g')} | {f(r, 'cm_s', '.2f')} | "
+            f"{f(r, 'ratio_cm_over_ours', '.1f')}{'x' if 'ratio_cm_over_ours' in r else ''} | "
+            f"{f(r, 'force_rel_diff', '.1e')} | {f(r, 'default_wall_time_s', '.2f')} "
+            f"({f(r, 'default_iterations', 'g')}) |")
+        if r["errors"]:
+            lines.append("|  | errors: " + "; ".join(r["errors"]) + " |")
+    if not peer:
+        lines.append("")
+        lines.append("ContactMechanics comparison skipped: " + meta["contactmechanics_skipped"])
+    lines += ["", "it ours: CG iterations on the finest grid + on the coarser warm-start levels "
+              "(each a quarter of the next one's cells); ms/it: the finest level's solve time "
+              "over its iterations (operator applications, preconditioner and CG vector work); "
+              "FFT pair: rfft2 + irfft2 (scipy.fft, 2 workers) on our padded grid, timed in the "
+              "same process; ours s: the whole solve_fft call (grid, kernel table, "
+              "warm-start levels, solve); CM s: from its substrate's construction on (the "
+              "grid built before); CM / ours: median of the "
+              "per-repeat ratios; default model: edge cells as equivalent squares (a different "
+              "discretisation, F_T not comparable at 1e-8)."]
+    return "\n".join(lines)
+
+
+def write_report(out: Path, runs: list, scaling: list, meta: dict) -> str:
+    """Write bench_fft.json, bench_fft.md and bench_fft.png into ``out``; return the table."""
     from scenes import write_atomic
 
-    lines = ["scaling (bem-fft, scene %s, elastic pillars)" % meta["scene"],
-             f"{'N':>4} {'cells':>9} {'grid':>9} {'time s':>8} {'iter':>5} {'FFTs':>5} "
-             f"{'RSS MB':>7} {'F_T N':>12}"]
-    for r in scaling:
-        if "error" in r:
-            lines.append(f"{r['n']:>4} error: {r['error']}")
-            continue
-        lines.append(f"{r['cells_per_diameter']:>4} {r['candidate_cells']:>9} "
-                     f"{r['grid_cells']:>9} {r['wall_time_s']:>8.2f} {r['iterations']:>5} "
-                     f"{r['operator_applications']:>5} {r['peak_rss_MB']:>7.0f} "
-                     f"{r['total_force_N']:>12.6e}")
-    lines.append("")
-    comparison = _pairs(side)
-    if meta["contactmechanics_skipped"]:
-        lines.append("ContactMechanics comparison skipped: " + meta["contactmechanics_skipped"])
-    else:
-        lines.append("side by side (rigid pillars and substrate, same grid and equations, "
-                     "tol 1e-8 zeta); ours = bem-fft with edge_correction=False; "
-                     "iterations ours = fine + coarser warm-start levels")
-        lines.append(f"{'N':>4} {'grid':>9} {'ours s':>8} {'CM s':>8} {'ratio':>6} "
-                     f"{'it ours':>7} {'it CM':>6} {'FFT ours':>8} {'FFT CM':>6} "
-                     f"{'RSS ours':>8} {'RSS CM':>7} {'dF_T rel':>9} "
-                     f"{'default s':>9} {'dF_T def':>9}")
-        for c in comparison:
-            if "error" in c:
-                lines.append(f"{c['cells_per_diameter']:>4} error: {c['error']}")
-                continue
-            lines.append(
-                f"{c['cells_per_diameter']:>4} {c['grid_cells']:>9} {c['ours_s']:>8.2f} "
-                f"{c['cm_s']:>8.2f} {c['time_ratio_cm_over_ours']:>6.2f} "
-                f"{c['ours_iterations']:>7} {c['cm_iterations']:>6} {c['ours_ffts']:>8} "
-                f"{c['cm_ffts']:>6} {c['ours_rss_MB']:>8.0f} {c['cm_rss_MB']:>7.0f} "
-                f"{c['force_rel_diff']:>9.1e} "
-                + (f"{c['default_s']:>9.2f} {c['default_force_rel_diff']:>9.1e}"
-                   if c["default_s"] is not None else ""))
-    table = "\n".join(lines)
-    doc = {"meta": meta, "scaling": scaling, "side_by_side": side, "comparison": comparison,
+    rows = side_by_side(runs)
+    table = format_table(rows, meta)
+    if scaling:
+        table += "\n\nscaling (bem-fft default model, preset pillars)\n" + "\n".join(
+            f"N = {r['cells_per_diameter']:>3}: {r['grid_cells']:>9} grid cells, "
+            f"{r['wall_time_s']:7.2f} s, {r['iterations']} + {r['warm_start_iterations']} "
+            f"iterations, {1e3 * r['time_per_iteration_s']:.1f} ms/it, FFT pair "
+            f"{1e3 * r['fft_pair_s']:.1f} ms, {r['peak_rss_MB']:.0f} MB"
+            if "error" not in r else f"N = {r.get('n')}: error: {r['error']}"
+            for r in scaling)
+    doc = {"meta": meta, "side_by_side": rows, "runs": runs, "scaling": scaling,
            "table": table}
     out.mkdir(parents=True, exist_ok=True)
     write_atomic(out / "bench_fft.json", json.dumps(doc, indent=2, allow_nan=False))
-    _plot(out / "bench_fft.png", scaling, side)
+    write_atomic(out / "bench_fft.md", table + "\n")
+    _plot(out / "bench_fft.png", rows)
     return table
 
 
-def _pairs(side: list) -> list:
-    """Match our run and ContactMechanics' at each level."""
-    out = []
-    levels = sorted({r.get("cells_per_diameter", r.get("n")) for r in side})
-    for n in levels:
-        rows = {r.get("solver"): r for r in side if r.get("cells_per_diameter", r.get("n")) == n}
-        ours, cm = rows.get("bem-fft-grid"), rows.get("contactmechanics")
-        default = rows.get("bem-fft") or {}
-        if ours is None or cm is None or "error" in ours or "error" in cm:
-            bad = ours if ours is None or "error" in ours else cm
-            out.append({"cells_per_diameter": n,
-                        "error": (bad or {}).get("error", "missing run")})
-            continue
-        out.append({
-            "cells_per_diameter": n, "grid_cells": ours["grid_cells"],
-            "candidate_cells": ours["candidate_cells"],
-            "ours_s": ours["wall_time_s"], "cm_s": cm["wall_time_s"],
-            "time_ratio_cm_over_ours": cm["wall_time_s"] / ours["wall_time_s"],
-            "ours_iterations": f"{ours['iterations']}+{ours.get('warm_start_iterations', 0)}",
-            "cm_iterations": cm["iterations"],
-            "ours_ffts": ours["operator_applications"], "cm_ffts": cm["operator_applications"],
-            "ours_rss_MB": ours["peak_rss_MB"], "cm_rss_MB": cm["peak_rss_MB"],
-            "ours_force_N": ours["total_force_N"], "cm_force_N": cm["total_force_N"],
-            "force_rel_diff": (ours["total_force_N"] - cm["total_force_N"])
-            / abs(cm["total_force_N"]),
-            "both_converged": bool(ours["converged"] and cm["converged"]),
-            # Our default model (edge cells as equivalent squares) on the same grid: a
-            # different, more accurate discretisation, so F_T differs at the O(L) level.
-            "default_s": default.get("wall_time_s"),
-            "default_force_rel_diff": (default["total_force_N"] - cm["total_force_N"])
-            / abs(cm["total_force_N"]) if "total_force_N" in default else None})
-    return out
-
-
-def _plot(path: Path, scaling: list, side: list) -> None:
+def _plot(path: Path, rows: list) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, (ax_t, ax_m) = plt.subplots(1, 2, figsize=(10, 4))
-    ok = [r for r in scaling if "error" not in r]
-    cells = [r["grid_cells"] for r in ok]
-    ax_t.loglog(cells, [r["wall_time_s"] for r in ok], "o-", label="bem-fft (elastic)")
-    ax_m.loglog(cells, [r["peak_rss_MB"] for r in ok], "o-", label="bem-fft (elastic)")
-    for solver, mark in (("bem-fft-grid", "s"), ("contactmechanics", "^"),
-                         ("bem-fft", "d")):
-        rows = [r for r in side if r.get("solver") == solver and "error" not in r]
-        if rows:
-            label = f"{solver} (rigid, side by side)"
-            ax_t.loglog([r["grid_cells"] for r in rows], [r["wall_time_s"] for r in rows],
-                        mark + "--", label=label)
-            ax_m.loglog([r["grid_cells"] for r in rows], [r["peak_rss_MB"] for r in rows],
-                        mark + "--", label=label)
+    fig, (ax_t, ax_i) = plt.subplots(1, 2, figsize=(10, 4))
+    for pillars, mark in (("rigid", "o"), ("elastic", "s")):
+        sel = [r for r in rows if r["pillars"] == pillars and "iterations" in r]
+        if not sel:
+            continue
+        cells = [r["grid_cells"] for r in sel]
+        ax_t.loglog(cells, [r["wall_time_s"] for r in sel], mark + "-",
+                    label=f"ours ({pillars})")
+        ax_i.loglog(cells, [r["iterations"] for r in sel], mark + "-",
+                    label=f"ours ({pillars})")
+        peer = [r for r in sel if "cm_s" in r]
+        if peer:
+            ax_t.loglog([r["grid_cells"] for r in peer], [r["cm_s"] for r in peer],
+                        mark + "--", label=f"ContactMechanics ({pillars})")
+            ax_i.loglog([r["grid_cells"] for r in peer], [r["cm_iterations"] for r in peer],
+                        mark + "--", label=f"ContactMechanics ({pillars})")
     ax_t.set(xlabel="grid cells", ylabel="wall time (s)", title="time")
-    ax_m.set(xlabel="grid cells", ylabel="peak RSS (MB)", title="memory")
-    for ax in (ax_t, ax_m):
+    ax_i.set(xlabel="grid cells", ylabel="CG iterations", title="iterations")
+    for ax in (ax_t, ax_i):
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
     from validation.report import save_figure
