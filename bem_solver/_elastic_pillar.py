@@ -203,5 +203,165 @@ def full_block(disc, X: np.ndarray, img_cell: np.ndarray) -> np.ndarray:
     return np.where(same, X[np.ix_(img_cell, img_cell)], 0.0)
 
 
-__all__ = ["PILLAR_MODELS", "cached_excess_block", "check_pillars", "excess_block", "full_block", "image_cells",
+__all__ = ["FFTPillarTerm", "PILLAR_MODELS", "cached_excess_block", "check_pillars", "excess_block", "full_block", "image_cells",
            "reduced_block", "representative_rows", "scene_compliance", "uses_elastic_block"]
+
+
+class FFTPillarTerm:
+    """The elastic pillars' excess compliance on the FFT model's cells, matrix-free.
+
+    ``term(q)`` adds, for smeared cell pressures q (Pa; the force of cell b is q_b L^2), the
+    displacement sum_b X[a, b] q_b L^2 over the cells b of the pillar of a (m):
+
+    - the mode part, per pillar: the cell forces are projected onto the P2 hats of the top
+      times cos(n theta), sin(n theta) (three sparse products, one column per mode and
+      trigonometric factor), the moments are multiplied by w_n S_n / (E_p* a) and projected
+      back: O(cells x modes) work and memory, never a dense block;
+    - the local part (gamma_p - gamma_s) / pi Love: a convolution on each pillar's own box of
+      the grid (a batched, zero-padded FFT of the boxes) plus the near-field correction of
+      partly covered cells restricted to pairs on the same pillar.
+
+    Collocation points: the grid's (centroids of partly covered cells), relative to their
+    pillar's centre.  CPU only (numpy and scipy).
+    """
+
+    def __init__(self, scene: Scene, grid, compliance, correction_builder):
+        import scipy.sparse as sps
+
+        self.modal = compliance
+        self.half_space = scene.half_space_compliance
+        a = 0.5 * scene.pillars.diameter_m
+        fem_scale, local = _constants(scene, compliance)
+        self.local_compliance = local
+        L = grid.cell_size
+        self.L2 = L * L
+        self.n = grid.n_cells
+        centre = grid.pillar_xy[grid.pillar]
+        dx, dy = grid.colloc_x - centre[:, 0], grid.colloc_y - centre[:, 1]
+        r = np.clip(np.hypot(dx, dy) / a, 0.0, 1.0)
+        theta = np.arctan2(dy, dx)
+        vert = compliance.r_top[::2]
+        n_edges = len(vert) - 1
+        e = np.clip(np.searchsorted(vert, r, side="right") - 1, 0, n_edges - 1)
+        t = (r - vert[e]) / (vert[e + 1] - vert[e])
+        values = ((1.0 - t) * (1.0 - 2.0 * t), 4.0 * t * (1.0 - t), t * (2.0 * t - 1.0))
+        self.n_pillars = len(grid.pillar_xy)
+        self.n_edges = n_edges
+        key = grid.pillar * n_edges + e
+        n_keys = self.n_pillars * n_edges
+        cols = np.arange(self.n)
+        self.project = [sps.csr_matrix((v, (key, cols)), shape=(n_keys, self.n))
+                        for v in values]
+        self.back = [P.T.tocsr() for P in self.project]
+        trig, weights, modes = [], [], []
+        w = compliance.mode_weights()
+        for m in range(compliance.modes + 1):
+            for f in ((np.cos,) if m == 0 else (np.cos, np.sin)):
+                trig.append(f(m * theta))
+                modes.append(m)
+        self.trig = np.column_stack(trig)                          # (cells, K)
+        S = compliance.excess
+        self.S = np.stack([w[m] * S[m] for m in modes]) * fem_scale  # (K, n_top, n_top)
+        self.n_top = len(compliance.r_top)
+        # Local Love part: each pillar's box of the grid.
+        self.local = None
+        if local != 0.0:
+            self.local = self._local_plan(grid, local, correction_builder)
+        self.diagonal = self._diagonal(values, e)
+        # Mean excess of the mode part under a uniform load on the whole top (m/N).
+        rr = np.linspace(0.0, 1.0, 4001)
+        mid, dr = 0.5 * (rr[1:] + rr[:-1]), np.diff(rr)
+        moments = (compliance.trace_basis(mid) * (mid * dr)[:, None]).sum(axis=0)
+        self.mean_mode = float(2.0 * moments @ (self.S[0] / w[0]) @ moments / math.pi)
+
+    def _local_plan(self, grid, local, correction_builder):
+        from ._fft_operator import kernel_block
+
+        ny, nx = grid.shape
+        iy, ix = grid.flat_index // nx, grid.flat_index % nx
+        y0 = np.full(self.n_pillars, np.iinfo(np.int64).max)
+        x0 = np.full(self.n_pillars, np.iinfo(np.int64).max)
+        np.minimum.at(y0, grid.pillar, iy)
+        np.minimum.at(x0, grid.pillar, ix)
+        ly, lx = iy - y0[grid.pillar], ix - x0[grid.pillar]
+        B = int(max(ly.max(), lx.max())) + 1
+        M = 2 * B
+        block = kernel_block((B, B), grid.cell_size, local)
+        padded = np.zeros((M, M))
+        padded[:B, :B] = block
+        padded[M - B + 1:, :B] = block[1:, :][::-1]
+        padded[:, M - B + 1:] = padded[:, 1:B][:, ::-1]
+        spectrum = np.real(np.fft.rfft2(padded))
+        index = (grid.pillar * M + ly) * M + lx
+        correction = correction_builder(local)
+        if correction is not None:  # keep the pairs on one pillar
+            c = correction.tocoo()
+            same = grid.pillar[c.row] == grid.pillar[c.col]
+            import scipy.sparse as sps
+            correction = sps.csr_matrix((c.data[same], (c.row[same], c.col[same])),
+                                        shape=c.shape)
+        return {"M": M, "index": index, "spectrum": spectrum, "correction": correction,
+                "self": float(block[0, 0])}
+
+    def _diagonal(self, values, e):
+        """X[b, b] (m/Pa per unit q: times L^2)."""
+        n = self.n
+        d = np.zeros(n)
+        pillar_edge = np.stack([2 * e, 2 * e + 1, 2 * e + 2], axis=1)   # (cells, 3)
+        v = np.stack(values, axis=1)
+        for k in range(self.trig.shape[1]):
+            Sk = self.S[k]
+            sub = Sk[pillar_edge[:, :, None], pillar_edge[:, None, :]]  # (cells, 3, 3)
+            d += self.trig[:, k] ** 2 * np.einsum("bi,bij,bj->b", v, sub, v)
+        d *= self.L2
+        if self.local is not None:
+            d += self.local["self"]
+            if self.local["correction"] is not None:
+                d += self.local["correction"].diagonal()
+        return d
+
+    def __call__(self, q):
+        F = q * self.L2
+        FT = F[:, None] * self.trig                                   # (cells, K)
+        K = self.trig.shape[1]
+        M = np.zeros((self.n_pillars, self.n_top, K))
+        for l, P in enumerate(self.project):
+            M[:, l:2 * self.n_edges + l:2, :] += (P @ FT).reshape(self.n_pillars, self.n_edges, K)
+        U = np.einsum("kij,pjk->pik", self.S, M)                     # (pillars, n_top, K)
+        u = np.zeros(self.n)
+        for l, P in enumerate(self.back):
+            part = U[:, l:2 * self.n_edges + l:2, :].reshape(-1, K)
+            u += np.einsum("bk,bk->b", P @ part, self.trig)
+        if self.local is not None:
+            u += self._local_apply(q)
+        return u
+
+    def _local_apply(self, q):
+        loc = self.local
+        M = loc["M"]
+        box = np.zeros(self.n_pillars * M * M)
+        box[loc["index"]] = q
+        spec = np.fft.rfft2(box.reshape(self.n_pillars, M, M)) * loc["spectrum"]
+        u = np.fft.irfft2(spec, s=(M, M)).reshape(-1)[loc["index"]]
+        if loc["correction"] is not None:
+            u += loc["correction"] @ q
+        return u
+
+    def mode_compliance(self, counts):
+        """1^T X 1 over ``counts`` cells of a pillar under a unit q on each (m/Pa), estimated
+        as for a uniform load on the whole top: the mode part's mean response (m/N) times the
+        force counts L^2, summed over the counts cells, plus the local Love part as the mean
+        of a disk of the same area (16 gamma L counts^1.5 / (3 pi^1.5)).  The preconditioner's
+        coarse space uses it."""
+        share = self.mean_mode * self.L2 * counts * counts
+        L = math.sqrt(self.L2)
+        disk = 16.0 * L * counts * np.sqrt(counts) / (3.0 * math.pi ** 1.5)
+        share = share + self.local_compliance * disk
+        # The whole 1^T A 1 is positive; keep the estimate so: at least half the half-space
+        # part's disk value remains.
+        return np.maximum(share, -0.5 * self.half_space * disk)
+
+    def dense_matrix(self) -> np.ndarray:
+        """The term as a dense matrix (m/Pa), column by column (tests on small grids)."""
+        eye = np.eye(self.n)
+        return np.column_stack([self(eye[:, j]) for j in range(self.n)])
