@@ -88,6 +88,7 @@ def solve_dense(scene: Scene, elements_per_diameter: int = 11, cells: str = "cov
         pattern = cell_pattern(P, cells)
         cells_m = pattern.scaled(scene.pillars.diameter_m)
         rows = representative_rows(scene, pattern)
+        _refuse_large_block(P, len(rows), len(pattern.x), modal)
         elastic = {"modal": modal, "pattern": pattern, "rows": rows,
                    "X": cached_excess_block(scene, cells_m, modal, rows, (P, cells))}
     r_max = overlap_radius(scene)
@@ -224,6 +225,19 @@ def _refuse_if_too_large(scene: Scene, P: int, cells: str, contact: str) -> None
             f"elements_per_diameter = {P}: about {need['unknowns']:.3g} unknowns, far beyond "
             f"the dense limit {MAX_UNKNOWNS}; use a smaller P or the FFT model "
             "(--model bem-fft)")
+
+
+def _refuse_large_block(P: int, rows: int, cells: int, modal) -> None:
+    """ScopeError when the elastic pillar's block (rows x cells, with the Love and mode
+    temporaries: about four such arrays, plus the mode columns) would not fit in memory."""
+    need = 8.0 * (4.0 * rows * cells + 2.0 * cells * (2 * modal.modes + 1) * len(modal.r_top))
+    free = memory_short(need)
+    if free is not None:
+        raise ScopeError(
+            f"elements_per_diameter = {P}: the elastic pillar's block ({rows} x {cells} cells) "
+            f"needs about {need / 2**30:.3g} GiB, more than {MEMORY_SHARE:.0%} of the "
+            f"{free / 2**30:.3g} GiB available; use a smaller P or the FFT model "
+            "(--model bem-fft), whose elastic pillar needs no dense block")
 
 
 def _paper_search(scene, disc, M, b):

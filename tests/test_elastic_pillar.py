@@ -301,3 +301,16 @@ def test_fft_pillar_term_is_the_dense_block():
     # The local Love part is the grid's kernel beyond the near-field correction's three cells
     # (a dipole of the centroid shift, a few 1e-3 of the largest entry): tolerance 1 %.
     np.testing.assert_allclose(A[np.ix_(c, c)], X * L2, rtol=0, atol=1e-2 * np.abs(X).max() * L2)
+
+
+def test_dense_elastic_refuses_a_block_beyond_memory(monkeypatch):
+    """With 1 GiB available, P = 120 fits the Hooke operator (~0.3 GiB) but not the elastic
+    pillar's block (2.8k representative rows x 11k cells, ~1.1 GiB): refused, never tried."""
+    import bem_solver._dense as dense
+    from scenes import ScopeError
+
+    monkeypatch.setattr(dense, "memory_short",
+                        lambda need: 2.0**30 if need > 0.8 * 2.0**30 else None)
+    scene = _single("pillars.E_Pa=1.6e7")
+    with pytest.raises(ScopeError, match="elements_per_diameter = 120: the elastic pillar"):
+        solve_dense(scene, 120, pillars="elastic", compliance=_modal(scene))

@@ -8,8 +8,9 @@ Hooke and the elastic pillar at P = 21 and 41 (and their first-order Richardson 
 ``elastic_pillar.json`` and ``elastic_pillar.csv`` (F_T, sigma0, their relative differences
 against fem-axisym at mesh_size 0.5, wall times) and prints a table; the compliance build
 time of each pillar kind is recorded (uncached: the cache goes to DIR/cache).
-With ``--modes-study`` it also measures F_T and sigma0 against the number of Fourier modes
-and the compliance mesh on one kind.
+With ``--modes-study`` it also measures F_T, sigma0 and a ring force against the number of
+Fourier modes and the compliance mesh on a lattice; ``--lattice`` compares the Hooke and
+elastic BEMs with fem-3d on Phi = 0.2 instead (``elastic_lattice.json``).
 """
 
 from __future__ import annotations
@@ -94,24 +95,73 @@ def run(out: Path, ratios=RATIOS, aspects=ASPECTS, levels=LEVELS) -> list:
     return rows
 
 
-def modes_study(scene_overrides=("pillars.E_Pa=1.6e7",), P=31) -> list:
-    """F_T and sigma0 of the elastic BEM against the modes and the compliance mesh."""
+def modes_study(ratios=(10.0, 0.1), meshes=(4.0, 2.0, 1.0), P=21) -> list:
+    """F_T, sigma0 and the first ring's force of the dense elastic BEM on Phi = 0.2 against
+    the highest Fourier mode kept (one build with n <= 12 per mesh, truncated) and the
+    compliance mesh (its number of P2 points on the top)."""
     from bem_solver import solve_dense
-    from fem_reference import PillarKind, modal_compliance
+    from fem_reference import ModalCompliance, PillarKind, modal_compliance
     from scenes import load_scene
 
-    scene = load_scene("single-pillar", list(scene_overrides))
-    kind = PillarKind.of_scene(scene)
     rows = []
-    for modes, mesh in ((2, 1.0), (4, 1.0), (8, 1.0), (12, 1.0), (16, 1.0), (12, 0.7),
-                        (12, 0.5)):
-        modal, t = _timed(modal_compliance, kind, modes, mesh)
-        r = solve_dense(scene, P, pillars="elastic", compliance=modal)
-        rows.append({"modes": modes, "mesh_size": mesh, "top_points": len(modal.r_top),
-                     "F_T": r.total_force_N, "sigma0": r.centre_pressure_Pa,
-                     "build_s": t})
-        print(rows[-1], flush=True)
+    for ratio in ratios:
+        scene = load_scene("paper-fig3-sparse", ["pillars.surface_fraction=0.2",
+                                                 f"pillars.E_Pa={ratio * 1.6e6!r}"])
+        kind = PillarKind.of_scene(scene)
+        for mesh in meshes:
+            full, t = _timed(modal_compliance, kind, 12, mesh)
+            for n in (0, 1, 2, 4, 8, 12):
+                m = ModalCompliance(kind, n, mesh, full.r_top, full.pillar[:n + 1],
+                                    full.halfspace[:n + 1], {})
+                r = solve_dense(scene, P, pillars="elastic", compliance=m)
+                rows.append({"E_p/E_l": ratio, "mesh_size": mesh, "top_points": len(full.r_top),
+                             "modes": n, "F_T": r.total_force_N,
+                             "sigma0": r.centre_pressure_Pa,
+                             "ring1": _rings(r).get(1), "build_s": t})
+                print(json.dumps(rows[-1]), flush=True)
     return rows
+
+
+def lattice(ratios=(0.1, 10.0), phi=0.2, fem_sizes=(2.83, 2.0), P=21, N=32) -> list:
+    """Hooke BEM, elastic BEM (dense P, FFT N) and fem-3d (two mesh levels) on
+    ``paper-fig3-sparse`` at surface fraction ``phi`` (E_s = E_l = 1.6 MPa)."""
+    from bem_solver import solve_dense, solve_fft
+    from bem_solver._elastic_pillar import scene_compliance
+    from fem_reference import solve_fem3d
+    from scenes import load_scene
+
+    rows = []
+    for ratio in ratios:
+        scene = load_scene("paper-fig3-sparse", [f"pillars.surface_fraction={phi!r}",
+                                                 f"pillars.E_Pa={ratio * 1.6e6!r}"])
+        modal, t_build = _timed(scene_compliance, scene)
+        row = {"E_p/E_l": ratio, "Phi": phi, "compliance_s": t_build}
+        for name, fn in (("hooke_dense", lambda: solve_dense(scene, P)),
+                         ("elastic_dense", lambda: solve_dense(scene, P, pillars="elastic")),
+                         ("hooke_fft", lambda: solve_fft(scene, N)),
+                         ("elastic_fft", lambda: solve_fft(scene, N, pillars="elastic"))):
+            r, t = _timed(fn)
+            row.update({f"{name}_F_T": r.total_force_N, f"{name}_sigma0": r.centre_pressure_Pa,
+                        f"{name}_s": t, f"{name}_converged": r.converged,
+                        f"{name}_rings": _rings(r)})
+        for ms in fem_sizes:
+            r, t = _timed(solve_fem3d, scene, ms)
+            row.update({f"fem3d_m{ms:g}_F_T": r.total_force_N,
+                        f"fem3d_m{ms:g}_sigma0": r.centre_pressure_Pa,
+                        f"fem3d_m{ms:g}_s": t, f"fem3d_m{ms:g}_rings": _rings(r),
+                        f"fem3d_m{ms:g}_converged": r.converged})
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+    return rows
+
+
+def _rings(result) -> dict:
+    """Force per pillar, averaged over each lattice ring (N), keyed by ring."""
+    rings = {}
+    for p in result.pillar_forces:
+        ring = max(abs(p.n), abs(p.m), abs(p.n - p.m))
+        rings.setdefault(ring, []).append(p.force_N)
+    return {k: sum(v) / len(v) for k, v in sorted(rings.items())}
 
 
 def main(argv=None) -> int:
@@ -119,10 +169,16 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--quick", action="store_true", help="h/d = 1 only, E_p/E_l 0.1 and 10")
     ap.add_argument("--modes-study", action="store_true")
+    ap.add_argument("--lattice", action="store_true",
+                    help="only the lattice scene (Phi = 0.2) against fem-3d")
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     os.environ["PILLAR_XVAL_CACHE"] = str(args.out / "cache")
     doc = {}
+    if args.lattice:
+        doc["lattice"] = lattice()
+        (args.out / "elastic_lattice.json").write_text(json.dumps(doc, indent=1))
+        return 0
     if args.modes_study:
         doc["modes"] = modes_study()
     rows = run(args.out, (0.1, 10.0), (1.0,)) if args.quick else run(args.out)
