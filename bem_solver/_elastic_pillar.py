@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import scipy.fft as sfft
 import scipy.sparse as sp
 
 from scenes import Scene
@@ -34,6 +35,7 @@ from scenes import Scene
 from ._love import unit_force_influence
 
 PILLAR_MODELS = ("hooke", "elastic")
+FFT_THREADS = 2  # the pillar boxes' batched transforms (this machine has two cores)
 
 
 def check_pillars(pillars: str) -> None:
@@ -285,13 +287,13 @@ class FFTPillarTerm:
         np.minimum.at(x0, grid.pillar, ix)
         ly, lx = iy - y0[grid.pillar], ix - x0[grid.pillar]
         B = int(max(ly.max(), lx.max())) + 1
-        M = 2 * B
+        M = sfft.next_fast_len(2 * B - 1, real=True)  # linear convolution of B-point boxes
         block = kernel_block((B, B), grid.cell_size, local)
         padded = np.zeros((M, M))
         padded[:B, :B] = block
         padded[M - B + 1:, :B] = block[1:, :][::-1]
         padded[:, M - B + 1:] = padded[:, 1:B][:, ::-1]
-        spectrum = np.real(np.fft.rfft2(padded))
+        spectrum = np.real(sfft.rfft2(padded))
         index = (grid.pillar * M + ly) * M + lx
         correction = correction_builder(local)
         if correction is not None:  # keep the pairs on one pillar
@@ -327,11 +329,12 @@ class FFTPillarTerm:
         M = np.zeros((self.n_pillars, self.n_top, K))
         for l, P in enumerate(self.project):
             M[:, l:2 * self.n_edges + l:2, :] += (P @ FT).reshape(self.n_pillars, self.n_edges, K)
-        U = np.einsum("kij,pjk->pik", self.S, M)                     # (pillars, n_top, K)
+        # Per mode column k: U_k = M_k S_k (S_k symmetric), one batched matrix product.
+        U = np.matmul(M.transpose(2, 0, 1), self.S).transpose(1, 2, 0)  # (pillars, n_top, K)
         u = np.zeros(self.n)
         for l, P in enumerate(self.back):
-            part = U[:, l:2 * self.n_edges + l:2, :].reshape(-1, K)
-            u += np.einsum("bk,bk->b", P @ part, self.trig)
+            part = np.ascontiguousarray(U[:, l:2 * self.n_edges + l:2, :]).reshape(-1, K)
+            u += (P @ part * self.trig).sum(axis=1)
         if self.local is not None:
             u += self._local_apply(q)
         return u
@@ -341,8 +344,9 @@ class FFTPillarTerm:
         M = loc["M"]
         box = np.zeros(self.n_pillars * M * M)
         box[loc["index"]] = q
-        spec = np.fft.rfft2(box.reshape(self.n_pillars, M, M)) * loc["spectrum"]
-        u = np.fft.irfft2(spec, s=(M, M)).reshape(-1)[loc["index"]]
+        spec = sfft.rfft2(box.reshape(self.n_pillars, M, M), workers=FFT_THREADS)
+        spec *= loc["spectrum"]
+        u = sfft.irfft2(spec, s=(M, M), workers=FFT_THREADS).reshape(-1)[loc["index"]]
         if loc["correction"] is not None:
             u += loc["correction"] @ q
         return u
