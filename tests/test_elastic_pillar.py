@@ -12,6 +12,7 @@ import pytest
 from bem_solver import expansion, full_operator, solve_dense
 from bem_solver._cells import cell_pattern
 from bem_solver._discretise import discretise
+from bem_solver._extrapolated import solve_dense_extrapolated
 from bem_solver._elastic_pillar import (excess_block, full_block, image_cells, reduced_block,
                                         scene_compliance)
 from bem_solver._love import unit_force_influence
@@ -254,6 +255,10 @@ def test_single_pillar_against_fem_axisym(ratio):
     assert abs(hooke.centre_pressure_Pa / fem.centre_pressure_Pa - 1.0) > 0.05
     assert bem.diagnostics["pillars"] == "elastic"
     assert scene_compliance(scene, _modal(scene)) is not None
+    # The two-level extrapolated model passes the pillar model to both levels.
+    rich = solve_dense_extrapolated(scene, 11, pillars="elastic", compliance=_modal(scene))
+    assert rich.total_force_N == pytest.approx(fem.total_force_N, rel=1e-2)
+    assert rich.centre_pressure_Pa == pytest.approx(fem.centre_pressure_Pa, rel=2e-2)
 
 
 @pytest.mark.parametrize("ratio", [1e-3, 0.1, 1e6])
