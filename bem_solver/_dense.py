@@ -19,6 +19,8 @@ from outcome.memory import memory_short
 
 from ._cells import VARIANTS, cell_pattern
 from ._discretise import Discretisation, discretise, overlap_radius
+from ._elastic_pillar import (cached_excess_block, check_pillars, image_cells, reduced_block,
+                              representative_rows, scene_compliance, uses_elastic_block)
 from ._operator import reduced_operator
 
 MAX_UNKNOWNS = 12_000  # dense reduced operator: 1.2 GB at this size
@@ -51,7 +53,8 @@ def _check_options(per_diameter, cells, contact):
 
 
 def solve_dense(scene: Scene, elements_per_diameter: int = 11, cells: str = "covered",
-                contact: str = "exact") -> ContactResult:
+                contact: str = "exact", *, pillars: str = "hooke",
+                compliance=None) -> ContactResult:
     """Solve ``scene`` with the dense, symmetry-reduced BEM.
 
     Parameters
@@ -67,11 +70,28 @@ def solve_dense(scene: Scene, elements_per_diameter: int = 11, cells: str = "cov
         Exact complementarity (p >= 0, gap >= 0, p gap = 0 on every element) or the paper's
         iterative contact-radius search (supplementary material, sec. 4), which only removes
         tensile zones and does not check interpenetration outside the contact.
+    pillars : {"hooke", "elastic"}
+        The paper's uniformly shortening pillar (default), or the elastic pillar: a dense
+        excess-compliance block per pillar from the pillar's finite-element compliance
+        (:mod:`bem_solver._elastic_pillar`; computed once per pillar kind and cached).
+    compliance : fem_reference.ModalCompliance, optional
+        With ``pillars="elastic"``: the pillar's mode matrices (default: the cached ones of
+        the scene's pillar kind at the default discretisation).
     """
     _check_options(elements_per_diameter, cells, contact)
+    check_pillars(pillars)
     t0 = time.perf_counter()
     P = int(elements_per_diameter)
     _refuse_if_too_large(scene, P, cells, contact)
+    elastic = None
+    if uses_elastic_block(scene, pillars):
+        modal = scene_compliance(scene, compliance)
+        pattern = cell_pattern(P, cells)
+        cells_m = pattern.scaled(scene.pillars.diameter_m)
+        rows = representative_rows(scene, pattern)
+        _refuse_large_block(P, len(rows), len(pattern.x), modal)
+        elastic = {"modal": modal, "pattern": pattern, "rows": rows,
+                   "X": cached_excess_block(scene, cells_m, modal, rows, (P, cells))}
     r_max = overlap_radius(scene)
     hertz_radius = math.sqrt(scene.lens.radius_m * scene.indentation_m)
     radius = _initial_radius(scene, contact)
@@ -90,7 +110,11 @@ def solve_dense(scene: Scene, elements_per_diameter: int = 11, cells: str = "cov
             raise ScopeError(
                 f"elements_per_diameter = {P}: {disc.n_unknowns} unknowns exceed the dense "
                 f"limit {MAX_UNKNOWNS}; use a smaller P or the FFT model (--model bem-fft)")
-        M = reduced_operator(scene, disc)
+        block = None
+        if elastic is not None:
+            img_cell = image_cells(disc, elastic["pattern"], scene.pillars.diameter_m)
+            block = reduced_block(disc, elastic["X"], img_cell, elastic["rows"])
+        M = reduced_operator(scene, disc, block)
         # Rows of the reduced operator are weighted by the orbit sizes: gap_i / w_i is in m.
         b = disc.rep_weight * (lens_gap(scene, disc.rep_x, disc.rep_y) - scene.indentation_m)
         if contact == "exact":
@@ -104,13 +128,26 @@ def solve_dense(scene: Scene, elements_per_diameter: int = 11, cells: str = "cov
         else:
             sol, extra = _paper_search(scene, disc, M, b)
         violated = (None if contact == "paper" else
-                    _outside_violations(scene, disc, sol.pressure, reach, radius, r_max))
+                    _outside_violations(scene, disc, sol.pressure, reach, radius, r_max,
+                                        elastic))
         if violated is None:
             break
         radius = min(r_max, violated + (scene.pillars.diameter_m if scene.pillars else
                                         4 * disc.cell_side))
+    if elastic is not None:
+        extra = {**extra, "pillars": "elastic",
+                 "pillar_compliance": _compliance_summary(elastic["modal"])}
     return _result(scene, disc, sol, P, cells, contact, rounds, extra,
                    time.perf_counter() - t0)
+
+
+def _compliance_summary(modal) -> dict:
+    """What the result records of the pillar compliance it used."""
+    d = modal.diagnostics
+    return {"modes": modal.modes, "mesh_size": modal.mesh_size,
+            "top_points": int(len(modal.r_top)), "cached": bool(d.get("cached", False)),
+            "reciprocity_asymmetry": d.get("reciprocity_asymmetry"),
+            "build_time_s": d.get("time_s", {}).get("total")}
 
 
 def _initial_radius(scene: Scene, contact: str) -> float:
@@ -190,6 +227,18 @@ def _refuse_if_too_large(scene: Scene, P: int, cells: str, contact: str) -> None
             "(--model bem-fft)")
 
 
+def _refuse_large_block(P: int, rows: int, cells: int, modal) -> None:
+    """ScopeError when the elastic pillar's block (rows x cells, with the Love and mode
+    temporaries: about four such arrays, plus the mode columns) would not fit in memory."""
+    need = 8.0 * (4.0 * rows * cells + 2.0 * cells * (2 * modal.modes + 1) * len(modal.r_top))
+    short = memory_short(need)
+    if short is not None:
+        raise ScopeError(
+            f"elements_per_diameter = {P}: the elastic pillar's block ({rows} x {cells} cells) "
+            f"needs about {need / 2**30:.3g} GiB, {short}; use a smaller P or the FFT model "
+            "(--model bem-fft), whose elastic pillar needs no dense block")
+
+
 def _paper_search(scene, disc, M, b):
     """Bisection-like contact radius search of the paper (supplementary sec. 4).
 
@@ -222,13 +271,16 @@ def _paper_search(scene, disc, M, b):
     return sol, extra
 
 
-def _outside_violations(scene, disc, q, reach, radius, r_max):
+def _outside_violations(scene, disc, q, reach, radius, r_max, elastic=None):
     """Largest radius beyond the candidate region where contact cannot be ruled out, or None.
 
     ``reach`` holds the representative collocation points out to the overlap radius.
     Displacements are bounded below by (gamma/pi) F / (|x - x_F| + rho) for a force F spread
     within rho of x_F (the Hooke shortening, also >= 0, is left out of the bound); where the
-    lens gap plus this bound stays positive, no contact is possible.
+    lens gap plus this bound stays positive, no contact is possible.  An elastic pillar's own
+    top may rise where it tilts: on a loaded pillar the bound takes the lens term alone plus
+    F times the smallest entry of X when negative (a lower bound of gamma_s Love + X; the rows
+    kept hold every entry up to the pattern's symmetry).
     """
     if reach is None or radius >= r_max * (1.0 - 1e-12):
         return None
@@ -248,7 +300,13 @@ def _outside_violations(scene, disc, q, reach, radius, r_max):
         rho = np.full(len(forces), scene.pillars.diameter_m / 2.0)
     loaded = forces > 0
     dist = np.hypot(ox[:, None] - fx[loaded][None, :], oy[:, None] - fy[loaded][None, :])
-    u_low = scale * (forces[loaded][None, :] / (dist + rho[loaded][None, :])).sum(axis=1)
+    terms = scale * forces[loaded][None, :] / (dist + rho[loaded][None, :])
+    if elastic is not None:
+        own = dist <= rho[loaded][None, :] * (1.0 + 1e-9)  # a point on a loaded pillar
+        lens_share = scene.lens.material.compliance / scene.half_space_compliance
+        floor = min(0.0, float(elastic["X"].min()))
+        terms = np.where(own, lens_share * terms + floor * forces[loaded][None, :], terms)
+    u_low = terms.sum(axis=1)
     gap_low = lens_gap(scene, ox, oy) - scene.indentation_m + u_low
     bad = gap_low < 0
     return float(np.hypot(ox[bad], oy[bad]).max()) if bad.any() else None

@@ -96,7 +96,8 @@ def _pillar_forces(coarse: ContactResult, fine: ContactResult, p1: int, p2: int)
 
 
 def solve_dense_extrapolated(scene: Scene, elements_per_diameter: int = 5,
-                             cells: str = "covered") -> ContactResult:
+                             cells: str = "covered", *, pillars: str = "hooke",
+                             compliance=None) -> ContactResult:
     """Solve ``scene`` with the dense BEM at P1 and P2 = 2 P1 - 1 and extrapolate F_T and
     sigma_0 to zero element size (module docstring: what is extrapolated and why this P2).
 
@@ -109,6 +110,8 @@ def solve_dense_extrapolated(scene: Scene, elements_per_diameter: int = 5,
     cells : {"covered", "centre"}
         Cell variant of both levels (see :func:`bem_solver.solve_dense`); only ``covered``
         converges smoothly enough to extrapolate.
+    pillars, compliance
+        The pillar model of both levels (see :func:`bem_solver.solve_dense`).
 
     Returns
     -------
@@ -125,9 +128,9 @@ def solve_dense_extrapolated(scene: Scene, elements_per_diameter: int = 5,
     """
     t0 = time.perf_counter()
     p1 = elements_per_diameter
-    coarse = solve_dense(scene, p1, cells=cells)
+    coarse = solve_dense(scene, p1, cells=cells, pillars=pillars, compliance=compliance)
     p2 = fine_level(p1)
-    fine = solve_dense(scene, p2, cells=cells)
+    fine = solve_dense(scene, p2, cells=cells, pillars=pillars, compliance=compliance)
     order = extrapolation_order(scene)
     sigma0 = richardson(coarse.centre_pressure_Pa, fine.centre_pressure_Pa, p1, p2, order)
     if scene.pillars is None:

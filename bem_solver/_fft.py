@@ -49,12 +49,14 @@ import numpy as np
 
 from contact import constrained_cg, diagonal_preconditioner
 from outcome import ContactResult, PillarForce
-from scenes import Scene
+from scenes import InputError, Scene
 
 from ._dense import _smooth_edge_radius
 from ._fft_grid import CellGrid, build_grid
+from ._elastic_pillar import (FFTPillarTerm, check_pillars, scene_compliance,
+                              uses_elastic_block)
 from ._fft_operator import CirculantPreconditioner, CompliancePlan, near_field_correction
-from ._xp import select_backend
+from ._xp import NumpyDevice, select_backend
 
 __all__ = ["solve_fft"]
 
@@ -78,6 +80,7 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
               max_iterations: int | None = None, workers: int = 2,
               warm_start: bool = True, edge_correction: bool = True, progress=None,
               device: str = "cpu", backend=None, preconditioner: str = "circulant",
+              pillars: str = "hooke", compliance=None,
               _nested: bool = False) -> ContactResult:
     """Solve the lens-on-pillars contact with the FFT-accelerated BEM.
 
@@ -117,6 +120,14 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
         box plus per-pillar uniform modes (default), or the diagonal with the pillar springs
         by Sherman-Morrison (the model's preconditioner before issue 20; the answers agree
         within the tolerance).
+    pillars : {"hooke", "elastic"}
+        The paper's uniformly shortening pillar (default), or the elastic pillar: a
+        per-pillar excess compliance from the pillar's finite-element compliance
+        (:class:`bem_solver._elastic_pillar.FFTPillarTerm`, in the operator and in the
+        preconditioner's pillar modes and kernel); CPU only.
+    compliance : fem_reference.ModalCompliance, optional
+        With ``pillars="elastic"``: the pillar's mode matrices (default: the cached ones of
+        the scene's pillar kind).
 
     Returns
     -------
@@ -130,20 +141,30 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     .. [1] I. A. Polonsky, L. M. Keer, Wear 231 (1999) 206-219.
     """
     start = time.perf_counter()
+    check_pillars(pillars)
     be = select_backend(device, workers) if backend is None else backend
     xp = be.xp
+    elastic = uses_elastic_block(scene, pillars)
+    if elastic:
+        if not isinstance(be, NumpyDevice):
+            raise InputError(f"pillars = 'elastic' runs on the CPU only (device = {device!r})")
+        compliance = scene_compliance(scene, compliance)
     grid = build_grid(scene, cells_per_diameter, max_fft_points=be.max_fft_points)
     if not edge_correction:
         grid = _plain_grid(grid, scene)
     L = grid.cell_size
-    spring = 0.0 if grid.flat else scene.pillar_spring_compliance
+    spring = 0.0 if grid.flat or elastic else scene.pillar_spring_compliance
     timings = {"grid": time.perf_counter() - start}
     lap = time.perf_counter()
     correction = near_field_correction(grid, scene.half_space_compliance, backend=be) \
         if edge_correction else None
+    term = None
+    if elastic:
+        term = FFTPillarTerm(scene, grid, compliance, lambda gamma: near_field_correction(
+            grid, gamma, backend=be) if edge_correction else None)
     plan = CompliancePlan(grid.shape, grid.flat_index, L, scene.half_space_compliance,
                           pillar=grid.pillar, spring_compliance=spring, workers=workers,
-                          correction=correction, backend=be)
+                          correction=correction, backend=be, pillar_term=term)
     be.synchronize()
     timings["kernel_table"] = time.perf_counter() - lap
     precondition = _preconditioner(plan, preconditioner)
@@ -156,7 +177,8 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
         # contact set nearly right, so the fine constrained CG restarts seldom.
         rough = solve_fft(scene, coarse, tol=max(tol, WARM_START_TOL), workers=workers,
                           warm_start=True, edge_correction=edge_correction, backend=be,
-                          preconditioner=preconditioner, _nested=True)
+                          preconditioner=preconditioner, pillars=pillars,
+                          compliance=compliance if elastic else None, _nested=True)
         q0 = _interpolate(rough, grid, be, slivers=edge_correction)
         levels = rough.diagnostics["warm_start_levels"] + [{
             "cells_per_diameter": coarse, "iterations": rough.iterations,
@@ -189,7 +211,11 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     result.diagnostics["warm_start_levels"] = levels
     result.diagnostics["device"] = be.device
     result.diagnostics["preconditioner"] = _PRECONDITIONERS[preconditioner] + (
-        " + pillar springs" if plan.has_spring else "")
+        " + pillar springs" if plan.has_spring else
+        " + elastic pillars" if elastic else "")
+    if elastic:
+        result.diagnostics["pillars"] = "elastic"
+        result.discretisation["pillars"] = "elastic"
     result.diagnostics["timings_s"] = timings
     return result
 

@@ -207,7 +207,8 @@ class CompliancePlan:
     """
 
     def __init__(self, shape, flat_index, cell_size, compliance, pillar=None,
-                 spring_compliance=0.0, workers=FFT_WORKERS, correction=None, backend=None):
+                 spring_compliance=0.0, workers=FFT_WORKERS, correction=None, backend=None,
+                 pillar_term=None):
         be = NumpyDevice(workers) if backend is None else backend
         xp = be.xp
         self.backend = be
@@ -240,11 +241,25 @@ class CompliancePlan:
         diagonal = xp.full(flat.shape[0], self.self_coefficient, dtype=xp.float64)
         if correction is not None:
             diagonal = diagonal + be.asarray(correction.diagonal())
+        # Elastic pillars (bem_solver._elastic_pillar.FFTPillarTerm): a per-pillar excess
+        # compliance; on a pillar top the kernel's high-frequency compliance becomes
+        # gamma_l + gamma_p instead of gamma_l + gamma_s.
+        self.pillar_term = pillar_term
+        self.high_frequency_compliance = self.compliance
+        if pillar_term is not None:
+            diagonal = diagonal + be.asarray(pillar_term.diagonal)
+            self.high_frequency_compliance = max(
+                self.compliance + pillar_term.local_compliance, 1e-3 * self.compliance)
         self.diagonal = diagonal
 
     @property
     def has_spring(self) -> bool:
         return self.spring > 0.0 and self.pillar is not None
+
+    @property
+    def has_pillar_terms(self) -> bool:
+        """A per-pillar term (Hooke spring or elastic pillar) in the operator."""
+        return self.has_spring or (self.pillar_term is not None and self.pillar is not None)
 
     def pillar_sums(self, q):
         """Sum of q over the cells of each pillar (Pa); multiply by L^2 for forces."""
@@ -260,7 +275,10 @@ class CompliancePlan:
         over ``counts`` cells of a pillar under a unit q on each of them (the Hooke term:
         spring counts^2).  The preconditioner's coarse space uses it; a further per-pillar
         term of the operator adds its own share here."""
-        return self.spring * counts * counts if self.has_spring else 0.0 * counts
+        share = self.spring * counts * counts if self.has_spring else 0.0 * counts
+        if self.pillar_term is not None:
+            share = share + self.pillar_term.mode_compliance(counts)
+        return share
 
     def __call__(self, q):
         """Full compliance: half-space convolution plus per-pillar Hooke shortening (m)."""
@@ -269,6 +287,8 @@ class CompliancePlan:
             u += self.correction @ q
         if self.has_spring:
             u += self.spring * self.backend.xp.take(self.pillar_sums(q), self.pillar)
+        if self.pillar_term is not None:
+            u += self.pillar_term(q)
         return u
 
     def dense_matrix(self, x, y) -> np.ndarray:
@@ -282,6 +302,8 @@ class CompliancePlan:
         if self.has_spring:
             pillar = self.backend.to_numpy(self.pillar)
             mat = mat + self.spring * (pillar[:, None] == pillar[None, :])
+        if self.pillar_term is not None:
+            mat = mat + self.pillar_term.dense_matrix()
         return mat
 
 
@@ -326,7 +348,8 @@ class CirculantPreconditioner:
         ny, nx = plan.shape
         py, px = smooth_length(ny), smooth_length(nx)
         self.box_shape = (py, px)
-        block = kernel_block((py // 2 + 1, px // 2 + 1), plan.cell_size, plan.compliance, xp)
+        block = kernel_block((py // 2 + 1, px // 2 + 1), plan.cell_size,
+                             plan.high_frequency_compliance, xp)
         iy = xp.arange(py, dtype=xp.int64)
         ix = xp.arange(px, dtype=xp.int64)
         wrapped = xp.take(xp.take(block, xp.minimum(iy, py - iy), axis=0),
@@ -340,7 +363,10 @@ class CirculantPreconditioner:
         full = plan.diagonal <= plan.self_coefficient * (1.0 + 1e-12)
         self.scale = None if bool(xp.all(full)) else xp.sqrt(plan.self_coefficient
                                                               / plan.diagonal)
-        self.pillars = plan.has_spring
+        if plan.pillar_term is not None:  # every cell: the kernel here is the pillar top's
+            self_hf = plan.self_coefficient * plan.high_frequency_compliance / plan.compliance
+            self.scale = xp.sqrt(self_hf / xp.maximum(plan.diagonal, 1e-3 * self_hf))
+        self.pillars = plan.has_pillar_terms
         self.pillar = plan.pillar
         self.n_pillars = plan.n_pillars
         gamma, L = plan.compliance, plan.cell_size

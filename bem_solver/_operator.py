@@ -142,12 +142,19 @@ def _upper_row_sums(scene: Scene, disc: Discretisation) -> np.ndarray:
     return R
 
 
-def reduced_operator(scene: Scene, disc: Discretisation) -> np.ndarray:
-    """Symmetric reduced operator M = E^T Ks E over the representatives (m/N, weighted)."""
+def reduced_operator(scene: Scene, disc: Discretisation,
+                     pillar_block: np.ndarray | None = None) -> np.ndarray:
+    """Symmetric reduced operator M = E^T Ks E over the representatives (m/N, weighted).
+
+    ``pillar_block``: the elastic pillars' excess compliance, summed over the images of each
+    rep on the pillar of the other (:func:`._elastic_pillar.reduced_block`); it replaces the
+    Hooke term."""
     _, c_h = _coefficients(scene)
     w = disc.rep_weight.astype(float)
     M = _upper_row_sums(scene, disc)
-    if c_h > 0.0 and len(disc.orbit_size):
+    if pillar_block is not None:
+        M += np.triu(pillar_block)
+    elif c_h > 0.0 and len(disc.orbit_size):
         # Images of rep j on the pillar of rep i: only when both lie on the same pillar orbit,
         # then w_j / (pillars in that orbit) of them.  Reps are grouped by orbit: add the
         # term on each orbit's diagonal block (upper triangle).
@@ -184,11 +191,15 @@ def _runs(labels: np.ndarray):
     return runs if len({labels[lo] for lo, _ in runs}) == len(runs) else None
 
 
-def full_operator(scene: Scene, disc: Discretisation) -> np.ndarray:
-    """The symmetric operator Ks over every image element (m/N): the unreduced system."""
+def full_operator(scene: Scene, disc: Discretisation,
+                  pillar_full: np.ndarray | None = None) -> np.ndarray:
+    """The symmetric operator Ks over every image element (m/N): the unreduced system;
+    ``pillar_full`` (the elastic pillars' block over every image) replaces the Hooke term."""
     scale, c_h = _coefficients(scene)
     K = _influence(disc.img_x, disc.img_y, disc, np.arange(disc.n_elements), scale)
-    if c_h > 0.0:
+    if pillar_full is not None:
+        K += pillar_full
+    elif c_h > 0.0:
         K += c_h * (disc.img_pillar[:, None] == disc.img_pillar[None, :])
     rep = disc.img_rep
     return np.where(rep[:, None] < rep[None, :], K,

@@ -17,10 +17,17 @@ the skeleton of :mod:`._driver` (set-up, phase clock, verdict, result):
   substrate, Taylor-Hood P2/P1 tetrahedra, mortar contact solved by constrained conjugate
   gradients through one PARDISO factorisation.
 
+``modal_compliance(PillarKind(h/d, E_p/E_s, nu_p, nu_s), modes, mesh_size)`` gives one
+pillar's top compliance by Fourier modes in theta (cached on disk), which the elastic-pillar
+BEM maps onto its cells (:mod:`._pillar_compliance`).
+
 Weak forms: :mod:`.forms`; the reduced-unknown system both assemble: :mod:`._reduced`.
 """
 
 from . import axisym, solid3d
+from ._pillar_compliance import (DEFAULT_MODES, ModalCompliance, PillarKind,
+                                 compute_modal_compliance, modal_compliance)
 from ._reduced import SolveError
 
-__all__ = ["SolveError", "axisym", "solid3d"]
+__all__ = ["DEFAULT_MODES", "ModalCompliance", "PillarKind", "SolveError", "axisym",
+           "compute_modal_compliance", "modal_compliance", "solid3d"]

@@ -24,13 +24,17 @@ class Pardiso:
     """Factorisation of the symmetric indefinite ``A`` (its upper triangle is used);
     ``solve(b)`` for one or several right-hand sides; ``factor_nonzeros`` reported."""
 
-    def __init__(self, A: sp.csr_matrix):
-        try:
-            from pypardiso import PyPardisoSolver
-        except ImportError as exc:
-            raise SolveError(f"pypardiso is not installed ({exc}); it is a dependency of "
-                             "the 3D FEM") from None
-        self._solver = PyPardisoSolver(mtype=-2)
+    def __init__(self, A: sp.csr_matrix, solver=None):
+        """``solver``: a ``PyPardisoSolver(mtype=-2)`` to reuse (its construction searches
+        the file system for MKL, ~1 s); it then holds one factorisation at a time."""
+        if solver is None:
+            try:
+                from pypardiso import PyPardisoSolver
+            except ImportError as exc:
+                raise SolveError(f"pypardiso is not installed ({exc}); it is a dependency "
+                                 "of the 3D FEM") from None
+            solver = PyPardisoSolver(mtype=-2)
+        self._solver = solver
         self._solver.msglvl = 0
         iparm = self._solver.iparm
         iparm[:] = 0

@@ -1,0 +1,371 @@
+"""The elastic pillar on the BEM's cells: ``pillars="elastic"`` (PHYSICS.md, "The
+elastic-pillar BEM").
+
+The Hooke BEM writes the displacement of a pillar top as the half-space response (gamma_l +
+gamma_s) Love plus a uniform shortening c_h = 4 h / (pi d^2 E_p) per unit force on the pillar.
+The elastic model replaces c_h by the pillar's excess compliance X, a dense block per pillar
+(the same block for every pillar of a scene, in the pillar's own frame, since a cylinder is a
+body of revolution):
+
+    X[a, b] = 1/(E_p a) sum_{n <= N} w_n phi(r_a)^T S_n phi(r_b) cos(n (theta_a - theta_b))
+              + (gamma_p - gamma_s) / pi * D(x_a; square_b) / area_b,
+
+S_n the smooth difference of the mode-n compliance of the pillar on its substrate and of a
+half-space of pillar material on the P2 points of the top (:mod:`fem_reference`, computed
+once per pillar kind and cached), phi the P2 hats of those points, (r, theta) cell collocation
+points relative to the pillar centre, and the second term the local singular part, on the same
+Love coefficients as the half-space term.  Both terms are symmetric (the second as the BEM
+symmetrises Love's coefficients).  Pillar-to-pillar coupling stays in the half-space term.
+
+The compliance comes from :mod:`fem_reference` (imported when first needed, the one place
+where the boundary-element package uses the finite-element one) unless the caller passes a
+``ModalCompliance`` as ``compliance``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.fft as sfft
+import scipy.sparse as sp
+
+from scenes import Scene
+
+from ._love import unit_force_influence
+
+PILLAR_MODELS = ("hooke", "elastic")
+FFT_THREADS = 2  # the pillar boxes' batched transforms (this machine has two cores)
+
+
+def check_pillars(pillars: str) -> None:
+    if pillars not in PILLAR_MODELS:
+        raise ValueError(f"pillars = {pillars!r}: allowed values are {', '.join(PILLAR_MODELS)}")
+
+
+def uses_elastic_block(scene: Scene, pillars: str) -> bool:
+    """True when ``pillars="elastic"`` changes the operator: a pillar scene whose pillar has a
+    compliance (pillars and substrate both rigid: the two models coincide, X = 0)."""
+    check_pillars(pillars)
+    return (pillars == "elastic" and scene.pillars is not None
+            and not (scene.pillars.material.rigid and scene.substrate.rigid))
+
+
+def scene_compliance(scene: Scene, compliance=None, modes: int | None = None,
+                     mesh_size: float = 1.0):
+    """The ``ModalCompliance`` of the scene's pillar kind (cached on disk), or ``compliance``
+    when given (checked against the scene's kind)."""
+    from fem_reference import DEFAULT_MODES, PillarKind, modal_compliance
+
+    kind = PillarKind.of_scene(scene)
+    if compliance is not None:
+        if compliance.kind != kind:
+            raise ValueError(f"compliance is for {compliance.kind}, the scene's pillar kind is "
+                             f"{kind}")
+        return compliance
+    return modal_compliance(kind, DEFAULT_MODES if modes is None else modes, mesh_size)
+
+
+def _constants(scene: Scene, compliance):
+    """(1 / (E_p* a), gamma_p* - gamma_s): E_p* the modelled pillar modulus."""
+    p, s = scene.pillars, scene.substrate
+    E_s = s.E_Pa
+    E_p = compliance.kind.effective_pillar_modulus(E_s, p.material.E_Pa)
+    gamma_p = (1.0 - p.material.nu ** 2) / E_p
+    return 1.0 / (E_p * 0.5 * p.diameter_m), gamma_p - s.compliance
+
+
+def excess_block(scene: Scene, x, y, side, compliance, rows=None) -> np.ndarray:
+    """X (m/N) between cells of one pillar: collocation points (x, y) relative to the pillar
+    centre (m, in the frame of its cell grid), equivalent-square sides ``side`` (m, squares
+    aligned with that frame); symmetric.  ``rows`` (indices): only those rows of X, the
+    rows that a reduced operator needs."""
+    x, y, side = (np.asarray(v, dtype=float) for v in (x, y, side))
+    rows = np.arange(len(x)) if rows is None else np.asarray(rows)
+    a = 0.5 * scene.pillars.diameter_m
+    fem_scale, local = _constants(scene, compliance)
+    r = np.hypot(x, y) / a
+    theta = np.arctan2(y, x)
+    phi = compliance.trace_basis(r)
+    w = compliance.mode_weights()
+    # sum_n w_n (phi S_n phi^T) cos(n (theta_a - theta_b)) = U W U^T, with U the columns
+    # cos(n theta) phi and sin(n theta) phi of every mode and W = diag(w_n S_n, w_n S_n):
+    # one matrix product instead of an elementwise cosine per mode.
+    U, WU = [], []
+    for n in range(compliance.modes + 1):
+        Sn = w[n] * compliance.excess[n]
+        for trig in ((np.cos,) if n == 0 else (np.cos, np.sin)):
+            Un = trig(n * theta)[:, None] * phi
+            U.append(Un)
+            WU.append(Un[rows] @ Sn)
+    X = np.hstack(WU) @ np.hstack(U).T
+    X *= fem_scale
+    if local != 0.0:  # zero when pillar and substrate have the same compliance
+        # Love's coefficients, symmetrised (the same for every pair of cells of a pillar).
+        L = unit_force_influence(x[rows, None], y[rows, None], x[None, :], y[None, :], 0.0,
+                                 side[None, :])
+        L += unit_force_influence(x[:, None], y[:, None], x[None, rows], y[None, rows], 0.0,
+                                  side[None, rows]).T
+        X += 0.5 * local / math.pi * L
+    return X
+
+
+_BLOCKS: dict = {}
+_BLOCKS_KEPT = 8
+
+
+def cached_excess_block(scene: Scene, cells: dict, compliance, rows, resolution) -> np.ndarray:
+    """:func:`excess_block` of the cells ``cells`` (``x``, ``y``, ``side`` in m), kept in
+    memory for the last few (compliance, pillar physics, resolution, rows): a ladder or a
+    sweep over the load pays for it once."""
+    p, s = scene.pillars, scene.substrate
+    key = (id(compliance), p.diameter_m, p.material.E_Pa, p.material.nu, s.E_Pa, s.nu,
+           tuple(resolution), tuple(np.asarray(rows).tolist()))
+    hit = _BLOCKS.get(key)
+    if hit is not None and hit[0] is compliance:
+        return hit[1]
+    X = excess_block(scene, cells["x"], cells["y"], cells["side"], compliance, rows)
+    X.setflags(write=False)
+    if len(_BLOCKS) >= _BLOCKS_KEPT:
+        _BLOCKS.pop(next(iter(_BLOCKS)))
+    _BLOCKS[key] = (compliance, X)
+    return X
+
+
+def representative_rows(scene: Scene, pattern) -> np.ndarray:
+    """Cells of the pattern that can be representatives: the centre pillar's quadrant, and
+    every cell when another pillar can touch (its orbit's representatives are all its cells
+    or one half)."""
+    from ._discretise import overlap_radius
+
+    quadrant = (pattern.grid_x >= -1e-12) & (pattern.grid_y >= -1e-12)
+    p = scene.pillars
+    if p.pitch_m - 0.5 * p.diameter_m < overlap_radius(scene):
+        return np.arange(len(pattern.x))
+    return np.nonzero(quadrant)[0]
+
+
+def image_cells(disc, pattern, diameter: float) -> np.ndarray:
+    """Index into ``pattern`` (a :class:`~bem_solver._cells.CellPattern`) of the cell that
+    every image element of ``disc`` is, found from its position in its pillar's frame (the
+    grid cell that holds it; the patterns are symmetric, so mirrored images are cells too).
+    One frame per pillar, so that X sees the true relative position of two cells."""
+    P = int(round(1.0 / pattern.cell_side))
+    centre = disc.pillar_xy[disc.img_pillar]
+    dx, dy = disc.img_x - centre[:, 0], disc.img_y - centre[:, 1]
+    # A pillar's grid points along its radial direction; the centre pillar's along x (its
+    # images under a rotation by pi carry the angle pi, but lie on the same grid).
+    on_centre = np.hypot(centre[:, 0], centre[:, 1]) < 1e-9 * diameter
+    angle = np.where(on_centre, 0.0, np.arctan2(centre[:, 1], centre[:, 0]))
+    c, s = np.cos(angle), np.sin(angle)
+    lx, ly = (c * dx + s * dy) / diameter, (-s * dx + c * dy) / diameter
+    b = pattern.cell_side
+    key = lambda u, v: (np.floor(u / b + P / 2.0).astype(np.int64) * (P + 2)  # noqa: E731
+                        + np.floor(v / b + P / 2.0).astype(np.int64))
+    table = key(pattern.grid_x, pattern.grid_y)
+    order = np.argsort(table)
+    k = key(lx, ly)
+    pos = np.clip(np.searchsorted(table, k, sorter=order), 0, len(order) - 1)
+    cell = order[pos]
+    if not np.array_equal(table[cell], k):
+        raise RuntimeError("an image element matches no cell of its pillar's pattern")
+    return cell
+
+
+def reduced_block(disc, X: np.ndarray, img_cell: np.ndarray, rows=None) -> np.ndarray:
+    """B[i, j] = sum over the images b of rep j on rep i's own pillar of X[cell(i), cell(b)]
+    (m/N, not yet weighted by the orbit size of i: :func:`reduced_operator` does that).
+    ``rows``: the cells that the rows of X hold (default: all, in order)."""
+    if rows is not None:
+        row_of = np.full(X.shape[1], -1)
+        row_of[np.asarray(rows)] = np.arange(len(rows))
+    n = disc.n_unknowns
+    B = np.zeros((n, n))
+    own = disc.img_pillar[disc.rep_start[:-1]]  # image 0 of a rep is the rep itself
+    rep_cell = img_cell[disc.rep_start[:-1]]
+    if rows is not None:
+        rep_cell = row_of[rep_cell]
+        if np.any(rep_cell < 0):
+            raise RuntimeError("a representative's cell is not among the rows of X")
+    by_pillar = {}
+    for i, p in enumerate(own):
+        by_pillar.setdefault(int(p), []).append(i)
+    for p, reps in by_pillar.items():
+        imgs = np.nonzero(disc.img_pillar == p)[0]
+        reps = np.asarray(reps)
+        S = sp.csr_matrix((np.ones(len(imgs)), (np.arange(len(imgs)), disc.img_rep[imgs])),
+                          shape=(len(imgs), n))
+        B[reps] += (S.T @ X[np.ix_(rep_cell[reps], img_cell[imgs])].T).T
+    return B
+
+
+def full_block(disc, X: np.ndarray, img_cell: np.ndarray) -> np.ndarray:
+    """The excess compliance over every image element (m/N): X between cells of one pillar."""
+    same = disc.img_pillar[:, None] == disc.img_pillar[None, :]
+    return np.where(same, X[np.ix_(img_cell, img_cell)], 0.0)
+
+
+__all__ = ["FFTPillarTerm", "PILLAR_MODELS", "cached_excess_block", "check_pillars", "excess_block", "full_block", "image_cells",
+           "reduced_block", "representative_rows", "scene_compliance", "uses_elastic_block"]
+
+
+class FFTPillarTerm:
+    """The elastic pillars' excess compliance on the FFT model's cells, matrix-free.
+
+    ``term(q)`` adds, for smeared cell pressures q (Pa; the force of cell b is q_b L^2), the
+    displacement sum_b X[a, b] q_b L^2 over the cells b of the pillar of a (m):
+
+    - the mode part, per pillar: the cell forces are projected onto the P2 hats of the top
+      times cos(n theta), sin(n theta) (three sparse products, one column per mode and
+      trigonometric factor), the moments are multiplied by w_n S_n / (E_p* a) and projected
+      back: O(cells x modes) work and memory, never a dense block;
+    - the local part (gamma_p - gamma_s) / pi Love: a convolution on each pillar's own box of
+      the grid (a batched, zero-padded FFT of the boxes) plus the near-field correction of
+      partly covered cells restricted to pairs on the same pillar.
+
+    Collocation points: the grid's (centroids of partly covered cells), relative to their
+    pillar's centre.  CPU only (numpy and scipy).
+    """
+
+    def __init__(self, scene: Scene, grid, compliance, correction_builder):
+        import scipy.sparse as sps
+
+        self.modal = compliance
+        self.half_space = scene.half_space_compliance
+        a = 0.5 * scene.pillars.diameter_m
+        fem_scale, local = _constants(scene, compliance)
+        self.local_compliance = local
+        L = grid.cell_size
+        self.L2 = L * L
+        self.n = grid.n_cells
+        centre = grid.pillar_xy[grid.pillar]
+        dx, dy = grid.colloc_x - centre[:, 0], grid.colloc_y - centre[:, 1]
+        r = np.clip(np.hypot(dx, dy) / a, 0.0, 1.0)
+        theta = np.arctan2(dy, dx)
+        vert = compliance.r_top[::2]
+        n_edges = len(vert) - 1
+        e = np.clip(np.searchsorted(vert, r, side="right") - 1, 0, n_edges - 1)
+        t = (r - vert[e]) / (vert[e + 1] - vert[e])
+        values = ((1.0 - t) * (1.0 - 2.0 * t), 4.0 * t * (1.0 - t), t * (2.0 * t - 1.0))
+        self.n_pillars = len(grid.pillar_xy)
+        self.n_edges = n_edges
+        key = grid.pillar * n_edges + e
+        n_keys = self.n_pillars * n_edges
+        cols = np.arange(self.n)
+        self.project = [sps.csr_matrix((v, (key, cols)), shape=(n_keys, self.n))
+                        for v in values]
+        self.back = [P.T.tocsr() for P in self.project]
+        trig, weights, modes = [], [], []
+        w = compliance.mode_weights()
+        for m in range(compliance.modes + 1):
+            for f in ((np.cos,) if m == 0 else (np.cos, np.sin)):
+                trig.append(f(m * theta))
+                modes.append(m)
+        self.trig = np.column_stack(trig)                          # (cells, K)
+        S = compliance.excess
+        self.S = np.stack([w[m] * S[m] for m in modes]) * fem_scale  # (K, n_top, n_top)
+        self.n_top = len(compliance.r_top)
+        # Local Love part: each pillar's box of the grid.
+        self.local = None
+        if local != 0.0:
+            self.local = self._local_plan(grid, local, correction_builder)
+        self.diagonal = self._diagonal(values, e)
+        # Mean excess of the mode part under a uniform load on the whole top (m/N).
+        rr = np.linspace(0.0, 1.0, 4001)
+        mid, dr = 0.5 * (rr[1:] + rr[:-1]), np.diff(rr)
+        moments = (compliance.trace_basis(mid) * (mid * dr)[:, None]).sum(axis=0)
+        self.mean_mode = float(2.0 * moments @ (self.S[0] / w[0]) @ moments / math.pi)
+
+    def _local_plan(self, grid, local, correction_builder):
+        from ._fft_operator import kernel_block
+
+        ny, nx = grid.shape
+        iy, ix = grid.flat_index // nx, grid.flat_index % nx
+        y0 = np.full(self.n_pillars, np.iinfo(np.int64).max)
+        x0 = np.full(self.n_pillars, np.iinfo(np.int64).max)
+        np.minimum.at(y0, grid.pillar, iy)
+        np.minimum.at(x0, grid.pillar, ix)
+        ly, lx = iy - y0[grid.pillar], ix - x0[grid.pillar]
+        B = int(max(ly.max(), lx.max())) + 1
+        M = sfft.next_fast_len(2 * B - 1, real=True)  # linear convolution of B-point boxes
+        block = kernel_block((B, B), grid.cell_size, local)
+        padded = np.zeros((M, M))
+        padded[:B, :B] = block
+        padded[M - B + 1:, :B] = block[1:, :][::-1]
+        padded[:, M - B + 1:] = padded[:, 1:B][:, ::-1]
+        spectrum = np.real(sfft.rfft2(padded))
+        index = (grid.pillar * M + ly) * M + lx
+        correction = correction_builder(local)
+        if correction is not None:  # keep the pairs on one pillar
+            c = correction.tocoo()
+            same = grid.pillar[c.row] == grid.pillar[c.col]
+            import scipy.sparse as sps
+            correction = sps.csr_matrix((c.data[same], (c.row[same], c.col[same])),
+                                        shape=c.shape)
+        return {"M": M, "index": index, "spectrum": spectrum, "correction": correction,
+                "self": float(block[0, 0])}
+
+    def _diagonal(self, values, e):
+        """X[b, b] (m/Pa per unit q: times L^2)."""
+        n = self.n
+        d = np.zeros(n)
+        pillar_edge = np.stack([2 * e, 2 * e + 1, 2 * e + 2], axis=1)   # (cells, 3)
+        v = np.stack(values, axis=1)
+        for k in range(self.trig.shape[1]):
+            Sk = self.S[k]
+            sub = Sk[pillar_edge[:, :, None], pillar_edge[:, None, :]]  # (cells, 3, 3)
+            d += self.trig[:, k] ** 2 * np.einsum("bi,bij,bj->b", v, sub, v)
+        d *= self.L2
+        if self.local is not None:
+            d += self.local["self"]
+            if self.local["correction"] is not None:
+                d += self.local["correction"].diagonal()
+        return d
+
+    def __call__(self, q):
+        F = q * self.L2
+        FT = F[:, None] * self.trig                                   # (cells, K)
+        K = self.trig.shape[1]
+        M = np.zeros((self.n_pillars, self.n_top, K))
+        for l, P in enumerate(self.project):
+            M[:, l:2 * self.n_edges + l:2, :] += (P @ FT).reshape(self.n_pillars, self.n_edges, K)
+        # Per mode column k: U_k = M_k S_k (S_k symmetric), one batched matrix product.
+        U = np.matmul(M.transpose(2, 0, 1), self.S).transpose(1, 2, 0)  # (pillars, n_top, K)
+        u = np.zeros(self.n)
+        for l, P in enumerate(self.back):
+            part = np.ascontiguousarray(U[:, l:2 * self.n_edges + l:2, :]).reshape(-1, K)
+            u += (P @ part * self.trig).sum(axis=1)
+        if self.local is not None:
+            u += self._local_apply(q)
+        return u
+
+    def _local_apply(self, q):
+        loc = self.local
+        M = loc["M"]
+        box = np.zeros(self.n_pillars * M * M)
+        box[loc["index"]] = q
+        spec = sfft.rfft2(box.reshape(self.n_pillars, M, M), workers=FFT_THREADS)
+        spec *= loc["spectrum"]
+        u = sfft.irfft2(spec, s=(M, M), workers=FFT_THREADS).reshape(-1)[loc["index"]]
+        if loc["correction"] is not None:
+            u += loc["correction"] @ q
+        return u
+
+    def mode_compliance(self, counts):
+        """1^T X 1 over ``counts`` cells of a pillar under a unit q on each (m/Pa), estimated
+        as for a uniform load on the whole top: the mode part's mean response (m/N) times the
+        force counts L^2, summed over the counts cells, plus the local Love part as the mean
+        of a disk of the same area (16 gamma L counts^1.5 / (3 pi^1.5)).  The preconditioner's
+        coarse space uses it."""
+        share = self.mean_mode * self.L2 * counts * counts
+        L = math.sqrt(self.L2)
+        disk = 16.0 * L * counts * np.sqrt(counts) / (3.0 * math.pi ** 1.5)
+        share = share + self.local_compliance * disk
+        # The whole 1^T A 1 is positive; keep the estimate so: at least half the half-space
+        # part's disk value remains.
+        return np.maximum(share, -0.5 * self.half_space * disk)
+
+    def dense_matrix(self) -> np.ndarray:
+        """The term as a dense matrix (m/Pa), column by column (tests on small grids)."""
+        eye = np.eye(self.n)
+        return np.column_stack([self(eye[:, j]) for j in range(self.n)])
