@@ -54,7 +54,7 @@ def _check_options(per_diameter, cells, contact):
 
 def solve_dense(scene: Scene, elements_per_diameter: int = 11, cells: str = "covered",
                 contact: str = "exact", *, pillars: str = "hooke",
-                compliance=None) -> ContactResult:
+                compliance=None, progress=None) -> ContactResult:
     """Solve ``scene`` with the dense, symmetry-reduced BEM.
 
     Parameters
@@ -77,6 +77,8 @@ def solve_dense(scene: Scene, elements_per_diameter: int = 11, cells: str = "cov
     compliance : fem_reference.ModalCompliance, optional
         With ``pillars="elastic"``: the pillar's mode matrices (default: the cached ones of
         the scene's pillar kind at the default discretisation).
+    progress : callable, optional
+        ``progress(text)`` hears of a compliance build (once per pillar kind, then cached).
     """
     _check_options(elements_per_diameter, cells, contact)
     check_pillars(pillars)
@@ -85,7 +87,7 @@ def solve_dense(scene: Scene, elements_per_diameter: int = 11, cells: str = "cov
     _refuse_if_too_large(scene, P, cells, contact)
     elastic = None
     if uses_elastic_block(scene, pillars):
-        modal = scene_compliance(scene, compliance)
+        modal = scene_compliance(scene, compliance, progress=progress)
         pattern = cell_pattern(P, cells)
         cells_m = pattern.scaled(scene.pillars.diameter_m)
         rows = representative_rows(scene, pattern)

@@ -30,17 +30,17 @@ import numpy as np
 import scipy.fft as sfft
 import scipy.sparse as sp
 
-from scenes import Scene
+from scenes import InputError, Scene
 
+from ._limits import PILLAR_MODELS
 from ._love import unit_force_influence
 
-PILLAR_MODELS = ("hooke", "elastic")
 FFT_THREADS = 2  # the pillar boxes' batched transforms (this machine has two cores)
 
 
 def check_pillars(pillars: str) -> None:
     if pillars not in PILLAR_MODELS:
-        raise ValueError(f"pillars = {pillars!r}: allowed values are {', '.join(PILLAR_MODELS)}")
+        raise InputError(f"pillars = {pillars!r}: allowed values are {', '.join(PILLAR_MODELS)}")
 
 
 def uses_elastic_block(scene: Scene, pillars: str) -> bool:
@@ -52,9 +52,10 @@ def uses_elastic_block(scene: Scene, pillars: str) -> bool:
 
 
 def scene_compliance(scene: Scene, compliance=None, modes: int | None = None,
-                     mesh_size: float = 1.0):
+                     mesh_size: float = 1.0, progress=None):
     """The ``ModalCompliance`` of the scene's pillar kind (cached on disk), or ``compliance``
-    when given (checked against the scene's kind)."""
+    when given (checked against the scene's kind); ``progress(text)`` hears of a build (tens
+    of seconds, once per pillar kind)."""
     from fem_reference import DEFAULT_MODES, PillarKind, modal_compliance
 
     kind = PillarKind.of_scene(scene)
@@ -63,7 +64,10 @@ def scene_compliance(scene: Scene, compliance=None, modes: int | None = None,
             raise ValueError(f"compliance is for {compliance.kind}, the scene's pillar kind is "
                              f"{kind}")
         return compliance
-    return modal_compliance(kind, DEFAULT_MODES if modes is None else modes, mesh_size)
+    say = None if progress is None else (
+        lambda text: progress(f"elastic pillar's compliance (once per pillar kind): {text}"))
+    return modal_compliance(kind, DEFAULT_MODES if modes is None else modes, mesh_size,
+                            progress=say)
 
 
 def _constants(scene: Scene, compliance):

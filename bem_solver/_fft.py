@@ -108,7 +108,8 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
         operator, every cell loaded and collocated at its centre (the discrete problem
         ContactMechanics solves on a masked grid; used by the side-by-side benchmark).
     progress : callable, optional
-        ``progress(iteration, error)`` called every iteration.
+        ``progress(iteration, error)`` called every iteration, and ``progress(text)`` on the
+        phases of an elastic pillar's compliance build.
     device : {"cpu", "gpu", "auto"}
         Where to solve: numpy on the CPU (default), cupy on a CUDA GPU (``InputError`` saying
         what to install when none is usable), or the GPU when cupy finds one.
@@ -148,7 +149,7 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     if elastic:
         if not isinstance(be, NumpyDevice):
             raise InputError(f"pillars = 'elastic' runs on the CPU only (device = {device!r})")
-        compliance = scene_compliance(scene, compliance)
+        compliance = scene_compliance(scene, compliance, progress=progress)
     grid = build_grid(scene, cells_per_diameter, max_fft_points=be.max_fft_points)
     if not edge_correction:
         grid = _plain_grid(grid, scene)

@@ -13,3 +13,6 @@ ELEMENTS_PER_DIAMETER_RANGE = (2, 400)
 MIN_CELLS_PER_DIAMETER = 2
 # The dense BEM's contact solvers: exact complementarity, or the paper's radius search.
 CONTACT_METHODS = ("exact", "paper")
+# The pillar of both BEMs: the paper's Hooke spring (uniform shortening, the default) or the
+# elastic pillar's excess compliance from the Fourier-mode FEM (bem_solver._elastic_pillar).
+PILLAR_MODELS = ("hooke", "elastic")

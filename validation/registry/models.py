@@ -7,7 +7,7 @@ from __future__ import annotations
 from .ladders import Ladder
 from .model import CostLaw, Model
 from .options import (CELLS, CELLS_PER_DIAMETER, CONTACT, DEVICE, ELEMENTS_PER_DIAMETER,
-                      MAX_ITERATIONS, MESH_SIZE, MESH_SIZE_3D, PLANNED)
+                      MAX_ITERATIONS, MESH_SIZE, MESH_SIZE_3D, PILLARS, PLANNED)
 
 __all__ = ["DECLARED"]
 
@@ -17,9 +17,10 @@ _NO_COST = CostLaw("none", None, (0,))
 DECLARED = (
     Model(
         "bem", "bem_solver:solve_dense",
-        "dense boundary-element model: Love elements, Hooke pillars, exact complementarity",
+        "dense boundary-element model: Love elements, Hooke or elastic pillars, exact "
+        "complementarity",
         options={"elements_per_diameter": ELEMENTS_PER_DIAMETER, "cells": CELLS,
-                 "contact": CONTACT},
+                 "contact": CONTACT, "pillars": PILLARS},
         # Square elements across a pillar (or Hertz contact) diameter, 11, 23, 47, ...;
         # 'covered' cells carry the true disk area, so the sequence converges smoothly.
         ladder=Ladder("elements_per_diameter", 11, 2.0, "odd", -1.0, (5, 7, 9, 11, 15, 21),
@@ -36,7 +37,8 @@ DECLARED = (
     Model(
         "bem-richardson", "bem_solver._extrapolated:solve_dense_extrapolated",
         "the dense BEM at P and 2P - 1, Richardson-extrapolated",
-        options={"elements_per_diameter": ELEMENTS_PER_DIAMETER, "cells": CELLS},
+        options={"elements_per_diameter": ELEMENTS_PER_DIAMETER, "cells": CELLS,
+                 "pillars": PILLARS},
         # Coarse levels 5, 11, 23, ...
         ladder=Ladder("elements_per_diameter", 5, 2.0, "odd", -1.0, (5, 7, 9, 11),
                       {"cells": "covered"},
@@ -46,7 +48,7 @@ DECLARED = (
         "bem-fft", "bem_solver._fft:solve_fft",
         "FFT boundary-element model: regular grid, constrained CG, numpy or cupy",
         options={"cells_per_diameter": CELLS_PER_DIAMETER, "device": DEVICE,
-                 "max_iterations": MAX_ITERATIONS},
+                 "max_iterations": MAX_ITERATIONS, "pillars": PILLARS},
         # Grid cells across a pillar diameter, 32, 64, 128, ...
         ladder=Ladder("cells_per_diameter", 32, 2.0, "int", -1.0, (8, 12, 16, 24, 32, 48, 64),
                       {}, "cell side / diameter = 1/N"),

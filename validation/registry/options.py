@@ -15,13 +15,14 @@ import math
 from dataclasses import dataclass
 
 from bem_solver._cells import VARIANTS
-from bem_solver._limits import CONTACT_METHODS, ELEMENTS_PER_DIAMETER_RANGE, MIN_CELLS_PER_DIAMETER
+from bem_solver._limits import (CONTACT_METHODS, ELEMENTS_PER_DIAMETER_RANGE, MIN_CELLS_PER_DIAMETER,
+                                PILLAR_MODELS)
 from bem_solver._xp import DEVICES
 from meshes import MESH_SIZE_RANGE, MESH_SIZE_RANGE_3D
 from scenes import InputError
 
 __all__ = ["CELLS", "CELLS_PER_DIAMETER", "CONTACT", "DEVICE", "ELEMENTS_PER_DIAMETER",
-           "MAX_ITERATIONS", "MESH_SIZE", "MESH_SIZE_3D", "OptionSpec", "PLANNED",
+           "MAX_ITERATIONS", "MESH_SIZE", "MESH_SIZE_3D", "OptionSpec", "PILLARS", "PLANNED",
            "check_option", "flag"]
 
 
@@ -87,6 +88,12 @@ MAX_ITERATIONS = OptionSpec(
 DEVICE = OptionSpec(
     str, choices=DEVICES,
     help="bem-fft: where the FFTs run (cpu: numpy, the default; gpu: cupy)")
+PILLARS = OptionSpec(
+    str, choices=PILLAR_MODELS,
+    help="bem, bem-fft, bem-richardson: the pillar model: 'hooke', the paper's uniformly "
+         "shortening spring (default), or 'elastic', the whole pillar's top compliance from "
+         "a Fourier-mode FEM of one pillar on the substrate (computed once per pillar kind, "
+         "cached)")
 # The planner's request (auto): checked by the planner itself (validation.planner.check_request).
 PLANNED = OptionSpec(object, help="auto: the planner's request (tolerance, quantities, budget)")
 
