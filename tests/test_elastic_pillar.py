@@ -352,3 +352,26 @@ def test_lattice_against_fem3d():
     assert set(ring_bem) == set(ring_fem)
     for k in ring_fem:
         assert ring_bem[k] == pytest.approx(ring_fem[k], rel=3e-2)
+
+
+def test_the_elastic_pillar_from_the_cli(cli, tmp_path):
+    """`--pillars elastic` reaches the solver through solve and converge (every level), and is
+    refused for a model without it."""
+    import json
+
+    scene = ["--scene", "single-pillar", "--set", "pillars.E_Pa=1.6e7"]
+    code, out, err = cli("solve", *scene, "--elements-per-diameter", "9", "--pillars",
+                         "elastic", "--json")
+    assert code == 0, err
+    direct = solve_dense(load_scene("single-pillar", ["pillars.E_Pa=1.6e7"]), 9,
+                         pillars="elastic")
+    assert json.loads(out)["total_force_N"] == pytest.approx(direct.total_force_N, rel=1e-12)
+    code, _, err = cli("converge", *scene, "--pillars", "elastic", "--levels", "2",
+                       "--elements-per-diameter", "5", "--executor", "serial",
+                       "--out", tmp_path / "cv")
+    assert code == 0, err
+    levels = json.loads((tmp_path / "cv" / "converge.json").read_text())["levels"]
+    assert [lv["options"].get("pillars") for lv in levels] == ["elastic", "elastic"]
+    code, _, err = cli("converge", "--model", "fem-axisym", *scene, "--pillars", "elastic",
+                       "--out", tmp_path / "fem")
+    assert code == 2 and "does not apply to --model fem-axisym" in err

@@ -10,10 +10,10 @@ from scenes import load_scene
 from scenes import InputError
 
 from ..studies.compare import BEM, FEM_COARSEST, FEM_MODELS, OUTPUTS
-from ._args import (Renamed, add_engine_arguments, add_levels_argument, add_models_argument,
-                    add_output_arguments,
-                    add_refinement_arguments, add_scene_arguments, check_out,
-                    engine_from_args, not_converged, print_json, refuse_inapplicable)
+from ._args import (Renamed, add_choice_arguments, add_engine_arguments, add_levels_argument,
+                    add_models_argument, add_output_arguments, add_refinement_arguments,
+                    add_scene_arguments, check_out, engine_from_args, not_converged, print_json,
+                    refuse_inapplicable)
 
 
 def add_parser(sub) -> None:
@@ -35,6 +35,7 @@ def add_parser(sub) -> None:
                              defaults={"elements_per_diameter": 11,
                                        "mesh_size": " or ".join(
                                            f"{v:g} ({m})" for m, v in FEM_COARSEST.items())})
+    add_choice_arguments(p, ["pillars"])
     add_levels_argument(p, 3, 2, 8, "refinement levels of each model (3 or more give an "
                                     "observed order and a GCI)")
     add_output_arguments(p, "report folder (default out/compare/<scene>)")
@@ -62,7 +63,8 @@ def run(args) -> int:
         report = compare_study(scene, out, engine=engine, levels=args.levels,
                                mesh_size=args.mesh_size,
                                elements_per_diameter=args.elements_per_diameter,
-                               render=not args.no_render, fem_model=fem)
+                               render=not args.no_render, fem_model=fem,
+                               pillars=args.pillars or "hooke")
     if args.json:
         print_json(report)
     else:

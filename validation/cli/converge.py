@@ -8,9 +8,9 @@ from pathlib import Path
 from scenes import load_scene
 
 from ..registry import ladders
-from ._args import (Renamed, add_engine_arguments, add_levels_argument, add_model_argument,
-                    add_output_arguments, add_refinement_arguments, add_scene_arguments,
-                    check_out, engine_from_args, not_converged, print_json,
+from ._args import (Renamed, add_choice_arguments, add_engine_arguments, add_levels_argument,
+                    add_model_argument, add_output_arguments, add_refinement_arguments,
+                    add_scene_arguments, check_out, engine_from_args, not_converged, print_json,
                     refuse_inapplicable)
 
 
@@ -26,12 +26,18 @@ def add_parser(sub) -> None:
     add_model_argument(p, sorted(ladders()), help_text="model to refine (default bem)")
     add_refinement_arguments(p, ladder=True, defaults={
         ladder.option: ladder.coarsest for ladder in ladders().values()})
+    add_choice_arguments(p, ["pillars"])
     add_levels_argument(p, 3, 2, 8, "refinement levels (3 or more give an observed order)")
     add_output_arguments(p, "report folder (default out/converge/<scene>-<model>)")
     p.add_argument("--coarsest", action=Renamed, successor="the model's refinement option "
                    "(--elements-per-diameter, --cells-per-diameter or --mesh-size)")
     add_engine_arguments(p, "recompute cached levels")
     p.set_defaults(func=run)
+
+
+def _fixed_options(args) -> dict:
+    """The model's options that every level shares (the ladder sets the refined one)."""
+    return {} if args.pillars is None else {"pillars": args.pillars}
 
 
 def run(args) -> int:
@@ -49,7 +55,8 @@ def run(args) -> int:
     clear_outputs(out, OUTPUTS, "converge")
     with engine_from_args(args, "converge") as engine:
         data = converge_study(args.model, scene, args.levels, out / "cases",
-                              coarsest=coarsest, engine=engine)
+                              coarsest=coarsest, engine=engine,
+                              options=_fixed_options(args))
     names = write_report(data, out)
     if args.json:
         print_json({k: v for k, v in data.items() if k != "results"})

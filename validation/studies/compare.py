@@ -245,7 +245,8 @@ def check_options(levels: int = 3, mesh_size: float | None = None,
 
 def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None, levels: int = 3,
                   mesh_size: float | None = None, elements_per_diameter: int | None = None,
-                  render: bool = True, fem_model: str | None = None) -> dict:
+                  render: bool = True, fem_model: str | None = None,
+                  pillars: str = "hooke") -> dict:
     """Run both models on ``levels`` refinements each (one batch on the engine, cached in
     ``out/cases``), write the report folder and return the report dict (``rows``,
     ``converged``, ``not_converged``, ``render``, ...).
@@ -253,7 +254,8 @@ def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None, leve
     ``fem_model`` is fem-axisym or fem-3d (default :func:`fem_model_for`: the axisymmetric
     model where it applies); ``mesh_size`` is its coarsest level (default
     :data:`FEM_COARSEST`),
-    ``elements_per_diameter`` the BEM's (default its ladder's).  The files of an earlier
+    ``elements_per_diameter`` the BEM's (default its ladder's), ``pillars`` its pillar model
+    (the paper's Hooke spring, or the elastic pillar).  The files of an earlier
     report in ``out`` are removed first and ``report.json`` is written last, so the folder
     never mixes two runs."""
     from ..output.report import clear_outputs
@@ -266,7 +268,8 @@ def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None, leve
     r_ref, r_label = reference_radius(scene)
     fem_cases = level_cases(fem, scene, levels, coarsest=fem_coarsest, tag="fem",
                             vtu_finest=True)
-    bem_cases = level_cases(BEM, scene, levels, coarsest=elements_per_diameter, tag="bem")
+    bem_cases = level_cases(BEM, scene, levels, coarsest=elements_per_diameter, tag="bem",
+                            options=None if pillars == "hooke" else {"pillars": pillars})
     clear_outputs(out, OUTPUTS, "compare")
     own = engine is None
     engine = engine or Engine("serial")

@@ -47,11 +47,14 @@ def check_ladder(model: str, levels: int, coarsest: float | None = None,
 
 
 def level_cases(model: str, scene: Scene, levels: int, *, coarsest: float | None = None,
-                tag: str = "", vtu_finest: bool = False) -> list[Case]:
-    """The cases of ``levels`` refinements of ``model`` on ``scene``, coarse to fine."""
+                tag: str = "", vtu_finest: bool = False,
+                options: dict | None = None) -> list[Case]:
+    """The cases of ``levels`` refinements of ``model`` on ``scene``, coarse to fine;
+    ``options``: the model's other options, the same on every level (``pillars``, say)."""
     check_ladder(model, levels, coarsest)
     ladder = ladder_for(model)
-    return [Case(model, scene, ladder.options(k, coarsest), vtu=vtu_finest and k == levels - 1,
+    return [Case(model, scene, {**ladder.options(k, coarsest), **(options or {})},
+                 vtu=vtu_finest and k == levels - 1,
                  tag=f"{tag + ' ' if tag else ''}{k + 1}/{levels}") for k in range(levels)]
 
 
@@ -86,11 +89,13 @@ def study_levels(model: str, scene: Scene, outcomes: list[Outcome]) -> dict:
 
 def converge_study(model: str, scene: Scene, levels: int, cache_dir: Path, *,
                    coarsest: float | None = None, engine: Engine | None = None,
-                   tag: str = "converge", vtu_finest: bool = False) -> dict:
+                   tag: str = "converge", vtu_finest: bool = False,
+                   options: dict | None = None) -> dict:
     """Run (or resume from ``cache_dir``) ``levels`` refinements and study each quantity
     (see :func:`study_levels`); ``vtu_finest`` asks for the finest level's VTU (its path is in
     ``levels[-1]['vtu']``).  Without ``engine`` the levels run serially in this process."""
-    cases = level_cases(model, scene, levels, coarsest=coarsest, tag=tag, vtu_finest=vtu_finest)
+    cases = level_cases(model, scene, levels, coarsest=coarsest, tag=tag, vtu_finest=vtu_finest,
+                        options=options)
     own = engine is None
     engine = engine or Engine("serial", label=tag)
     try:
