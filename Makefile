@@ -6,7 +6,7 @@ STAMP  := $(VENV)/.installed
 OUT    ?= out
 
 .PHONY: demo study-gecit study-lattice figures test test-slow bench-bem bench-fft bench-gpu bench-fem3d \
-	bench-engine bench-figures clean calibrate validate-planner extremes
+	bench-engine bench-figures bench-startup clean calibrate validate-planner extremes
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -69,6 +69,10 @@ bench-gpu: $(STAMP)
 # Phi = 0.2 and on the densest paper scene (about 12 minutes).
 bench-fem3d: $(STAMP)
 	$(PY) -m validation.bench.fem3d --out $(OUT)/bench-fem3d --levels 2.83,2,1.41 --dense 2.83,2,1.41
+
+# CLI start-up: `pillar-xval --version` and `solve --help`, median of 5 fresh processes each.
+bench-startup: $(STAMP)
+	$(PY) -m validation.bench.startup --out $(OUT)/bench-startup
 
 bench-engine: $(STAMP)
 	$(PY) -m validation.bench.engine --out $(OUT)/bench-engine

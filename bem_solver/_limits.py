@@ -16,3 +16,5 @@ CONTACT_METHODS = ("exact", "paper")
 # The pillar of both BEMs: the paper's Hooke spring (uniform shortening, the default) or the
 # elastic pillar's excess compliance from the Fourier-mode FEM (bem_solver._elastic_pillar).
 PILLAR_MODELS = ("hooke", "elastic")
+# Where the FFT model runs: numpy on the CPU, cupy on a CUDA GPU, or the GPU where there is one.
+DEVICES = ("cpu", "gpu", "auto")

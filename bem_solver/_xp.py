@@ -16,8 +16,8 @@ from contact._xp import CupyArrays, NumpyArrays
 from scenes import InputError
 
 from ._fft_grid import MAX_FFT_POINTS
+from ._limits import DEVICES
 
-DEVICES = ("cpu", "gpu", "auto")
 GPU_INSTALL = "pip install -e '.[gpu]' (cupy-cuda12x; with CUDA 13, pip install cupy-cuda13x)"
 # GPU: device bytes per padded FFT point at the peak of an operator application (kernel
 # spectrum 4, complex column transforms 16 + 8, cuFFT work area ~16, vectors) with a margin;

@@ -161,3 +161,20 @@ def test_a_dry_run_of_a_million_points_checks_a_seeded_sample(cli, tmp_path):
     assert doc["cases"] + doc["skipped"] == 10**6 and doc["wall_seconds"] > 0
     code, out, _ = cli("sweep", spec, "--dry-run", "--out", tmp_path / "o")
     assert "seeded sample of 2000 of the 1000000 points" in out
+
+
+def test_the_cli_starts_without_the_heavy_libraries():
+    """`pillar-xval --version` once took 4.6 s: building the parser imported scipy's solvers
+    (through the registry's option ranges and the studies' constants).  The heavy libraries
+    are imported where they are used (bench: python -m validation.bench.startup)."""
+    import subprocess
+    import sys
+
+    heavy = ("scipy.optimize", "scipy.sparse", "skfem", "gmsh", "contact", "pyvista",
+             "matplotlib", "dask", "pyarrow", "meshio")
+    code = ("import sys; from validation.cli import build_parser; build_parser(); "
+            f"print(','.join(m for m in {heavy!r} if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == ""

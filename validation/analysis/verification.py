@@ -26,7 +26,6 @@ import math
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from scipy.optimize import brentq
 
 FS_THREE_GRIDS = 1.25  # [R]: safety factor when the order is observed (three or more grids)
 FS_TWO_GRIDS = 3.0     # [R]: safety factor when the order is assumed (two grids)
@@ -122,6 +121,8 @@ def _observed_order(r21: float, r32: float, eps21: float, eps32: float) -> float
         return 0.0
     if g(hi) <= 0:
         return None
+    from scipy.optimize import brentq  # here: scipy.optimize costs 0.3 s at import
+
     return brentq(g, lo, hi, xtol=1e-14, rtol=1e-14)
 
 

@@ -15,9 +15,8 @@ import math
 from dataclasses import dataclass
 
 from bem_solver._cells import VARIANTS
-from bem_solver._limits import (CONTACT_METHODS, ELEMENTS_PER_DIAMETER_RANGE, MIN_CELLS_PER_DIAMETER,
-                                PILLAR_MODELS)
-from bem_solver._xp import DEVICES
+from bem_solver._limits import (CONTACT_METHODS, DEVICES, ELEMENTS_PER_DIAMETER_RANGE,
+                                MIN_CELLS_PER_DIAMETER, PILLAR_MODELS)
 from meshes import MESH_SIZE_RANGE, MESH_SIZE_RANGE_3D
 from scenes import InputError
 
