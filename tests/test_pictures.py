@@ -25,6 +25,14 @@ def _capture(monkeypatch, module) -> list:
     return figures
 
 
+def _agg(fig):
+    """An Agg canvas for ``fig`` (a figure already saved and closed has none)."""
+    if not hasattr(fig.canvas, "get_renderer"):
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+        FigureCanvasAgg(fig)
+
+
 def covered_points(ax) -> list[tuple[str, float, float]]:
     """Data points of ``ax`` (its lines' vertices and its collections' offsets) that fall
     inside its legend's box on the drawn figure: (label, x, y) of each."""
@@ -32,6 +40,7 @@ def covered_points(ax) -> list[tuple[str, float, float]]:
     if legend is None:
         return []
     fig = ax.figure
+    _agg(fig)
     fig.canvas.draw()
     box = legend.get_window_extent()
     hits = []
@@ -52,6 +61,26 @@ def covered_points(ax) -> list[tuple[str, float, float]]:
                   & (xy[:, 1] >= box.y0) & (xy[:, 1] <= box.y1) & drawn)
         hits += [(line.get_label(), float(a), float(b)) for a, b in xy[inside]]
     return hits
+
+
+def clipped_texts(fig) -> list[str]:
+    """Titles, labels and legend texts of ``fig`` that run past its edges, laid out as
+    figure_png lays it out before saving."""
+    _agg(fig)
+    fig.tight_layout()
+    fig.canvas.draw()
+    page = fig.bbox
+    renderer = fig.canvas.get_renderer()
+    texts = [t for ax in fig.axes for t in (ax.title, ax.xaxis.label, ax.yaxis.label)]
+    texts += [t for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts()]
+    out = []
+    for t in texts:
+        if not t.get_text() or not t.get_visible():
+            continue
+        box = t.get_window_extent(renderer)
+        if box.x0 < page.x0 - 1 or box.x1 > page.x1 + 1:
+            out.append(t.get_text())
+    return out
 
 
 def legend_texts(ax) -> list[str]:
@@ -122,6 +151,7 @@ def test_flat_compare_legend_names_no_pillar_and_sits_clear(fakes, tmp_path, cli
     assert texts and not any("pillar" in t.lower() for t in texts), texts
     assert any(t.startswith("BEM, ") for t in texts)
     assert covered_points(ax) == []
+    assert clipped_texts(fig) == []
 
 
 # --- legends clear of the data ------------------------------------------------------------
@@ -136,6 +166,7 @@ def test_sparse_pressure_legend_covers_no_data():
     ax = ax or next(a for a in fig.axes if a.get_legend() is not None)
     assert "bem elements" in legend_texts(ax)
     assert covered_points(ax) == []
+    assert clipped_texts(fig) == []
 
 
 def test_fem_pressure_legend_covers_no_curve(fakes):
@@ -151,6 +182,7 @@ def test_fem_pressure_legend_covers_no_curve(fakes):
         ax = fig.axes[0]
         assert legend_texts(ax)
         assert covered_points(ax) == [], scene.name
+        assert clipped_texts(fig) == [], scene.name
         # every curve the legend lists is drawn inside the axes (not all off the top)
         fig.canvas.draw()
         box = ax.get_window_extent()
@@ -187,6 +219,7 @@ def test_quick_figures_text_is_legible_and_fig7b_legend_is_clear(tmp_path, monke
                 if f._suptitle is not None and f._suptitle.get_text().startswith("Fig. 7"))
     bx = fig7.axes[1]
     assert legend_texts(bx) and covered_points(bx) == []
+    assert clipped_texts(fig7) == []
 
 
 def test_legible_dpi_raises_a_low_dpi_only_as_needed():

@@ -113,7 +113,7 @@ def plot_profiles(curves: list[dict], radius_m: float, path: Path, title: str,
     inside 0.8 ``radius_m``, so edge peaks (singular or mesh-bound) do not flatten the rest.
     """
     plt = pyplot()
-    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    fig, ax = plt.subplots(figsize=(9.6, 4.8))  # room for the legend beside the axes
     top = 0.0
     for c in curves:
         r = np.asarray(c["r_m"], dtype=float)

@@ -188,7 +188,7 @@ def pressure_plot(result: ContactResult):
         _pressure_map(fig, ax_map, result, scene)
         _element_profile(ax_prof, result, scene)
     else:
-        fig, ax_prof = plt.subplots(figsize=(6.8, 4.8))
+        fig, ax_prof = plt.subplots(figsize=(9.4, 4.8))  # room for the legend beside the axes
         _top_profile(ax_prof, result, scene)
     stamp_not_converged(fig, not_converged_note(result))
     return fig
