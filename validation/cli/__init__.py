@@ -29,12 +29,12 @@ import signal
 import sys
 import warnings
 
-from outcome import package_version
-from scenes import InputError, ToolError
-
-from ._args import DEBUG_ENV, Parser, add_scene_arguments, one_line
-from ._exit import (EXIT_BAD_INPUT, EXIT_INTERNAL_ERROR, EXIT_INTERRUPTED, EXIT_TERMINATED,
-                    EXIT_TOOL_FAILURE)
+# Only the standard library and the exit statuses at import: the toolkit (numpy, scipy, the
+# registry) is loaded inside main(), where a failure to load it (out of memory under a tight
+# `ulimit -v`: "failed to map segment", MemoryError) is one line and exit 3, not a traceback
+# from the console script's own import.
+from ._exit import (DEBUG_ENV, EXIT_BAD_INPUT, EXIT_INTERNAL_ERROR, EXIT_INTERRUPTED,
+                    EXIT_TERMINATED, EXIT_TOOL_FAILURE)
 
 __all__ = ["COMMANDS", "DEBUG_ENV", "EXIT_INTERNAL_ERROR", "add_scene_arguments",
            "build_parser", "main"]
@@ -45,7 +45,23 @@ COMMANDS = ("validation.cli.solve", "validation.cli.compare", "validation.cli.co
             "validation.cli.calibrate", "validation.cli.extremes", "validation.cli.check")
 
 
+_LAZY = ("Parser", "add_scene_arguments", "one_line")
+
+
+def __getattr__(name: str):
+    """The shared vocabulary's names, loaded on first use (see the imports above)."""
+    if name in _LAZY:
+        from . import _args
+
+        return getattr(_args, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 def build_parser() -> argparse.ArgumentParser:
+    from outcome import package_version
+
+    from ._args import Parser
+
     parser = Parser(
         prog="pillar-xval",
         description="Contact of a spherical lens on a hexagonal lattice of pillars: "
@@ -75,6 +91,8 @@ def _debugging(args) -> bool:
 
 def _one_line_warnings(prog: str):
     """Warnings as one line without a source path (``--debug`` keeps Python's own form)."""
+    from ._args import one_line
+
     def show(message, category, filename, lineno, file=None, line=None):
         print(f"{prog}: warning: {category.__name__}: {one_line(message, 200)}",
               file=file or sys.stderr)
@@ -98,10 +116,56 @@ def main(argv: list[str] | None = None) -> int:
               "/dev/null", file=sys.stderr or sys.__stderr__)
         return EXIT_BAD_INPUT
     previous = _install(signal.SIGTERM, _terminate)
+    errors = _tolerant(sys.stdout)
     try:
+        try:
+            _load()
+        # A C extension that runs out of memory while it loads can also leave a SystemError.
+        except (ImportError, MemoryError, SystemError) as exc:
+            if os.environ.get(DEBUG_ENV, "") not in ("", "0") or "--debug" in (
+                    argv if argv is not None else sys.argv[1:]):
+                raise
+            print(f"pillar-xval: failure: {_load_failure(exc)}", file=sys.stderr)
+            return EXIT_TOOL_FAILURE
         return _main(argv)
     finally:
         _install(signal.SIGTERM, previous)
+        _tolerant(sys.stdout, errors)
+
+
+def _load() -> None:
+    """Load the toolkit the commands need (the shared vocabulary, the scenes, the command
+    modules): the first place a tight memory limit bites."""
+    importlib.import_module("scenes")
+    importlib.import_module("validation.cli._args")
+    for name in COMMANDS:
+        importlib.import_module(name)
+
+
+def _load_failure(exc: BaseException) -> str:
+    """One line for a library that could not be loaded: out of memory (a tight `ulimit -v`
+    makes the loader fail to map a shared object) or missing."""
+    text = " ".join(str(exc).split())
+    text = text if len(text) <= 200 else text[:197] + "..."
+    if isinstance(exc, (MemoryError, SystemError)) or "map segment" in text \
+            or "allocate memory" in text:
+        detail = text or "no detail"
+        return (f"out of memory loading the libraries ({type(exc).__name__}: {detail}); "
+                "raise the process's memory limit (ulimit -v)")
+    return f"cannot load a library ({type(exc).__name__}: {text}); is the toolkit installed?"
+
+
+def _tolerant(stream, errors: str = "backslashreplace") -> str | None:
+    """Let ``stream`` write what its encoding cannot (a path in Φ or ü under
+    PYTHONIOENCODING=ascii or a non-UTF-8 locale) as backslash escapes, as stderr does,
+    instead of failing after the work is done; returns its previous setting."""
+    before = getattr(stream, "errors", None)
+    if errors is not None and before is not None and hasattr(stream, "reconfigure"):
+        try:
+            stream.reconfigure(errors=errors)
+        except (ValueError, OSError, AttributeError):  # a stream that cannot: leave it
+            return None
+    return before
 
 
 def _install(signum, handler):
@@ -113,6 +177,10 @@ def _install(signum, handler):
 
 
 def _main(argv: list[str] | None) -> int:
+    from scenes import InputError, ToolError
+
+    from ._args import one_line
+
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
@@ -144,6 +212,11 @@ def _main(argv: list[str] | None) -> int:
             return EXIT_TOOL_FAILURE
         except OSError as exc:
             print(f"{prog}: failure: file system: {one_line(exc)}", file=sys.stderr)
+            return EXIT_TOOL_FAILURE
+        except ImportError as exc:  # a library a command loads late (memory, or missing)
+            if debug:
+                raise
+            print(f"{prog}: failure: {_load_failure(exc)}", file=sys.stderr)
             return EXIT_TOOL_FAILURE
         except Exception as exc:
             if debug:

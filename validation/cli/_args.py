@@ -35,7 +35,8 @@ import re
 import sys
 from pathlib import Path
 
-from ._exit import EXIT_BAD_INPUT, EXIT_INTERNAL_ERROR, EXIT_NOT_CONVERGED, EXIT_TOOL_FAILURE
+from ._exit import (DEBUG_ENV, EXIT_BAD_INPUT, EXIT_INTERNAL_ERROR, EXIT_NOT_CONVERGED,
+                    EXIT_TOOL_FAILURE)
 from scenes import InputError, preset_names
 
 from ..engine import add_engine_arguments, engine_from_args
@@ -49,9 +50,6 @@ __all__ = [
     "not_converged", "number", "one_line", "option_type", "print_json", "refuse_inapplicable",
     "study_status",
 ]
-
-# Set to anything but "" or "0": an internal error shows its traceback (as --debug does).
-DEBUG_ENV = "PILLAR_XVAL_DEBUG"
 
 _INTEGER = re.compile(r"[+-]?[0-9]+")
 _DECIMAL = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")

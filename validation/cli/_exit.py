@@ -24,4 +24,6 @@ EXIT_TOOL_FAILURE = 3
 # its traceback instead.
 EXIT_INTERNAL_ERROR = 4
 EXIT_INTERRUPTED = 130
+# Set to anything but "" or "0": an internal error shows its traceback (as --debug does).
+DEBUG_ENV = "PILLAR_XVAL_DEBUG"
 EXIT_TERMINATED = 143  # 128 + SIGTERM, as a shell reports a process the signal ended

@@ -274,7 +274,10 @@ class Engine:
             raise ToolError(f"the process pool broke (a worker died: {exc})") from None
         except CASE_ERRORS as exc:
             store.journal("failed", case, error=f"{type(exc).__name__}: {exc}")
-            progress.finish(case.describe(), f"FAILED: {exc}", computed=True)
+            # The verdicts of the reports (extremes' summary): a model's up-front refusal of
+            # its input (InputError, ScopeError) is "refused", anything else an "error".
+            verdict = "refused" if isinstance(exc, InputError) else "error"
+            progress.finish(case.describe(), f"{verdict}: {exc}", computed=True)
             return Outcome(case, error=exc)
         try:
             record = store.save(case, payload)

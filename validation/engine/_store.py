@@ -116,8 +116,9 @@ class CaseStore:
             return None, ""
         try:
             record = json.loads(path.read_text(), parse_constant=_no_constants)
-        except (OSError, ValueError, UnicodeDecodeError) as exc:
-            return None, f"unreadable ({exc})"
+        # RecursionError: arrays nested thousands deep (an edited or damaged file).
+        except (OSError, ValueError, UnicodeDecodeError, RecursionError) as exc:
+            return None, f"unreadable ({str(exc)[:200]})"
         try:
             reason = self._check(case, record)
         except (AttributeError, KeyError, TypeError, ValueError) as exc:
@@ -252,6 +253,6 @@ def read_journal(folder: str | os.PathLike) -> list[dict]:
     for line in path.read_text().splitlines():
         try:
             events.append(json.loads(line))
-        except ValueError:
+        except (ValueError, RecursionError):  # a damaged line
             continue
     return events

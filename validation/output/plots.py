@@ -13,7 +13,7 @@ import numpy as np
 from matplotlib.ticker import NullFormatter
 
 from ..registry import QUANTITIES
-from .report import KPA, pyplot, save_figure, stamp_not_converged
+from .report import KPA, legend_outside, scene_label, pyplot, save_figure, stamp_not_converged
 
 _MARKERS = "osd^v<>p"
 # Quantities in mathtext, for labels.
@@ -37,6 +37,19 @@ def _unconverged_levels(data: dict) -> list[str]:
     option = data["ladder"]["option"]
     return [f"{data['model']} {option}={lv['value']}: {lv.get('message', '')}"
             for lv in data["levels"] if not lv["converged"]]
+
+
+def _h_of(ladder: dict) -> str:
+    """How h follows from the refined option: "h = 1/elements_per_diameter", "h = mesh_size"
+    (the option's own name, never a description of it wrapped in brackets)."""
+    option, power = ladder["option"], ladder.get("h_power")
+    if power is None:
+        return f"h ({option})"
+    if power == 1:
+        return f"h = {option}"
+    if power == -1:
+        return f"h = 1/{option}"
+    return f"h = {option}^{power:g}"
 
 
 def plot_convergence(data: dict, path: Path) -> Path:
@@ -67,20 +80,24 @@ def plot_convergence(data: dict, path: Path) -> Path:
         ax.loglog(h[keep], err[keep], marker=_MARKERS[i % len(_MARKERS)], label=tag)
         hs_all.extend(h[keep])
         errs_all.extend(err[keep])
-    if hs_all:
-        hs = np.array(sorted(set(hs_all)))
+    hs = np.array(sorted(set(hs_all)))
+    if hs.size >= 2:  # a slope needs two sizes: one point (two levels, vs finest) has none
         for order, style in ((1, ":"), (2, "--")):
             ax.loglog(hs, 0.5 * max(errs_all) * (hs / hs[-1]) ** order, "k" + style, lw=0.8,
                       label=f"slope {order}")
+    elif hs.size == 1:
+        ax.text(0.02, 0.08, "one size with an error: no slope to draw (add levels)",
+                transform=ax.transAxes, fontsize=8, color="0.3")
+    if hs_all:
         ax.legend(fontsize=7)
     if flat:
         ax.text(0.02, 0.02, f"{', '.join(flat)}: equal on every level (round-off)",
                 transform=ax.transAxes, fontsize=8, color="0.3")
     values = ", ".join(f"{lv['value']:g}" for lv in data["levels"])
     option = data["ladder"]["option"]
-    ax.set_xlabel(f"relative cell size h ({data['ladder']['h_meaning']})")
+    ax.set_xlabel(f"relative cell size {_h_of(data['ladder'])}")
     ax.set_ylabel("relative error")
-    ax.set_title(f"{data['model']} on {data['scene'].get('name', '?')}: {option} = {values}",
+    ax.set_title(f"{data['model']} on {scene_label(data['scene'])}: {option} = {values}",
                  fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     stamp_not_converged(fig, _unconverged_levels(data))
@@ -96,7 +113,7 @@ def plot_profiles(curves: list[dict], radius_m: float, path: Path, title: str,
     inside 0.8 ``radius_m``, so edge peaks (singular or mesh-bound) do not flatten the rest.
     """
     plt = pyplot()
-    fig, ax = plt.subplots(figsize=(6.4, 4.8))
+    fig, ax = plt.subplots(figsize=(9.6, 4.8))  # room for the legend beside the axes
     top = 0.0
     for c in curves:
         r = np.asarray(c["r_m"], dtype=float)
@@ -114,7 +131,7 @@ def plot_profiles(curves: list[dict], radius_m: float, path: Path, title: str,
     ax.set_ylabel("contact pressure (kPa)")
     ax.set_title(title)
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8, loc="upper left")
+    legend_outside(ax)
     stamp_not_converged(fig, list(not_converged))
     return _save(fig, path)
 
@@ -206,15 +223,25 @@ def plot_gecit_profiles(profiles: list[dict], path: Path, convention: str = "") 
 
 
 # --- speed against accuracy --------------------------------------------------------------
-def pareto_front(points: list[tuple[float, float]]) -> list[int]:
-    """Indices of the points (time, error) that no other point beats in both, by time."""
-    order = sorted(range(len(points)), key=lambda i: (points[i][0], points[i][1]))
-    front, best = [], np.inf
-    for i in order:
-        if points[i][1] < best:
-            front.append(i)
-            best = points[i][1]
-    return front
+def pareto_front(points: list[tuple[float, float]], noise: list[float] | None = None,
+                 floor: float = 0.0) -> list[int]:
+    """Indices of the points (time, error) that no other point beats, by time.
+
+    A point beats another when it is faster beyond their time ``noise`` (s, per point: the
+    larger of the two counts) and no less accurate, or more accurate and not slower beyond
+    the noise.  Errors below ``floor`` (round-off) are all equal: round-off is no trade."""
+    n = len(points)
+    noise = list(noise) if noise is not None else [0.0] * n
+    t = [float(p[0]) for p in points]
+    e = [max(float(p[1]), floor) for p in points]
+
+    def beats(j: int, i: int) -> bool:
+        tie = max(noise[i], noise[j])
+        return ((e[j] <= e[i] and t[j] < t[i] - tie)
+                or (e[j] < e[i] and t[j] <= t[i] + tie))
+
+    front = [i for i in range(n) if not any(beats(j, i) for j in range(n) if j != i)]
+    return sorted(front, key=lambda i: (t[i], e[i]))
 
 
 def rung_label(option: str, level) -> str:
@@ -229,25 +256,40 @@ def plot_tradeoff(doc: dict, path: Path) -> Path:
     plt = pyplot()
     fig, axes = plt.subplots(2, 2, figsize=(11, 8.5))
     colours = {m: f"C{i}" for i, m in enumerate(doc["models"])}
+    floor = float(doc.get("round_off", 0.0))
     for ax, q in zip(axes.ravel(), QUANTITIES):
         key = f"err_{q.key}"
         rows = [r for r in doc["rows"] if r.get(key)]
+        if rows and all(r[key] < floor for r in rows):
+            rows = []  # nothing but round-off: no trade to draw
+            ax.text(0.5, 0.5, f"{_SYMBOL[q.key]}: every rung at round-off\n(relative error "
+                    f"< {floor:g})", ha="center", va="center", transform=ax.transAxes)
+            ax.set_xticks([])
+            ax.set_yticks([])
+            ax.set_title(_TITLE[q.key], fontsize=10)
+            continue
         for model in doc["models"]:
             mine = [r for r in rows if r["model"] == model]
             if not mine:
                 continue
             t = [r["wall_time_s"] for r in mine]
-            e = [r[key] for r in mine]
+            e = [max(r[key], floor) for r in mine]  # round-off drawn at its floor
             ax.loglog(t, e, "o-", color=colours[model], lw=0.8, alpha=0.8, label=model)
             for r in mine:
-                ax.annotate(rung_label(r["option"], r["level"]), (r["wall_time_s"], r[key]),
+                ax.annotate(rung_label(r["option"], r["level"]),
+                            (r["wall_time_s"], max(r[key], floor)),
                             textcoords="offset points", xytext=(4, 3), fontsize=7,
                             color=colours[model])
                 if not r["converged"]:
-                    ax.plot(r["wall_time_s"], r[key], "x", color="red", ms=10, mew=2)
+                    ax.plot(r["wall_time_s"], max(r[key], floor), "x", color="red", ms=10,
+                            mew=2)
         if rows:
-            pts = [(r["wall_time_s"], r[key]) for r in rows]
-            front = [pts[i] for i in pareto_front(pts)]
+            pts = [(r["wall_time_s"], max(r[key], floor)) for r in rows]
+            front = [pts[i] for i in pareto_front(pts, [r.get("time_noise_s", 0.0)
+                                                        for r in rows], floor)]
+            if any(r[key] < floor for r in rows):
+                ax.axhline(floor, color="0.5", lw=0.8, ls=":",
+                           label=f"round-off (< {floor:g}: equal)")
             tf, ef = zip(*front)
             ax.step(tf, ef, where="post", color="k", lw=1.2, ls="--", label="Pareto front")
             ax.plot(tf, ef, "o", ms=10, mfc="none", mec="k")
@@ -265,7 +307,7 @@ def plot_tradeoff(doc: dict, path: Path) -> Path:
         ax.grid(True, which="both", alpha=0.3)
         for axis in (ax.xaxis, ax.yaxis):  # decades only: minor labels crowd a short axis
             axis.set_minor_formatter(NullFormatter())
-    fig.suptitle(f"speed against accuracy on {doc['scene'].get('name', '?')}: each error "
+    fig.suptitle(f"speed against accuracy on {scene_label(doc['scene'])}: each error "
                  "against the Richardson reference of its own physics", fontsize=11)
     refs = ["references: " + "; ".join(
         f"{group} " + ", ".join(f"{_SYMBOL[k]} by {ref[k]['model']}" for k in ref)

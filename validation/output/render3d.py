@@ -48,6 +48,18 @@ def region_of_interest(meta: dict) -> tuple[float, float, float]:
     return 2.0 * a, -a, a
 
 
+def scale_bar(roi: float, z0: float, z1: float):
+    """(length, start, end, where its label goes) of the scale bar, in m: a power of ten no
+    longer than the region's radius, along x in front of the disk at its bottom, and the
+    label a fifth of the region's height below the bar's middle, so that text and line never
+    overlap."""
+    ruler = 10 ** math.floor(math.log10(roi))
+    y = -1.1 * roi
+    start, end = (-roi, y, z0), (-roi + ruler, y, z0)
+    label_at = (-roi + 0.5 * ruler, y, z0 - 0.2 * (z1 - z0))
+    return ruler, start, end, label_at
+
+
 def unfold(mesh, alpha: float) -> list:
     """The images of ``mesh`` under the mirror group of the sector [0, alpha]."""
     k = int(round(math.pi / alpha))
@@ -99,13 +111,19 @@ def _render(vtu: str, png: str, stamp: str = "") -> str:
             plotter.add_mesh(img, scalars="vm_kPa", cmap="viridis", clim=[float(c) for c in clim],
                              scalar_bar_args=bar, show_scalar_bar=shown == 0)
             shown += 1
-    ruler = 10 ** math.floor(math.log10(roi))
-    plotter.add_ruler((-roi, -1.1 * roi, z0), (-roi + ruler, -1.1 * roi, z0),
-                      title=f"{ruler * 1e6:.3g} µm", show_labels=False, font_size_factor=0.8)
+    ruler, start, end, label_at = scale_bar(roi, z0, z1)
+    # The ruler carries no title (VTK centres it on the ruler itself, where it overlapped the
+    # line); its length is a label placed below it, clear of the line.
+    plotter.add_ruler(start, end, title="", show_labels=False, font_size_factor=0.8)
+    plotter.add_point_labels([label_at], [f"{ruler * 1e6:.3g} µm"], show_points=False,
+                             shape=None, font_size=16, text_color="black",
+                             justification_horizontal="center", always_visible=True)
     plotter.view_vector((0.35, -1.0, 0.75), viewup=(0.0, 0.0, 1.0))
     plotter.camera.zoom(1.2)
     s = meta["scene"]
-    title = (f"fem-3d, {s.get('name', '')}: {len(unfold(grid, alpha))} images of the "
+    from .report import scene_label
+
+    title = (f"fem-3d, {scene_label(s)}: {len(unfold(grid, alpha))} images of the "
              f"{math.degrees(alpha):.0f} deg sector; lens (far half) lifted by "
              f"{2 * h * 1e6:.3g} um")
     plotter.add_text(title, font_size=10)

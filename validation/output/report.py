@@ -46,7 +46,7 @@ def figure_png(fig, dpi: int = 120, layout: bool = True) -> bytes:
     if layout:
         fig.tight_layout()
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
+    fig.savefig(buf, format="png", dpi=legible_dpi(fig, dpi))
     plt.close(fig)
     return buf.getvalue()
 
@@ -54,6 +54,36 @@ def figure_png(fig, dpi: int = 120, layout: bool = True) -> bytes:
 def save_figure(fig, path, dpi: int = 120, layout: bool = True) -> Path:
     """Write ``fig`` as a PNG atomically and close it (see :func:`figure_png`)."""
     return write_atomic(path, figure_png(fig, dpi, layout))
+
+
+def legend_outside(ax, fontsize: float = 8, **kw):
+    """The legend of ``ax`` beside it, right of the axes (the figure's layout makes room), so
+    that it never covers a curve or a point: a legend inside the axes sat over the data of
+    the sparse lattice's and fem-3d's pressure plots.  None when nothing is labelled."""
+    if not ax.get_legend_handles_labels()[0]:
+        return None
+    return ax.legend(fontsize=fontsize, loc="upper left", bbox_to_anchor=(1.02, 1.0),
+                     borderaxespad=0.0, **kw)
+
+
+# The smallest text a figure may carry, in pixels of the saved PNG: quick figures are drawn at
+# a lower dpi, which once made 7 pt text 5 px high.
+MIN_TEXT_PX = 10.0
+
+
+def smallest_text_pt(fig) -> float:
+    """The smallest font size (pt) of the visible text of ``fig`` (titles, labels, ticks,
+    legends, annotations)."""
+    from matplotlib.text import Text
+
+    sizes = [t.get_fontsize() for t in fig.findobj(Text) if t.get_visible() and t.get_text()]
+    return min(sizes) if sizes else 10.0
+
+
+def legible_dpi(fig, dpi: float, min_px: float = MIN_TEXT_PX) -> int:
+    """``dpi``, raised where needed so that the smallest text of ``fig`` is ``min_px`` pixels
+    high in the PNG (a font of s pt is s dpi / 72 px)."""
+    return int(math.ceil(max(dpi, min_px * 72.0 / smallest_text_pt(fig))))
 
 
 def stamp_not_converged(fig, what: list[str]) -> None:
@@ -158,7 +188,7 @@ def pressure_plot(result: ContactResult):
         _pressure_map(fig, ax_map, result, scene)
         _element_profile(ax_prof, result, scene)
     else:
-        fig, ax_prof = plt.subplots(figsize=(6.8, 4.8))
+        fig, ax_prof = plt.subplots(figsize=(9.4, 4.8))  # room for the legend beside the axes
         _top_profile(ax_prof, result, scene)
     stamp_not_converged(fig, not_converged_note(result))
     return fig
@@ -294,8 +324,8 @@ def _element_profile(ax, result: ContactResult, scene) -> None:
     ax.set_ylim(0, top)
     ax.set_xlabel("r (µm)")
     ax.set_ylabel("pressure (kPa)")
-    ax.legend(fontsize=8, loc="upper right")
-    ax.set_title(f"{result.scene.get('name', '')}: F = {result.total_force_N * UM:.3g} µN, "
+    legend_outside(ax)
+    ax.set_title(f"{scene_label(result.scene)}: F = {result.total_force_N * UM:.3g} µN, "
                  rf"$\sigma_0$ = {result.centre_pressure_Pa * KPA:.3g} kPa")
 
 
@@ -307,6 +337,8 @@ def _top_profile(ax, result: ContactResult, scene) -> None:
     prof = result.pillar_top_profile
     r = np.asarray(prof.get("r_m", []), dtype=float)
     p = np.asarray(prof.get("pressure_Pa", []), dtype=float)
+    references = 0.0  # the largest inner value of the reference curves: each one listed in
+    # the legend is drawn inside the axes (the rigid punch once ran off the top)
     if scene.pillars is not None:
         edge, where = scene.pillars.diameter_m / 2, "pillar top"
         rp = np.linspace(0, 0.999 * edge, 300)
@@ -314,7 +346,10 @@ def _top_profile(ax, result: ContactResult, scene) -> None:
                                      "model)"), (analytic.rigid_punch, "k--", "rigid flat punch")):
             curve = _limit(limit, scene)
             if curve is not None:
-                ax.plot(rp * UM, curve.pressure(rp) * KPA, style, lw=1.2, label=label)
+                pc = curve.pressure(rp)
+                ax.plot(rp * UM, pc * KPA, style, lw=1.2, label=label)
+                finite = pc[(rp <= 0.8 * edge) & np.isfinite(pc)]
+                references = max(references, float(finite.max()) if finite.size else 0.0)
     else:
         hz = _limit(analytic.hertz, scene)
         edge, where = 1.3 * (hz.contact_radius if hz else result.contact_radius_m), "contact"
@@ -325,13 +360,80 @@ def _top_profile(ax, result: ContactResult, scene) -> None:
     inner = (r <= 0.8 * edge) & np.isfinite(p)
     top = max(float(p[inner].max()) if inner.any() else 0.0, result.centre_pressure_Pa)
     if top > 0:  # a singular edge runs off the top, by design; the caption gives its peak
-        ax.set_ylim(0, (2.0 if scene.pillars else 1.2) * top * KPA)
+        ax.set_ylim(0, max((2.0 if scene.pillars else 1.2) * top, 1.1 * references) * KPA)
     ax.set_xlim(0, 1.05 * edge * UM)
     ax.set_xlabel("r (µm)")
     ax.set_ylabel("contact pressure (kPa)")
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8, loc="upper left")
+    legend_outside(ax)
     peak = f"; edge peak {p.max() * KPA:.3g} kPa" if p.size and p.max() > 2.0 * top else ""
-    ax.set_title(f"{result.scene.get('name', '')}: pressure across the {where}\n"
+    ax.set_title(f"{scene_label(result.scene)}: pressure across the {where}\n"
                  f"F = {result.total_force_N * UM:.3g} µN, "
                  rf"$\sigma_0$ = {result.centre_pressure_Pa * KPA:.3g} kPa{peak}", fontsize=10)
+
+
+# What a title says of a scene parameter that differs from its preset: (table, key) -> (symbol,
+# factor from SI, unit).  The pitch follows the surface fraction and is named only alone.
+_PARAMETERS = {("pillars", "surface_fraction"): ("Φ", 1.0, ""),
+               ("load", "indentation_m"): ("ζ", UM, " µm"),
+               ("pillars", "diameter_m"): ("d", UM, " µm"), ("pillars", "height_m"): ("h", UM, " µm"),
+               ("pillars", "pitch_m"): ("pitch", UM, " µm"),
+               ("pillars", "E_Pa"): ("E_p", 1.0, " Pa"), ("pillars", "nu"): ("ν_p", 1.0, ""),
+               ("pillars", "rigid"): ("rigid pillars", None, ""),
+               ("lens", "radius_m"): ("R", 1e3, " mm"), ("lens", "E_Pa"): ("E_l", 1.0, " Pa"),
+               ("lens", "nu"): ("ν_l", 1.0, ""), ("lens", "rigid"): ("rigid lens", None, ""),
+               ("substrate", "E_Pa"): ("E_s", 1.0, " Pa"), ("substrate", "nu"): ("ν_s", 1.0, ""),
+               ("substrate", "rigid"): ("rigid substrate", None, "")}
+
+
+def _differs(a, b) -> bool:
+    if isinstance(a, (int, float)) and isinstance(b, (int, float)) \
+            and not isinstance(a, bool) and not isinstance(b, bool):
+        return not math.isclose(a, b, rel_tol=1e-9, abs_tol=0.0)
+    return a != b
+
+
+def _say(symbol, factor, unit, value) -> str:
+    if factor is None:
+        return symbol if value else f"not {symbol}"
+    return f"{symbol} = {value * factor:.3g}{unit}"
+
+
+def scene_label(scene) -> str:
+    """The name of a scene (a Scene or its dict) for a title, with what makes it this scene: a
+    preset's name alone when the scene is the preset, else the preset's name and the
+    parameters that differ from it ("paper-fig3-sparse (Φ = 0.2)"); a scene that is no preset
+    (a file) is named with its Φ and ζ, so that a title never names a preset whose
+    parameters the run did not have."""
+    from scenes import load_scene, preset_names
+
+    d = scene if isinstance(scene, dict) else scene.to_dict()
+    name = str(d.get("name") or "custom")
+    base = None
+    if name in preset_names():
+        try:
+            base = load_scene(name).to_dict()
+        except Exception:  # noqa: BLE001 - a preset that does not load names nothing
+            base = None
+    said = []
+    if base is not None:
+        if (d.get("pillars") is None) != (base.get("pillars") is None):
+            said.append("flat" if d.get("pillars") is None else "with pillars")
+        for (table, key), how in _PARAMETERS.items():
+            mine, theirs = (d.get(table) or {}), (base.get(table) or {})
+            if key not in mine or key not in theirs or not _differs(mine[key], theirs[key]):
+                continue
+            if key == "pitch_m" and _differs(mine.get("surface_fraction"),
+                                             theirs.get("surface_fraction")):
+                continue  # the surface fraction said it
+            if key == "E_Pa" and mine.get("rigid"):
+                continue  # "rigid ..." says it
+            said.append(_say(*how, mine[key]))
+        if not said:
+            return name
+    else:
+        if d.get("pillars"):
+            said.append(_say("Φ", 1.0, "", d["pillars"]["surface_fraction"]))
+        if d.get("load"):
+            said.append(_say("ζ", UM, " µm", d["load"]["indentation_m"]))
+    return f"{name} ({', '.join(said)})" if said else name

@@ -30,6 +30,7 @@ from ..engine import Engine
 from ..registry import QUANTITIES, ladder_for, quantity_values
 from ..analysis.profiles import profile_at
 from ..analysis.verification import study
+from ..output.report import scene_label
 from .converge import check_ladder, level_cases, study_levels
 
 FEM, FEM_3D, BEM = "fem-axisym", "fem-3d", "bem"
@@ -147,8 +148,12 @@ def _profile_studies(data: dict, r_ref: float) -> dict:
 
 def table_text(rows: list[dict], ref_name: str, r_label: str) -> str:
     """Fixed-width table of the comparison (display units); bands marked * are not a GCI."""
+    # No closed form applies (several pillars share the load): no column for it, rather than
+    # one headed "none".
+    has_ref = ref_name != "none"
     head = (f"{'quantity':<18} {'BEM':>10} {'+-U_BEM':>9} {'FEM':>10} {'+-U_FEM':>9} "
-            f"{'FEM Richardson':>14} {'BEM-FEM':>10} {'rel':>8} {'exceeds U':>9} {ref_name:>12}")
+            f"{'FEM Richardson':>14} {'BEM-FEM':>10} {'rel':>8} {'exceeds U':>9}"
+            + (f" {ref_name:>12}" if has_ref else ""))
     lines = [head, "-" * len(head)]
     for r in rows:
         key = r["quantity"]
@@ -171,8 +176,8 @@ def table_text(rows: list[dict], ref_name: str, r_label: str) -> str:
         verdict = "-" if r["exceeds"] is None else ("YES" if r["exceeds"] else "no")
         lines.append(f"{name:<18} {fmt(r['bem'])} {band(r['u_bem'], r['u_bem_is_gci'])} "
                      f"{fmt(r['fem'])} {band(r['u_fem'], r['u_fem_is_gci'])} "
-                     f"{fmt(r['fem_richardson'], 14)} {fmt(diff)} {rel:>8} {verdict:>9} "
-                     f"{fmt(r['closed_form'], 12)}")
+                     f"{fmt(r['fem_richardson'], 14)} {fmt(diff)} {rel:>8} {verdict:>9}"
+                     + (f" {fmt(r['closed_form'], 12)}" if has_ref else ""))
     lines.append("U: GCI band GCI_fine |f| of each model's three levels (Fs = 1.25); * = no "
                  "observed order (oscillating or round-off), band = spread of the levels (x3 "
                  "when oscillating). 'exceeds U': |BEM - FEM| > sqrt(U_BEM^2 + U_FEM^2).")
@@ -182,7 +187,8 @@ def table_text(rows: list[dict], ref_name: str, r_label: str) -> str:
 def _profile_curves(scene: Scene, bem_res, fem_data: dict, r_ref: float) -> list[dict]:
     option = ladder_for(BEM).option
     disc = f"{option}={bem_res.discretisation.get(option, '?')}"
-    curves = [{"label": f"BEM (Hooke pillar), {disc}", "style": "o-",
+    bem = "BEM" if scene.is_flat else "BEM (Hooke pillar)"  # a flat scene has no pillar
+    curves = [{"label": f"{bem}, {disc}", "style": "o-",
                **bem_res.pillar_top_profile}]
     for lv, res in zip(fem_data["levels"], fem_data["results"]):
         finest = lv is fem_data["levels"][-1]
@@ -212,7 +218,9 @@ def summary_markdown(scene: Scene, rows: list[dict], ref_name: str, r_label: str
              f"- BEM: {meta['levels']} levels of elements_per_diameter "
              f"{', '.join(str(v) for v in meta['bem_sizes'])}; finest: "
              + ", ".join(f"{k}={v}" for k, v in meta["bem_discretisation"].items()),
-             f"- closed form: {ref_name}; profile radii are r / ({r_label})",
+             (f"- closed form: {ref_name}" if ref_name != "none" else
+              "- closed form: none applies (several pillars share the load)")
+             + f"; profile radii are r / ({r_label})",
              f"- render: {meta['render']}", f"- wall time: {meta['wall_time_s']:.1f} s", "",
              "```", table_text(rows, ref_name, r_label), "```", ""]
     odd = [r for r in rows if r["fem_status"] not in (None, "ok")]
@@ -318,7 +326,7 @@ def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None, leve
 
     plot_profiles(_profile_curves(scene, bem_res, fem_data, r_ref), r_ref, out / "profiles.png",
                   f"pressure across the {'contact' if scene.is_flat else 'pillar top'}: "
-                  f"{scene.name}", r_label, not_converged=unconverged)
+                  f"{scene_label(scene)}", r_label, not_converged=unconverged)
     meta = {"levels": levels, "fem_model": fem,
             "fem_sizes": [lv["value"] for lv in fem_data["levels"]],
             "bem_sizes": [lv["value"] for lv in bem_data["levels"]],
@@ -341,6 +349,6 @@ def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None, leve
 
 def title(scene, fem_model: str | None = None) -> str:
     if scene.is_flat:
-        return f"BEM vs FEM on {scene.name} (flat substrate: both solve the Hertz problem)"
+        return f"BEM vs FEM on {scene_label(scene)} (flat substrate: both solve the Hertz problem)"
     fem = fem_model or fem_model_for(scene)
-    return f"BEM (Hooke pillars) vs {fem} (elastic pillars) on {scene.name}"
+    return f"BEM (Hooke pillars) vs {fem} (elastic pillars) on {scene_label(scene)}"

@@ -82,7 +82,7 @@ def study_levels(model: str, scene: Scene, outcomes: list[Outcome]) -> dict:
     studies = {q.key: study(h, [r[q.key] for r in rows]) for q in QUANTITIES}
     return {"model": model, "scene": scene.to_dict(),
             "ladder": {"option": ladder.option, "h_meaning": ladder.h_meaning,
-                       "fixed": ladder.fixed},
+                       "h_power": ladder.h_power, "fixed": ladder.fixed},
             "levels": rows, "studies": studies,
             "all_converged": all(r["converged"] for r in rows), "results": results}
 

@@ -38,6 +38,25 @@ from ..engine import Case, Engine
 from ..registry import QUANTITIES
 from ..registry import ladders as all_ladders
 
+# What a difference must exceed to be a trade, not noise.  A relative error below ROUND_OFF is
+# floating-point round-off (the closed forms, a model that is exact on the scene): such errors
+# are reported "at round-off" and are all equal on a Pareto front.  Two wall times are a tie
+# when they differ by less than the larger one's noise: the spread of its repeats, and at least
+# TIME_NOISE_REL of it and TIME_NOISE_S (timer and scheduling jitter of a run of milliseconds;
+# a fast scene once showed P = 9 "faster" than P = 5 by 2 ms).
+ROUND_OFF = 1e-12
+TIME_NOISE_REL = 0.1
+TIME_NOISE_S = 5e-3
+
+
+def time_noise(timing: dict) -> float:
+    """The noise of a rung's median wall time (s): the spread of its timed repeats, at least
+    :data:`TIME_NOISE_REL` of the median and :data:`TIME_NOISE_S`."""
+    times = [float(t) for t in timing.get("wall_times_s") or [timing["wall_time_s"]]]
+    spread = max(times) - min(times) if len(times) > 1 else 0.0
+    return max(spread, TIME_NOISE_REL * float(timing["wall_time_s"]), TIME_NOISE_S)
+
+
 def physics_group(model: str, scene) -> str:
     """Models that solve the same equations share a reference (a model's ``physics``); a
     model with other physics (the elastic pillar of the FEM against the Hooke pillar of the
@@ -146,6 +165,7 @@ def tradeoff(scene, models, cache_dir: Path | None = None, *, engine: Engine | N
                 result, timing = outcome.unwrap(), outcome.timing
                 row = {"model": name, "option": ladder.option, "level": level,
                        "h": ladder.size(level), "wall_time_s": timing["wall_time_s"],
+                       "time_noise_s": time_noise(timing),
                        "peak_memory_MB": timing["peak_memory_MB"],
                        "iterations": result.iterations, "converged": bool(result.converged),
                        "message": str(result.diagnostics.get("message", "")),
@@ -173,6 +193,7 @@ def tradeoff(scene, models, cache_dir: Path | None = None, *, engine: Engine | N
     return {"scene": scene.to_dict(), "models": list(models), "rows": rows,
             "references": references, "skipped": skipped, "repeats": repeats,
             "ladders": {m: {"option": ladders[m].option, "levels": plan[m]} for m in models},
+            "round_off": ROUND_OFF,
             "version": package_version()}
 
 
@@ -320,7 +341,8 @@ def reference_values(rows: list) -> dict:
 
 
 OUTPUTS = ("tradeoff.csv", "tradeoff.png", "tradeoff.json")
-CSV_COLUMNS = ("model", "physics", "option", "level", "h", "wall_time_s", "peak_memory_MB", "iterations",
+CSV_COLUMNS = ("model", "physics", "option", "level", "h", "wall_time_s", "time_noise_s",
+               "peak_memory_MB", "iterations",
                "converged", "F_T", "sigma0", "a", "A", "err_F_T", "err_sigma0", "err_a",
                "err_A")
 
@@ -340,15 +362,25 @@ def write_outputs(doc: dict, out: Path) -> None:
     write_atomic(out / "tradeoff.json", json.dumps(doc, indent=2, allow_nan=False))
 
 
+def _error_text(err) -> str:
+    if err is None:
+        return f"{'-':>10}"
+    return f"{'round-off':>10}" if err < ROUND_OFF else f"{err:>10.2e}"
+
+
 def pareto_table(doc: dict) -> str:
-    lines = [f"{'model':<9} {'level':>5} {'time s':>8} {'mem MB':>7} "
+    lines = [f"{'model':<9} {'level':>5} {'time s':>8} {'+-s':>7} {'mem MB':>7} "
              + " ".join(f"{'err ' + q.key:>10}" for q in QUANTITIES)]
     for r in doc["rows"]:
-        errs = " ".join(f"{r[f'err_{s}']:>10.2e}" if r[f"err_{s}"] is not None
-                        else f"{'-':>10}" for s in (q.key for q in QUANTITIES))
+        errs = " ".join(_error_text(r[f"err_{s}"]) for s in (q.key for q in QUANTITIES))
         flag = "" if r["converged"] else "  NOT CONVERGED"
+        noise = r.get("time_noise_s")
         lines.append(f"{r['model']:<9} {r['level']:>5} {r['wall_time_s']:>8.3g} "
+                     f"{'-' if noise is None else format(noise, '.2g'):>7} "
                      f"{r['peak_memory_MB']:>7.0f} {errs}{flag}")
+    lines.append(f"time: median of the repeats; +-: its noise (the repeats' spread, at least "
+                 f"{TIME_NOISE_REL:.0%} and {TIME_NOISE_S * 1e3:g} ms): times closer than that "
+                 f"are ties, not a trade; 'round-off': a relative error below {ROUND_OFF:g}")
     for group, refs in doc["references"].items():
         lines += _reference_lines(group, refs)
     for m, why in doc["skipped"].items():

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...output.report import save_figure
+from ...output.report import legend_outside, save_figure
 
 UM, KPA = 1e6, 1e-3
 CONVENTION = "Table 1, E_s = E_p"
@@ -40,12 +40,15 @@ def _superscript(k: int) -> str:
 
 
 def _dress(ax, xlabel: str, ylabel: str, title: str, legend: str | None = None, **legend_kw):
-    """Labels, a title, a light grid and (unless ``legend`` is None) a small legend."""
+    """Labels, a title, a light grid and (unless ``legend`` is None) a small legend at
+    ``legend`` (a matplotlib location, or "outside": right of the axes, clear of the data)."""
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.set_title(title, fontsize=10, pad=legend_kw.pop("pad", None))
     ax.grid(True, which="both", alpha=0.25)
-    if legend is not None:
+    if legend == "outside":
+        legend_outside(ax, fontsize=7, **legend_kw)
+    elif legend is not None:
         ax.legend(fontsize=7, loc=legend, **legend_kw)
 
 
@@ -250,7 +253,7 @@ def plot_fig7(t: dict, path: Path, dpi: int = 120) -> Path:
     ax.loglog(zl, t["large_zeta"]["phi_s"], "r:", lw=1.6,
               label="large-ζ limit π d²/(4√3 R ζ)")
     _dress(ax, "ζ/h", "Φ_S", "(a) single-pillar threshold Φ_S", "upper right")
-    _dress(bx, "ζ/h", "Φ_H", "(b) Hertz threshold Φ_H", "best")
+    _dress(bx, "ζ/h", "Φ_H", "(b) Hertz threshold Φ_H", "outside")
     fig.suptitle(f"Fig. 7: thresholds against the reduced indentation ({CONVENTION})",
                  fontsize=11)
     return save_figure(fig, path, dpi)
