@@ -18,7 +18,8 @@ workers share that folder and the engine's per-case lock: no case is solved twic
 Options: ``--xval-fresh`` empties the cache before the session (recompute everything);
 ``--xval-executor serial|pool|dask`` says where cases run (default serial: the test's own
 process).  The terminal summary lists every check of :mod:`validation.testing`: the
-quantity, the value, the reference, the tolerance, and pass or fail.
+quantity, the value, the reference, the tolerance, and pass or fail, for the tests that use
+the ``xval`` fixture.
 """
 
 from __future__ import annotations
@@ -132,7 +133,10 @@ def pytest_runtest_makereport(item, call):
 
     outcome = yield
     report = outcome.get_result()
-    for check in checks_made(clear=True):
+    checks = checks_made(clear=True)
+    if "xval" not in getattr(item, "fixturenames", ()):
+        return  # the summary lists the checks of tests that use the fixture
+    for check in checks:
         report.user_properties.append((_CHECK_PROPERTY, {"test": item.nodeid,
                                                          **asdict(check)}))
 
@@ -178,5 +182,6 @@ def pytest_terminal_summary(terminalreporter, config):
             tr.write_line("  ".join(v.ljust(w) for v, w in zip(r, widths)).rstrip())
         failed = sum(not c["passed"] for c in checks)
         tr.write_line(f"{len(checks)} checks, {failed} failed")
-    tr.write_line(f"xval cases: {counts['solved']} solved, {counts['cached']} from the cache "
-                  f"({_cache_dir(config)})")
+    if any(counts.values()):
+        tr.write_line(f"xval cases: {counts['solved']} solved, {counts['cached']} from the "
+                      f"cache ({_cache_dir(config)})")
