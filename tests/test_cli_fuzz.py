@@ -299,13 +299,16 @@ def _override(rng: random.Random) -> str:
 
 @pytest.fixture
 def fake_fft(fakes, monkeypatch):
-    """The FFT model faked too (its real solves at the fuzz's resolutions cost minutes)."""
+    """The FFT model and fem-3d faked too: their real solves at the fuzz's resolutions cost
+    minutes (a compare on paper-fig3-dense, which picks fem-3d since the lattice FEM
+    landed, took 84 of the fuzz's 93 s)."""
     from fakes import register
 
     module = sys.modules["xval_fakes"]
     module.fake_fft = lambda scene, cells_per_diameter=32: module.fake_bem(
         scene, elements_per_diameter=cells_per_diameter)
     register(monkeypatch, "bem-fft", "xval_fakes:fake_fft", ("cells_per_diameter",))
+    register(monkeypatch, "fem-3d", "xval_fakes:fake_fem", ("mesh_size",))
     return fakes
 
 
