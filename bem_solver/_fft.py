@@ -49,10 +49,11 @@ import numpy as np
 
 from contact import constrained_cg, diagonal_preconditioner
 from outcome import ContactResult, PillarForce
-from scenes import InputError, Scene
+from outcome.memory import memory_short
+from scenes import InputError, Scene, ScopeError
 
 from ._dense import _smooth_edge_radius
-from ._fft_grid import CellGrid, build_grid
+from ._fft_grid import CellGrid, build_grid, candidate_side, estimate_host_memory
 from ._elastic_pillar import (FFTPillarTerm, check_pillars, scene_compliance,
                               uses_elastic_block)
 from ._fft_operator import CirculantPreconditioner, CompliancePlan, near_field_correction
@@ -150,6 +151,14 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
         if not isinstance(be, NumpyDevice):
             raise InputError(f"pillars = 'elastic' runs on the CPU only (device = {device!r})")
         compliance = scene_compliance(scene, compliance, progress=progress)
+    # A grid beyond the FFT size limit is refused by build_grid, by its size; one within it
+    # is refused here, before any array is built, when it would not fit in memory.
+    need = estimate_host_memory(scene, cells_per_diameter, isinstance(be, NumpyDevice))
+    side = candidate_side(scene, cells_per_diameter)
+    short = memory_short(need) if side * side <= 4 * be.max_fft_points else None
+    if short is not None:
+        raise ScopeError(f"cells_per_diameter = {cells_per_diameter}: this grid needs about "
+                         f"{need / 2**30:.3g} GiB, {short}; choose fewer cells per diameter")
     grid = build_grid(scene, cells_per_diameter, max_fft_points=be.max_fft_points)
     if not edge_correction:
         grid = _plain_grid(grid, scene)

@@ -109,19 +109,44 @@ def cell_size(scene: Scene, cells_per_diameter: int) -> float:
     return scene.pillars.diameter_m / cells_per_diameter
 
 
+# Host memory of a solve per point of the candidate square (n_side^2, the padded FFT being
+# about 4 n_side^2 points), measured with tracemalloc on paper-fig3-dense: the grid's build
+# 97-99 B, a whole CPU solve 182-253 B per padded point (N = 32 and 24); rounded up.
+GRID_BYTES_PER_POINT = 100.0
+CPU_SOLVE_BYTES_PER_POINT = 4 * 200.0
+
+
+def _candidate(scene: Scene, cells_per_diameter: int) -> tuple[float, float, int]:
+    """(cell size L, candidate radius, half side in cells) of the grid."""
+    R, zeta = scene.lens.radius_m, scene.indentation_m
+    L = cell_size(scene, cells_per_diameter)
+    # Radius where the undeformed gap equals zeta: r^2 = 2 R zeta - zeta^2.
+    r_geo = math.sqrt(2.0 * R * zeta - zeta * zeta)
+    # Flat scenes: a margin of two cells beyond 1.25 a keeps coarse grids clear of the edge.
+    r_cand = min(r_geo, FLAT_CANDIDATE_RATIO * math.sqrt(R * zeta) + 2.0 * L) \
+        if scene.pillars is None else r_geo
+    return L, r_cand, int(math.ceil(r_cand / L)) + 1
+
+
+def candidate_side(scene: Scene, cells_per_diameter: int) -> int:
+    """Cells along a side of the square around the candidate disk (before cropping)."""
+    return 2 * _candidate(scene, cells_per_diameter)[2] + 1
+
+
+def estimate_host_memory(scene: Scene, cells_per_diameter: int, on_cpu: bool = True) -> float:
+    """Peak host bytes of a solve (the grid's build; on the CPU the whole solve)."""
+    n = float(candidate_side(scene, cells_per_diameter)) ** 2
+    return n * (CPU_SOLVE_BYTES_PER_POINT if on_cpu else GRID_BYTES_PER_POINT)
+
+
 def build_grid(scene: Scene, cells_per_diameter: int,
                max_fft_points: int = MAX_FFT_POINTS) -> CellGrid:
     """Candidate cells of ``scene`` with ``cells_per_diameter`` cells across a pillar (or
     across the Hertz contact diameter for a flat scene); a grid whose padded FFT would exceed
     ``max_fft_points`` points is refused (SceneError)."""
     R, zeta = scene.lens.radius_m, scene.indentation_m
-    L = cell_size(scene, cells_per_diameter)
-    # Radius where the undeformed gap equals zeta: r^2 = 2 R zeta - zeta^2.
-    r_geo = math.sqrt(2.0 * R * zeta - zeta * zeta)
     flat = scene.pillars is None
-    # Flat scenes: a margin of two cells beyond 1.25 a keeps coarse grids clear of the edge.
-    r_cand = min(r_geo, FLAT_CANDIDATE_RATIO * math.sqrt(R * zeta) + 2.0 * L) if flat else r_geo
-    half = int(math.ceil(r_cand / L)) + 1
+    L, r_cand, half = _candidate(scene, cells_per_diameter)
     n_side = 2 * half + 1
     if n_side**2 > 4 * max_fft_points:
         raise SceneError(

@@ -31,11 +31,15 @@ def test_the_address_space_limit_binds_under_ulimit():
     assert 0 < float(free) < LIMIT
 
 
-def test_a_solve_beyond_the_limit_is_refused_before_it_starts():
+@pytest.mark.parametrize("options", [
+    "'--elements-per-diameter', '27'",
+    "'--model', 'bem-fft', '--cells-per-diameter', '256'"])
+def test_a_solve_beyond_the_limit_is_refused_before_it_starts(options):
     """paper-fig3-dense at P = 27 needs ~2.8 GiB: under ulimit -v 2000000 it once passed the
-    check (the machine had 20 GiB free) and died out of memory after 16 s."""
+    check (the machine had 20 GiB free) and died out of memory after 16 s; bem-fft at
+    N = 256 (~15 GiB) died after 32 s."""
     out = _run("import sys; from validation.cli import main; sys.exit(main(['solve', "
-               "'--scene', 'paper-fig3-dense', '--elements-per-diameter', '27']))")
+               f"'--scene', 'paper-fig3-dense', {options}]))")
     assert out.returncode == 2, out.stderr
     assert "ulimit -v" in out.stderr and "Traceback" not in out.stderr
 
