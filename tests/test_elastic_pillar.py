@@ -382,3 +382,25 @@ def test_the_elastic_pillar_from_the_cli(cli, tmp_path, monkeypatch):
     code, _, err = cli("converge", "--model", "fem-axisym", *scene, "--pillars", "elastic",
                        "--out", tmp_path / "fem")
     assert code == 2 and "does not apply to --model fem-axisym" in err
+
+
+def test_compare_with_elastic_pillars_says_so(cli, tmp_path, monkeypatch):
+    """`compare --pillars elastic`: every BEM level carries it, and the title, the summary and
+    the profile legend name the elastic pillars (they once said Hooke whatever ran)."""
+    import json
+
+    import fem_reference
+
+    full = fem_reference.modal_compliance
+    monkeypatch.setattr(fem_reference, "modal_compliance",
+                        lambda kind, modes, mesh_size, progress=None: full(kind, 2, **COARSE))
+    code, out, err = cli("compare", "--scene", "single-pillar", "--set", "pillars.E_Pa=1.6e7",
+                         "--pillars", "elastic", "--levels", "2", "--mesh-size", "2",
+                         "--elements-per-diameter", "5", "--no-render", "--executor",
+                         "serial", "--out", tmp_path)
+    assert code in (0, 1), err
+    assert out.startswith("BEM (elastic pillars) vs fem-axisym")
+    assert (tmp_path / "summary.md").read_text().startswith("# BEM (elastic pillars) vs")
+    report = json.loads((tmp_path / "report.json").read_text())
+    assert {lv["options"]["pillars"] for lv in report["bem"]["levels"]} == {"elastic"}
+    assert report["bem_finest"]["diagnostics"]["pillars"] == "elastic"

@@ -70,7 +70,7 @@ def run(args) -> int:
     else:
         ref = report["closed_form"]["name"]
         r_label = "d/2" if report["scene"].get("pillars") else "a_Hertz"
-        print(title(scene, fem))
+        print(title(scene, fem, args.pillars or "hooke"))
         print(table_text(report["rows"], ref, r_label))
         print(f"render: {report['render']}")
         written = [name for name in OUTPUTS if (out / name).exists()]

@@ -187,7 +187,7 @@ def table_text(rows: list[dict], ref_name: str, r_label: str) -> str:
 def _profile_curves(scene: Scene, bem_res, fem_data: dict, r_ref: float) -> list[dict]:
     option = ladder_for(BEM).option
     disc = f"{option}={bem_res.discretisation.get(option, '?')}"
-    bem = "BEM" if scene.is_flat else "BEM (Hooke pillar)"  # a flat scene has no pillar
+    bem = bem_name(scene, bem_res.diagnostics.get("pillars", "hooke"))
     curves = [{"label": f"{bem}, {disc}", "style": "o-",
                **bem_res.pillar_top_profile}]
     for lv, res in zip(fem_data["levels"], fem_data["results"]):
@@ -211,7 +211,7 @@ def _profile_curves(scene: Scene, bem_res, fem_data: dict, r_ref: float) -> list
 def summary_markdown(scene: Scene, rows: list[dict], ref_name: str, r_label: str,
                      meta: dict) -> str:
     """summary.md: what ran, the table, and which differences exceed the uncertainty."""
-    lines = [f"# {title(scene)}", "",
+    lines = [f"# {title(scene, meta['fem_model'], meta['pillars'])}", "",
              f"- FEM ({meta['fem_model']}): {meta['levels']} levels of mesh_size "
              f"{', '.join(f'{v:g}' for v in meta['fem_sizes'])}; finest VTU: "
              f"`{meta['vtu'] or 'not written'}`",
@@ -327,7 +327,7 @@ def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None, leve
     plot_profiles(_profile_curves(scene, bem_res, fem_data, r_ref), r_ref, out / "profiles.png",
                   f"pressure across the {'contact' if scene.is_flat else 'pillar top'}: "
                   f"{scene_label(scene)}", r_label, not_converged=unconverged)
-    meta = {"levels": levels, "fem_model": fem,
+    meta = {"levels": levels, "fem_model": fem, "pillars": pillars,
             "fem_sizes": [lv["value"] for lv in fem_data["levels"]],
             "bem_sizes": [lv["value"] for lv in bem_data["levels"]],
             "bem_discretisation": bem_res.discretisation, "vtu": vtu, "render": render_msg,
@@ -347,8 +347,14 @@ def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None, leve
     return report
 
 
-def title(scene, fem_model: str | None = None) -> str:
+def bem_name(scene, pillars: str = "hooke") -> str:
+    """The BEM as a title calls it: its pillar model (a flat scene has no pillar)."""
+    return "BEM" if scene.is_flat else f"BEM ({'Hooke' if pillars == 'hooke' else pillars} " \
+                                       "pillars)"
+
+
+def title(scene, fem_model: str | None = None, pillars: str = "hooke") -> str:
     if scene.is_flat:
         return f"BEM vs FEM on {scene_label(scene)} (flat substrate: both solve the Hertz problem)"
     fem = fem_model or fem_model_for(scene)
-    return f"BEM (Hooke pillars) vs {fem} (elastic pillars) on {scene_label(scene)}"
+    return f"{bem_name(scene, pillars)} vs {fem} (elastic pillars) on {scene_label(scene)}"
