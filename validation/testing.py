@@ -24,13 +24,15 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from outcome import ContactResult
+from scenes import InputError
 
 from .registry import QUANTITIES
 
-__all__ = ["Check", "assert_agree", "assert_close", "assert_converged",
-           "assert_matches_closed_form", "assert_order", "checks_made", "quantity_value"]
+__all__ = ["QUANTITY_BY_KEY", "Check", "assert_agree", "assert_close", "assert_converged",
+           "assert_matches_closed_form", "assert_order", "check_tolerance", "checks_made",
+           "quantity_value"]
 
-_BY_KEY = {q.key: q for q in QUANTITIES}
+QUANTITY_BY_KEY = {q.key: q for q in QUANTITIES}
 CLOSED_FORMS = ("hertz", "punch", "spring")
 
 
@@ -67,7 +69,7 @@ def _finish(name: str, rows: list[tuple[Check, str]], header: str) -> None:
 
 
 def _unit(key: str) -> str:
-    return _BY_KEY[key].unit if key in _BY_KEY else ""
+    return QUANTITY_BY_KEY[key].unit if key in QUANTITY_BY_KEY else ""
 
 
 def _label(result, name: str = "") -> str:
@@ -85,24 +87,26 @@ def _check_quantities(quantities) -> tuple[str, ...]:
     if isinstance(quantities, str):
         quantities = (quantities,)
     quantities = tuple(quantities)
-    unknown = [q for q in quantities if q not in _BY_KEY]
+    unknown = [q for q in quantities if q not in QUANTITY_BY_KEY]
     if not quantities or unknown:
         raise ValueError(f"quantities = {quantities!r}: give one or more of "
-                         f"{', '.join(_BY_KEY)}")
+                         f"{', '.join(QUANTITY_BY_KEY)}")
     return quantities
 
 
-def _check_tolerance(name: str, value) -> float:
+def check_tolerance(name: str, value) -> float:
+    """``value`` as a float if it is a finite number >= 0; InputError (a ValueError) naming
+    ``name`` otherwise."""
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not \
             math.isfinite(value) or value < 0:
-        raise ValueError(f"{name} = {value!r}: a finite number >= 0")
+        raise InputError(f"{name} = {value!r}: a finite number >= 0")
     return float(value)
 
 
 def quantity_value(source, key: str) -> float:
     """Quantity ``key`` (SI) of a ContactResult, a mapping of keys, or a plain number."""
     if isinstance(source, ContactResult):
-        return float(getattr(source, _BY_KEY[key].attr))
+        return float(getattr(source, QUANTITY_BY_KEY[key].attr))
     if isinstance(source, Mapping):
         if key not in source:
             raise ValueError(f"expected values have no {key!r} (they have "
@@ -158,7 +162,7 @@ def assert_close(actual: ContactResult, expected, quantities=("F_T",), *, rtol: 
         An unconverged ``actual`` (or ``expected`` result) fails the check first.
     """
     quantities = _check_quantities(quantities)
-    rtol, atol = _check_tolerance("rtol", rtol), _check_tolerance("atol", atol)
+    rtol, atol = check_tolerance("rtol", rtol), check_tolerance("atol", atol)
     if not isinstance(actual, ContactResult):
         raise TypeError(f"actual must be a ContactResult, not {type(actual).__name__}")
     if isinstance(expected, (int, float)) and len(quantities) != 1:
@@ -208,7 +212,7 @@ def assert_agree(study_a: Mapping, study_b: Mapping, quantities=("F_T",), *,
     combined bands, sqrt(u_a^2 + u_b^2) (each a GCI, or the conservative fallback band where
     a study observed no order; the message says which)."""
     quantities = _check_quantities(quantities)
-    factor = _check_tolerance("factor", factor)
+    factor = check_tolerance("factor", factor)
     name_a, name_b = study_a.get("model", "study a"), study_b.get("model", "study b")
     rows = []
     for key in quantities:
@@ -231,7 +235,7 @@ def assert_order(study: Mapping, expected: float, *, atol: float = 0.1,
     """The observed order of ``quantity``, fitted over every level of ``study`` (least squares
     of log|differences| against log h, three or more levels), is ``expected`` +- ``atol``."""
     (key,) = _check_quantities(quantity)
-    atol = _check_tolerance("atol", atol)
+    atol = check_tolerance("atol", atol)
     st = study.get("studies", {}).get(key) if isinstance(study, Mapping) else None
     if st is None:
         raise ValueError(f"not a convergence study with {key!r}")

@@ -30,7 +30,8 @@ from pathlib import Path
 
 from scenes import InputError, load_scene, preset_names
 
-from ..testing import CLOSED_FORMS, _BY_KEY, assert_close, assert_matches_closed_form
+from ..testing import (CLOSED_FORMS, QUANTITY_BY_KEY, assert_close,
+                       assert_matches_closed_form, check_tolerance, quantity_value)
 
 __all__ = ["CheckSpec", "junit_xml", "load_spec", "run_checks", "table_text"]
 
@@ -56,13 +57,6 @@ class CheckSpec:
     @property
     def closed_form(self) -> bool:
         return self.reference in CLOSED_FORMS
-
-
-def _number(where: str, value, lo: float = 0.0) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= lo or \
-            value == float("inf"):
-        raise InputError(f"{where} = {value!r}: a finite number >= {lo:g}")
-    return float(value)
 
 
 def _check_model(where: str, name, options) -> None:
@@ -115,12 +109,12 @@ def _one(i: int, table, base_dir: Path) -> CheckSpec:
     if isinstance(quantities, str):
         quantities = [quantities]
     if not isinstance(quantities, list) or not quantities or \
-            any(q not in _BY_KEY for q in quantities):
+            any(q not in QUANTITY_BY_KEY for q in quantities):
         raise InputError(f"{where} quantities = {quantities!r}: a list of "
-                         f"{', '.join(_BY_KEY)}")
+                         f"{', '.join(QUANTITY_BY_KEY)}")
     return CheckSpec(name, scene, model, dict(options), reference, dict(ref_options),
-                     tuple(quantities), _number(f"{where} rtol", table["rtol"]),
-                     _number(f"{where} atol", table.get("atol", 0.0)),
+                     tuple(quantities), check_tolerance(f"{where} rtol", table["rtol"]),
+                     check_tolerance(f"{where} atol", table.get("atol", 0.0)),
                      str(table.get("source", "")))
 
 
@@ -169,14 +163,13 @@ def run_checks(specs: list[CheckSpec], cache_dir: Path, engine) -> list[dict]:
                "values": {}}
         try:
             result = got.unwrap()
-            row["values"] = {q: float(getattr(result, _BY_KEY[q].attr)) for q in s.quantities}
+            row["values"] = {q: quantity_value(result, q) for q in s.quantities}
             if s.closed_form:
                 assert_matches_closed_form(result, s.reference, rtol=s.rtol,
                                            quantities=s.quantities, source=s.source)
             else:
                 expected = ref.unwrap()
-                row["references"] = {q: float(getattr(expected, _BY_KEY[q].attr))
-                                     for q in s.quantities}
+                row["references"] = {q: quantity_value(expected, q) for q in s.quantities}
                 assert_close(result, expected, s.quantities, rtol=s.rtol, atol=s.atol,
                              source=s.source)
             row["passed"] = True
