@@ -73,6 +73,9 @@ class WedgeGeometry:
         relative to the contact element size.
     growth : float
         Slope of the size rule, size = h_f + growth * distance (geometric grading).
+    centre_ratio : float
+        Element size on the top of the pillar at the origin (the centre pillar, whose top
+        holds sigma0 and the pressure profile), relative to the contact element size.
     """
 
     focus_radius_m: float
@@ -86,6 +89,7 @@ class WedgeGeometry:
     elements_across_contact: float = 4.0
     edge_ratio: float = 0.25
     growth: float = 0.35
+    centre_ratio: float = 1.0
 
     def __post_init__(self):
         def positive(name, value):
@@ -93,7 +97,7 @@ class WedgeGeometry:
                 raise GeometryError(f"{name} = {value!r}: must be a finite number > 0")
 
         for name in ("focus_radius_m", "block_size_m", "mesh_size", "elements_across_contact",
-                     "edge_ratio", "growth"):
+                     "edge_ratio", "growth", "centre_ratio"):
             positive(name, getattr(self, name))
         if not any(math.isclose(self.sector_angle, s, rel_tol=1e-12) for s in SECTORS):
             raise GeometryError(f"sector_angle = {self.sector_angle!r}: allowed values are pi/6, "
@@ -145,7 +149,8 @@ class WedgeGeometry:
 
         Minimum over features of h_f + growth * distance_f, times ``mesh_size``: the contact
         faces (size 1/n), the pillar-top edges and base corners (flat: the Hertz edge circle)
-        (size edge_ratio / n), capped at a tenth of the block.
+        (size edge_ratio / n) and the centre pillar's top (size centre_ratio / n), capped at a
+        tenth of the block.
         """
         h_c = 1.0 / self.elements_across_contact
         h_e = self.edge_ratio * h_c
@@ -164,6 +169,9 @@ class WedgeGeometry:
         rho = math.hypot(x - cx, y - cy)
         size = min(cap, h_c + g * math.hypot(max(rho - 1.0, 0.0), z),
                    h_e + g * math.hypot(rho - 1.0, min(abs(z), abs(z + H))))
+        if self.centre_ratio < 1.0:
+            r0 = math.hypot(x, y)  # the centre pillar's top: the disk r <= 1 at z = 0
+            size = min(size, self.centre_ratio * h_c + g * math.hypot(max(r0 - 1.0, 0.0), z))
         return self.mesh_size * size
 
     def _nearest_centre(self, x: float, y: float):
