@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from scenes import analytic, load_scene
+from scenes import InputError, analytic, load_scene
 from validation.cli import main
 from validation.output.report import REPORT_MARK  # the folder's owner, rewritten each run
 from validation.studies.compare import closed_form, compare_rows
@@ -203,3 +203,129 @@ def test_render_has_a_length_scale_and_a_readable_colour_bar(fakes, tmp_path):
         assert message.startswith(("render failed", "render timed out"))
         pytest.skip(message)
     assert (tmp_path / "f.png").read_bytes()[:4] == b"\x89PNG" and "von_mises_Pa" in message
+
+
+# --- three-way: both BEMs (Hooke and elastic pillars) against the one FEM -----------------
+# The fake BEM with a pillar model: the elastic one converges to the fake FEM's limit (the
+# spring values), the Hooke one to 2 % above it (a model difference the table must mark).
+HOOKE_BIAS = 1.02
+
+
+def fake_bem_pillars(scene, elements_per_diameter=11, cells="covered", contact="exact",
+                     pillars="hooke"):
+    from fakes import CALLS, _result
+
+    CALLS.append((f"bem {pillars}", elements_per_diameter))
+    factor = (1.0 + C_BEM / elements_per_diameter**2) * (HOOKE_BIAS if pillars == "hooke"
+                                                         else 1.0)
+    result = _result("bem", scene, factor, {"elements_per_diameter": elements_per_diameter,
+                                            "cells": cells})
+    result.diagnostics["pillars"] = pillars
+    return result
+
+
+@pytest.fixture
+def pillar_fakes(fakes, monkeypatch):
+    from fakes import register
+    from validation.registry.options import (CELLS, CONTACT, ELEMENTS_PER_DIAMETER,
+                                             PILLARS)
+
+    register(monkeypatch, "bem", f"{__name__}:fake_bem_pillars",
+             {"elements_per_diameter": ELEMENTS_PER_DIAMETER, "cells": CELLS,
+              "contact": CONTACT, "pillars": PILLARS})
+    return fakes
+
+
+@pytest.mark.parametrize("value", ["both", "hooke,elastic", "elastic,hooke"])
+def test_three_way_compare_has_three_columns(pillar_fakes, tmp_path, cli, monkeypatch, value):
+    import csv
+
+    from validation.output import plots
+
+    figures = []
+    monkeypatch.setattr(plots, "save_figure", lambda fig, path, *a, **k: figures.append(fig))
+    code, out, err = cli("compare", "--scene", "single-pillar", "--pillars", value,
+                         "--no-render", "--executor", "serial", "--out", tmp_path)
+    assert code == 0, err
+    # the FEM ran once per level; each BEM climbed its own ladder
+    assert sorted(pillar_fakes) == sorted([("fem", s) for s in (2.0, 1.0, 0.5)]
+                                          + [(f"bem {p}", n) for p in ("hooke", "elastic")
+                                             for n in (11, 23, 47)])
+    report = json.loads((tmp_path / "report.json").read_text())
+    assert report["pillars"] == ["hooke", "elastic"] and "bem" not in report
+    assert {lv["options"].get("pillars", "hooke") for lv in report["bems"]["elastic"]["levels"]} \
+        == {"elastic"}
+    assert report["bems_finest"]["hooke"]["diagnostics"]["pillars"] == "hooke"
+    rows = {r["quantity"]: r for r in report["rows"]}
+    spring = analytic.spring_model(load_scene("single-pillar"))
+    f_t = rows["F_T"]
+    assert f_t["fem"] == pytest.approx(spring.force * (1 + C_FEM / 4))
+    hooke, elastic = f_t["bems"]["hooke"], f_t["bems"]["elastic"]
+    assert elastic["value"] == pytest.approx(spring.force * (1 + C_BEM / 47**2))
+    assert hooke["value"] == pytest.approx(HOOKE_BIAS * elastic["value"])
+    assert hooke["relative_difference"] == pytest.approx(hooke["value"] / f_t["fem"] - 1)
+    assert hooke["exceeds"] is True and elastic["exceeds"] is False
+    assert elastic["u_is_gci"] and elastic["u"] > 0 and f_t["u_fem"] > 0
+    # the table: one column per BEM, the FEM, and each BEM's difference against the FEM
+    head = out.splitlines()[1]
+    assert out.startswith("BEM (Hooke pillars) and BEM (elastic pillars) vs fem-axisym")
+    for column in ("BEM Hooke", "BEM elastic", "FEM", "Hooke-FEM", "elastic-FEM"):
+        assert column in head, head
+    f_line = next(ln for ln in out.splitlines() if ln.startswith("F_T"))
+    assert f"{100 * (hooke['relative_difference']):+.2f}%" in f_line and "YES" in f_line
+    summary = (tmp_path / "summary.md").read_text()
+    assert summary.startswith("# BEM (Hooke pillars) and BEM (elastic pillars) vs fem-axisym")
+    assert "- BEM (Hooke pillars) - FEM differences larger than the numerical uncertainty " \
+           "(model differences): F_T" in summary
+    assert "- BEM (elastic pillars) - FEM differences larger than the numerical uncertainty " \
+           "(model differences): none" in summary
+    # profiles.csv: three series, told apart by model and pillars
+    with open(tmp_path / "profiles.csv") as fh:
+        table = list(csv.DictReader(fh))
+    series = {(r["model"], r["pillars"]) for r in table}
+    assert series == {("bem", "hooke"), ("bem", "elastic"), ("fem-axisym", "elastic")}
+    first = {s: next(float(r["pressure_Pa"]) for r in table if (r["model"], r["pillars"]) == s)
+             for s in series}
+    assert first[("bem", "hooke")] == pytest.approx(HOOKE_BIAS * first[("bem", "elastic")])
+    # profiles.png: both BEMs named by their pillars, the FEM and its band, on one axes
+    (fig,) = figures
+    (ax,) = [a for a in fig.axes if a.get_legend() is not None]
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert any(t.startswith("BEM (Hooke pillars)") for t in labels), labels
+    assert any(t.startswith("BEM (elastic pillars)") for t in labels), labels
+    assert any(t.startswith("FEM fem-axisym") for t in labels), labels
+    assert "FEM +-U (GCI band)" in labels
+    assert "centre pillar top (θ = 0)" in ax.get_title()
+
+
+def test_single_model_compare_keeps_its_report(pillar_fakes, tmp_path, cli):
+    """`--pillars elastic` alone is the two-way report it always was."""
+    code, out, err = cli("compare", "--scene", "single-pillar", "--pillars", "elastic",
+                         "--levels", "2", "--no-render", "--executor", "serial",
+                         "--out", tmp_path)
+    assert code == 0, err
+    report = json.loads((tmp_path / "report.json").read_text())
+    assert report["pillars"] == "elastic" and "bems" not in report
+    assert isinstance(report["rows"][0]["bem"], float)
+    assert (tmp_path / "profiles.csv").read_text().startswith("model,r_m,pressure_Pa\n")
+    assert out.startswith("BEM (elastic pillars) vs fem-axisym")
+
+
+@pytest.mark.parametrize("value", ["spring", "hooke,spring", "hooke,hooke", "", "both,hooke"])
+def test_compare_refuses_a_bad_pillar_model(pillar_fakes, tmp_path, cli, value):
+    code, out, err = cli("compare", "--scene", "single-pillar", "--pillars", value,
+                         "--out", tmp_path, "--executor", "serial")
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "--pillars" in err and repr(value) in err
+    assert "allowed: hooke, elastic, both, or a comma list" in err and "Traceback" not in err
+    assert pillar_fakes == [] and not (tmp_path / "report.json").exists()
+
+
+def test_pillar_models_reads_every_spelling():
+    from validation.studies.compare import pillar_models
+
+    assert pillar_models("hooke") == ("hooke",)
+    assert pillar_models("both") == pillar_models(" elastic , hooke") == ("hooke", "elastic")
+    assert pillar_models(["elastic"]) == ("elastic",)
+    with pytest.raises(InputError, match="--pillars 'rigid': allowed"):
+        pillar_models("rigid")

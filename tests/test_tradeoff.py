@@ -143,3 +143,90 @@ def test_tradeoff_figure_marks_the_front_labels_rungs_and_crosses_misses(tmp_pat
     assert "NOT CONVERGED" in [t.get_text() for t in fig.texts]
     assert "every rung equals the reference" in fig.axes[2].texts[0].get_text()
     plt.close(fig)
+
+
+# --- the pillar model decides the physics --------------------------------------------------
+def test_the_elastic_pillar_is_the_physics_of_an_elastic_case():
+    from validation.registry import MODELS
+    from validation.studies.tradeoff import physics_group
+
+    pillars, flat = load_scene("single-pillar"), load_scene("hertz")
+    for name in ("bem", "bem-fft", "bem-richardson"):
+        model = MODELS[name]
+        assert model.physics_of() == model.physics_of({"pillars": "hooke"}) == "hooke-pillar"
+        assert model.physics_of({"pillars": "elastic"}) == "elastic-pillar"
+        assert model.physics_of({"pillars": None}) == "hooke-pillar"  # left to its default
+        assert physics_group(name, pillars, {"pillars": "elastic"}) == \
+            physics_group("fem-axisym", pillars)
+        assert physics_group(name, pillars, {"pillars": "elastic"}) != \
+            physics_group(name, pillars)
+        assert physics_group(name, flat, {"pillars": "elastic"}) == "half-space"
+    # a model without the option keeps its own physics whatever the case says
+    assert MODELS["fem-3d"].physics_of({"pillars": "hooke"}) == "elastic-pillar"
+
+
+def fake_fft(scene, cells_per_diameter=32, pillars="hooke"):
+    from fakes import CALLS, _result
+
+    CALLS.append(("bem-fft", cells_per_diameter, pillars))
+    bias = 1.0 if pillars == "elastic" else 1.02  # first order, as bem-fft's declaration
+    return _result("bem-fft", scene, bias * (1.0 + 0.5 / cells_per_diameter),
+                   {"cells_per_diameter": cells_per_diameter})
+
+
+@pytest.fixture
+def fft_fake(monkeypatch):
+    from fakes import CALLS, register
+
+    register(monkeypatch, "bem-fft", f"{__name__}:fake_fft",
+             ("cells_per_diameter", "pillars"))
+    CALLS.clear()
+    return CALLS
+
+
+def test_cli_tradeoff_with_elastic_pillars_has_its_own_reference(fft_fake, tmp_path, cli):
+    code, out, err = cli("tradeoff", "--scene", "single-pillar", "--models", "bem-fft",
+                         "--pillars", "elastic", "--cells-per-diameter", "8", "--levels", "3",
+                         "--repeats", "1", "--executor", "serial", "--out", tmp_path)
+    assert code == 0, err
+    assert fft_fake == [("bem-fft", n, "elastic") for n in (8, 12, 16)]  # the ladder's rungs
+    doc = json.loads((tmp_path / "tradeoff.json").read_text())
+    assert {r["physics"] for r in doc["rows"]} == {"elastic-pillar"}
+    assert {r["pillars"] for r in doc["rows"]} == {"elastic"}
+    assert list(doc["references"]) == ["elastic-pillar"] and doc["options"] == \
+        {"pillars": "elastic"}
+    # the elastic fake's limit is the spring force (the Hooke one's is 2 % above)
+    from scenes import analytic
+
+    spring = analytic.spring_model(load_scene("single-pillar"))
+    assert doc["references"]["elastic-pillar"]["F_T"]["value"] == \
+        pytest.approx(spring.force, rel=1e-9)
+    assert "references (elastic-pillar):" in out and "hooke-pillar" not in out
+    with open(tmp_path / "tradeoff.csv") as fh:
+        assert {r["physics"] for r in csv.DictReader(fh)} == {"elastic-pillar"}
+
+
+def test_tradeoff_never_mixes_the_two_pillar_models(fft_fake):
+    """The same model at both pillar models (two runs) gets two references, each its own
+    limit; the default run stays in the Hooke group."""
+    scene = load_scene("single-pillar")
+    ladders = {"bem-fft": _ladder("cells_per_diameter", (8, 16, 32))}
+    hooke = tradeoff(scene, ["bem-fft"], repeats=1, ladders=ladders)
+    elastic = tradeoff(scene, ["bem-fft"], repeats=1, ladders=ladders,
+                       options={"pillars": "elastic"})
+    assert list(hooke["references"]) == ["hooke-pillar"]
+    assert list(elastic["references"]) == ["elastic-pillar"]
+    ratio = hooke["references"]["hooke-pillar"]["F_T"]["value"] / \
+        elastic["references"]["elastic-pillar"]["F_T"]["value"]
+    assert ratio == pytest.approx(1.02, rel=1e-9)
+
+
+def test_cli_tradeoff_refuses_a_bad_pillar_model(fft_fake, tmp_path, cli):
+    code, _, err = cli("tradeoff", "--scene", "single-pillar", "--models", "bem-fft",
+                       "--pillars", "spring", "--out", tmp_path)
+    assert code == 2 and "--pillars" in err and "'spring'" in err
+    assert "hooke" in err and "elastic" in err and len(err.strip().splitlines()) == 1
+    code, _, err = cli("tradeoff", "--scene", "single-pillar", "--models", "fem-axisym",
+                       "--pillars", "elastic", "--out", tmp_path)
+    assert code == 2 and "--pillars elastic: does not apply to --model fem-axisym" in err
+    assert fft_fake == []

@@ -3,14 +3,13 @@ each model's numerical uncertainty beside every difference (:mod:`validation.stu
 
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 
-from scenes import load_scene
+from scenes import InputError, load_scene
 
-from scenes import InputError
-
-from ..studies.compare import BEM, FEM_COARSEST, FEM_MODELS, OUTPUTS
-from ._args import (Renamed, add_choice_arguments, add_engine_arguments, add_levels_argument,
+from ..studies.compare import BEM, BOTH, FEM_COARSEST, FEM_MODELS, OUTPUTS, pillar_models
+from ._args import (Renamed, add_engine_arguments, add_levels_argument,
                     add_models_argument, add_output_arguments, add_refinement_arguments,
                     add_scene_arguments, check_out, engine_from_args, not_converged, print_json,
                     refuse_inapplicable)
@@ -26,7 +25,9 @@ def add_parser(sub) -> None:
                     "alone, fem-3d on a lattice scene), each on --levels refinements, and set "
                     "every difference beside the two models' numerical uncertainty (GCI).  "
                     "Writes report.json, summary.md, profiles.png/.csv, the finest FEM fields "
-                    "(VTU) and a 3D render of its stress.")
+                    "(VTU) and a 3D render of its stress.  --pillars both runs the FEM once "
+                    "and both BEMs (Hooke and elastic pillars): a three-way table and profile "
+                    "plot.")
     add_scene_arguments(p)
     add_models_argument(p, (BEM, *FEM_MODELS),
                         "bem and one FEM; default bem and fem-axisym where it applies (flat "
@@ -35,7 +36,12 @@ def add_parser(sub) -> None:
                              defaults={"elements_per_diameter": 11,
                                        "mesh_size": " or ".join(
                                            f"{v:g} ({m})" for m, v in FEM_COARSEST.items())})
-    add_choice_arguments(p, ["pillars"])
+    p.add_argument("--pillars", type=_pillars, default=None, metavar="MODEL",
+                   help="the BEM's pillar model: 'hooke', the paper's uniformly shortening "
+                        "spring (default), 'elastic', the whole pillar's top compliance (from a "
+                        f"Fourier-mode FEM of one pillar, cached), or '{BOTH}' (or "
+                        "'hooke,elastic'): both BEMs against the one FEM, a three-way table "
+                        "and profile plot")
     add_levels_argument(p, 3, 2, 8, "refinement levels of each model (3 or more give an "
                                     "observed order and a GCI)")
     add_output_arguments(p, "report folder (default out/compare/<scene>)")
@@ -70,7 +76,7 @@ def run(args) -> int:
     else:
         ref = report["closed_form"]["name"]
         r_label = "d/2" if report["scene"].get("pillars") else "a_Hertz"
-        print(title(scene, fem, args.pillars or "hooke"))
+        print(title(scene, fem, report["pillars"]))
         print(table_text(report["rows"], ref, r_label))
         print(f"render: {report['render']}")
         written = [name for name in OUTPUTS if (out / name).exists()]
@@ -79,6 +85,14 @@ def run(args) -> int:
         return 0
     return not_converged("compare", report["not_converged"])
 
+
+def _pillars(text: str):
+    """--pillars: one pillar model (a string, as before) or several (a tuple: three-way)."""
+    try:
+        kinds = pillar_models(text)
+    except InputError as exc:  # argparse names the option: "argument --pillars: ..."
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("--pillars ")) from None
+    return kinds[0] if len(kinds) == 1 else kinds
 
 
 def _chosen_fem(models) -> str | None:

@@ -8,8 +8,8 @@ from pathlib import Path
 from scenes import load_scene
 
 from ..registry import MODELS, ladders
-from ._args import (add_engine_arguments, add_models_argument, add_output_arguments,
-                    add_refinement_arguments, add_scene_arguments, check_out,
+from ._args import (add_choice_arguments, add_engine_arguments, add_models_argument,
+                    add_output_arguments, add_refinement_arguments, add_scene_arguments, check_out,
                     engine_from_args, integer, not_converged, number, print_json,
                     refuse_inapplicable)
 
@@ -37,6 +37,7 @@ def add_parser(sub) -> None:
                         f"default: {','.join(_default_models())}; "
                         f"{', '.join(_expensive())} joins when named (minutes per rung)")
     add_refinement_arguments(p, ladder=True)
+    add_choice_arguments(p, ["pillars"])
     p.add_argument("--levels", type=integer(1, 12), default=None, metavar="N",
                    help="rungs per model, from the coarsest (default: the ladder's rungs; "
                         "at least 3 from a given coarsest level); allowed [1, 12]")
@@ -65,11 +66,15 @@ def run(args) -> int:
     options = dict(coarsest=coarsest, levels=args.levels, repeats=args.repeats,
                    single_above=args.single_above, max_time=args.max_time)
     check_options(names, **options)
+    # The pillar model of the BEMs: the elastic one is measured against the elastic pillar's
+    # reference (its physics), never against the Hooke BEMs'.
+    solver_options = {"pillars": args.pillars} if args.pillars else None
     scene = load_scene(args.scene, args.overrides)
     out = check_out(args.out or Path("out") / f"tradeoff-{scene.name}")
     clear_outputs(out, OUTPUTS, "tradeoff")
     with engine_from_args(args, "tradeoff") as engine:
-        doc = tradeoff(scene, names, out / "cases", engine=engine, **options)
+        doc = tradeoff(scene, names, out / "cases", engine=engine, options=solver_options,
+                       **options)
     write_outputs(doc, out)
     if args.json:
         print_json(doc)

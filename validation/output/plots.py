@@ -108,9 +108,11 @@ def plot_profiles(curves: list[dict], radius_m: float, path: Path, title: str,
                   radius_label: str = "d/2", not_converged: list[str] = ()) -> Path:
     """Pressure across the pillar top (or the Hertz contact) for several models.
 
-    ``curves`` holds dicts with ``label``, ``r_m``, ``pressure_Pa`` and optional ``style``;
-    r is plotted as r / ``radius_m``, the pressure in kPa.  The y range follows the curves
-    inside 0.8 ``radius_m``, so edge peaks (singular or mesh-bound) do not flatten the rest.
+    ``curves`` holds dicts with ``label``, ``r_m``, ``pressure_Pa`` and optional ``style``,
+    ``color`` and ``markersize``; one with ``yerr_Pa`` (a band, +- per point) is drawn as
+    error bars.  r is plotted as r / ``radius_m``, the pressure in kPa.  The y range follows
+    the curves inside 0.8 ``radius_m``, so edge peaks (singular or mesh-bound) do not flatten
+    the rest.
     """
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(9.6, 4.8))  # room for the legend beside the axes
@@ -120,7 +122,14 @@ def plot_profiles(curves: list[dict], radius_m: float, path: Path, title: str,
         p = np.asarray(c["pressure_Pa"], dtype=float)
         if r.size == 0:
             continue
-        ax.plot(r / radius_m, p * KPA, c.get("style", "-"), label=c["label"], lw=1.4)
+        extra = {k: c[k] for k in ("color", "markersize") if k in c}
+        if "yerr_Pa" in c:
+            ax.errorbar(r / radius_m, p * KPA, yerr=np.asarray(c["yerr_Pa"], float) * KPA,
+                        fmt=c.get("style", "none"), capsize=4, elinewidth=1.4,
+                        label=c["label"], **extra)
+        else:
+            ax.plot(r / radius_m, p * KPA, c.get("style", "-"), label=c["label"], lw=1.4,
+                    **extra)
         inner = r <= 0.8 * radius_m
         if inner.any():
             top = max(top, float(np.nanmax(p[inner])))

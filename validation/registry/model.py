@@ -46,7 +46,9 @@ class Model:
     - ``ladder``: how it is refined (``converge``, ``compare``, ``gecit``, ``tradeoff``, the
       planner's candidates); None for a model without a resolution;
     - ``physics``: models of equal physics share a Richardson reference (``tradeoff``);
-      "hooke-pillar", "elastic-pillar", or "" (its own);
+      "hooke-pillar", "elastic-pillar", or "" (its own); at the model's default options: an
+      option whose spec maps its choices to a physics decides it per case (``pillars =
+      elastic`` is "elastic-pillar": :meth:`physics_of`);
     - ``expected_order``: the order of its error in the ladder's cell size, where known; an
       observed order far from it marks an estimate as pre-asymptotic (``tradeoff``);
     - ``scopes``: the regimes (flat, single, multi) where the planner may choose it, and
@@ -106,6 +108,18 @@ class Model:
         if parameter is None or parameter.default is inspect.Parameter.empty:
             return None
         return parameter.default
+
+    def physics_of(self, options: dict | None = None) -> str:
+        """The physics of this model run with ``options``: the declared ``physics``, unless
+        one of its options with a physics per choice (its spec's ``physics``: ``pillars``)
+        is given a choice that says otherwise."""
+        for name, value in (options or {}).items():
+            spec = self.options.get(name)
+            if spec is not None and value is not None:
+                physics = dict(spec.physics).get(value)
+                if physics:
+                    return physics
+        return self.physics
 
     def solver_options(self, options: dict) -> dict:
         """The options this model takes, without those left to its default (None)."""

@@ -39,6 +39,9 @@ class OptionSpec:
     metavar: str = ""
     short: str = ""
     help: str = ""
+    # Choices that change what a model solves: {choice: physics} (a model's ``physics``, the
+    # reference group of ``tradeoff``; :meth:`validation.registry.Model.physics_of`).
+    physics: tuple = ()
 
     def allowed(self) -> str:
         if self.choices:
@@ -89,6 +92,8 @@ DEVICE = OptionSpec(
     help="bem-fft: where the FFTs run (cpu: numpy, the default; gpu: cupy)")
 PILLARS = OptionSpec(
     str, choices=PILLAR_MODELS,
+    # The elastic pillar is the FEMs' physics: its tradeoff needs its own reference.
+    physics=(("hooke", "hooke-pillar"), ("elastic", "elastic-pillar")),
     help="bem, bem-fft, bem-richardson: the pillar model: 'hooke', the paper's uniformly "
          "shortening spring (default), or 'elastic', the whole pillar's top compliance from "
          "a Fourier-mode FEM of one pillar on the substrate (computed once per pillar kind, "

@@ -11,6 +11,13 @@ discretisations.
 
 Outputs (:data:`OUTPUTS`): summary.md, profiles.png and profiles.csv, the finest FEM VTU and a
 pyvista render of its stress field revolved about the axis, and report.json, written last.
+
+Three-way (``pillars="both"`` or ``("hooke", "elastic")``): the FEM runs once and both BEMs
+(Hooke and elastic pillars) climb their ladders in the same batch; every row holds the FEM
+and, under ``bems``, each BEM's value, band and difference against the FEM
+(:func:`three_way_rows`); the table, the summary, profiles.csv (a ``pillars`` column) and
+profiles.png (both BEMs and the FEM, with the FEM's GCI band at the sampled radii) show the
+three.
 """
 
 from __future__ import annotations
@@ -24,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from outcome import write_atomic
-from scenes import Scene, analytic
+from scenes import InputError, Scene, analytic
 
 from ..engine import Engine
 from ..registry import QUANTITIES, ladder_for, quantity_values
@@ -50,6 +57,36 @@ FEM_COARSEST = {FEM: 2.0, FEM_3D: 2.0 * 2.0**0.5}
 # The report folder's files, report.json last: its presence means a whole report.
 OUTPUTS = ("summary.md", "profiles.png", "profiles.csv", "fem_finest.vtu", "fem_finest.json",
            "fem_stress_3d.png", "report.json")
+
+
+# What --pillars takes beyond the BEM's own choices: every one of them, for a three-way table.
+BOTH = "both"
+
+
+def pillar_models(pillars) -> tuple[str, ...]:
+    """The BEMs' pillar models a compare runs, in the declaration's order: ``pillars`` is one
+    of the BEM's choices, ``"both"``, a comma list (``"hooke,elastic"``) or a sequence.
+    InputError (one line naming --pillars, the value and the allowed values) otherwise."""
+    from ..registry.options import PILLARS
+
+    allowed = tuple(PILLARS.choices)
+    if isinstance(pillars, str):
+        names = list(allowed) if pillars.strip() == BOTH else \
+            [p.strip() for p in pillars.split(",")]
+    else:
+        names = list(pillars)
+    if not names or any(p not in allowed for p in names) or len(set(names)) != len(names):
+        shown = pillars if isinstance(pillars, str) else ",".join(map(str, pillars))
+        twice = len(set(names)) != len(names) and all(p in allowed for p in names)
+        raise InputError(f"--pillars {shown!r}: allowed: {', '.join(allowed)}, {BOTH}, or a "
+                         f"comma list of {', '.join(allowed)}"
+                         + (" (each once)" if twice else ""))
+    return tuple(p for p in allowed if p in names)
+
+
+def pillar_label(pillars: str) -> str:
+    """The pillar model as titles and legends write it."""
+    return "Hooke" if pillars == "hooke" else pillars
 
 
 def fem_model_for(scene: Scene) -> str:
@@ -128,6 +165,32 @@ def compare_rows(bem: dict, fem: dict, bem_studies: dict | None, fem_studies: di
     return rows
 
 
+# The keys of a compare row that describe the BEM and its difference to the FEM; the others
+# (quantity, FEM, closed form) are common to every BEM of a three-way row.
+_BEM_KEYS = {"bem": "value", "u_bem": "u", "u_bem_is_gci": "u_is_gci",
+             "bem_richardson": "richardson", "bem_status": "status",
+             "difference": "difference", "relative_difference": "relative_difference",
+             "uncertainty": "uncertainty", "exceeds": "exceeds"}
+
+
+def three_way_rows(rows_by: dict[str, list[dict]]) -> list[dict]:
+    """One row per quantity from each BEM's :func:`compare_rows` (``{pillars: rows}``, one
+    FEM): the FEM's and the closed form's keys once, and under ``bems``, per pillar model,
+    ``value``, ``u``, ``u_is_gci``, ``richardson``, ``status``, ``difference``,
+    ``relative_difference``, ``uncertainty`` and ``exceeds`` (against the FEM)."""
+    kinds = list(rows_by)
+    out = []
+    for k, first in enumerate(rows_by[kinds[0]]):
+        row = {key: v for key, v in first.items() if key not in _BEM_KEYS}
+        row["bems"] = {}
+        for p in kinds:
+            own = rows_by[p][k]
+            assert own["quantity"] == row["quantity"]
+            row["bems"][p] = {new: own[old] for old, new in _BEM_KEYS.items()}
+        out.append(row)
+    return out
+
+
 def _values(result, r_ref: float) -> dict:
     vals = quantity_values(result)
     for x, v in zip(PROFILE_POINTS, profile_at(result.pillar_top_profile, r_ref, PROFILE_POINTS)):
@@ -146,8 +209,59 @@ def _profile_studies(data: dict, r_ref: float) -> dict:
     return out
 
 
+def _quantity_name(key: str, r_label: str) -> str:
+    _, unit = DISPLAY.get(key, DISPLAY["profile"])
+    if key.startswith("sigma(r="):
+        return f"p({key[8:-1]} {'a_H' if r_label != 'd/2' else 'd/2'}) [{unit}]"
+    return f"{key} [{unit}]"
+
+
+def _three_way_text(rows: list[dict], ref_name: str, r_label: str) -> str:
+    """The three-way table: each BEM and the FEM with their bands, and each BEM's relative
+    difference against the FEM, marked where it exceeds the combined band."""
+    has_ref = ref_name != "none"
+    kinds = list(rows[0]["bems"])
+    head = f"{'quantity':<18}"
+    for p in kinds:
+        head += f" {'BEM ' + pillar_label(p):>11} {'+-U':>9}"
+    head += f" {'FEM':>10} {'+-U_FEM':>9}"
+    for p in kinds:
+        head += f" {pillar_label(p) + '-FEM':>11} {'>U':>3}"
+    head += f" {ref_name:>12}" if has_ref else ""
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        scale, _ = DISPLAY.get(r["quantity"], DISPLAY["profile"])
+
+        def fmt(v, w=10, f=".5g"):
+            return f"{'-':>{w}}" if v is None else f"{v * scale:>{w}{f}}"
+
+        def band(u, is_gci):
+            return f"{'-':>9}" if u is None else f"{fmt(u, 8, '.2g')}{' ' if is_gci else '*'}"
+
+        line = f"{_quantity_name(r['quantity'], r_label):<18}"
+        for p in kinds:
+            b = r["bems"][p]
+            line += f" {fmt(b['value'], 11)} {band(b['u'], b['u_is_gci'])}"
+        line += f" {fmt(r['fem'])} {band(r['u_fem'], r['u_fem_is_gci'])}"
+        for p in kinds:
+            b = r["bems"][p]
+            rel = "-" if b["relative_difference"] is None else \
+                f"{100 * b['relative_difference']:+.2f}%"
+            verdict = "-" if b["exceeds"] is None else ("YES" if b["exceeds"] else "no")
+            line += f" {rel:>11} {verdict:>3}"
+        lines.append(line + (f" {fmt(r['closed_form'], 12)}" if has_ref else ""))
+    lines.append("U: GCI band GCI_fine |f| of each model's levels (Fs = 1.25); * = no observed "
+                 "order (oscillating or round-off), band = spread of the levels (x3 when "
+                 "oscillating). X-FEM: (BEM - FEM) / FEM; '>U': |BEM - FEM| > "
+                 "sqrt(U_BEM^2 + U_FEM^2), a model difference.")
+    return "\n".join(lines)
+
+
 def table_text(rows: list[dict], ref_name: str, r_label: str) -> str:
-    """Fixed-width table of the comparison (display units); bands marked * are not a GCI."""
+    """Fixed-width table of the comparison (display units); bands marked * are not a GCI.
+    Three-way rows (:func:`three_way_rows`) give one column per BEM."""
+    if rows and "bems" in rows[0]:
+        return _three_way_text(rows, ref_name, r_label)
     # No closed form applies (several pillars share the load): no column for it, rather than
     # one headed "none".
     has_ref = ref_name != "none"
@@ -157,11 +271,8 @@ def table_text(rows: list[dict], ref_name: str, r_label: str) -> str:
     lines = [head, "-" * len(head)]
     for r in rows:
         key = r["quantity"]
-        scale, unit = DISPLAY.get(key, DISPLAY["profile"])
-        if key.startswith("sigma(r="):
-            name = f"p({key[8:-1]} {'a_H' if r_label != 'd/2' else 'd/2'}) [{unit}]"
-        else:
-            name = f"{key} [{unit}]"
+        scale, _ = DISPLAY.get(key, DISPLAY["profile"])
+        name = _quantity_name(key, r_label)
 
         def fmt(v, w=10, f=".5g"):
             return f"{'-':>{w}}" if v is None else f"{v * scale:>{w}{f}}"
@@ -184,6 +295,21 @@ def table_text(rows: list[dict], ref_name: str, r_label: str) -> str:
     return "\n".join(lines)
 
 
+def _closed_form_curves(scene: Scene, fem_model: str, r_ref: float) -> list[dict]:
+    """The closed forms' profiles where one applies (none on a lattice: several pillars share
+    the load)."""
+    r = np.linspace(0.0, 0.999 * r_ref, 400)
+    if fem_model == FEM_3D:
+        return []
+    if scene.is_flat:
+        return [{"label": "Hertz", "style": "k--", "r_m": r,
+                 "pressure_Pa": analytic.hertz(scene).pressure(r)}]
+    return [{"label": "rigid punch", "style": "k--", "r_m": r,
+             "pressure_Pa": analytic.rigid_punch(scene).pressure(r)},
+            {"label": "spring model (Hooke)", "style": "k-.", "r_m": r,
+             "pressure_Pa": analytic.spring_model(scene).pressure(r)}]
+
+
 def _profile_curves(scene: Scene, bem_res, fem_data: dict, r_ref: float) -> list[dict]:
     option = ladder_for(BEM).option
     disc = f"{option}={bem_res.discretisation.get(option, '?')}"
@@ -194,30 +320,57 @@ def _profile_curves(scene: Scene, bem_res, fem_data: dict, r_ref: float) -> list
         finest = lv is fem_data["levels"][-1]
         curves.append({"label": f"FEM mesh_size={lv['value']:g}" + (" (finest)" if finest else ""),
                        "style": "-" if finest else ":", **res.pillar_top_profile})
-    r = np.linspace(0.0, 0.999 * r_ref, 400)
-    if fem_data["model"] == FEM_3D:
-        pass  # several pillars share the load: no single-pillar closed form applies
-    elif scene.is_flat:
-        curves.append({"label": "Hertz", "style": "k--", "r_m": r,
-                       "pressure_Pa": analytic.hertz(scene).pressure(r)})
-    else:
-        curves.append({"label": "rigid punch", "style": "k--", "r_m": r,
-                       "pressure_Pa": analytic.rigid_punch(scene).pressure(r)})
-        curves.append({"label": "spring model (Hooke)", "style": "k-.", "r_m": r,
-                       "pressure_Pa": analytic.spring_model(scene).pressure(r)})
-    return curves
+    return curves + _closed_form_curves(scene, fem_data["model"], r_ref)
+
+
+# Markers of each BEM in the three-way profile plot.
+_BEM_STYLES = {"hooke": "o-", "elastic": "s-"}
+
+
+def _three_way_curves(scene: Scene, bem_res: dict, fem_data: dict, fem_studies: dict,
+                      r_ref: float) -> list[dict]:
+    """Both BEMs' finest profiles, the finest FEM's, and the FEM's band (GCI, or the spread of
+    its levels where it has no observed order) at the sampled radii where it has one."""
+    option = ladder_for(BEM).option
+    curves = [{"label": f"BEM ({pillar_label(p)} pillars), "
+                        f"{option}={res.discretisation.get(option, '?')}",
+               "style": _BEM_STYLES.get(p, "^-"), "markersize": 3, **res.pillar_top_profile}
+              for p, res in bem_res.items()]
+    fem_res, finest = fem_data["results"][-1], fem_data["levels"][-1]
+    curves.append({"label": f"FEM {fem_data['model']} (elastic pillars), "
+                            f"mesh_size={finest['value']:g}",
+                   "style": "k-", **fem_res.pillar_top_profile})
+    centre = profile_at(fem_res.pillar_top_profile, r_ref, PROFILE_POINTS)
+    band = [(x, v, *_band(fem_studies.get(f"sigma(r={x:g})")))
+            for x, v in zip(PROFILE_POINTS, centre)]
+    band = [b for b in band if b[1] is not None and b[2] is not None]
+    if band:
+        gci = all(b[3] for b in band)
+        curves.append({"label": "FEM +-U (GCI band)" if gci else
+                                "FEM +-U (GCI band; spread of the levels where no order)",
+                       "style": "none", "color": "k",
+                       "r_m": [x * r_ref for x, *_ in band],
+                       "pressure_Pa": [v for _, v, *_ in band],
+                       "yerr_Pa": [u for _, _, u, _ in band]})
+    return curves + _closed_form_curves(scene, fem_data["model"], r_ref)
 
 
 def summary_markdown(scene: Scene, rows: list[dict], ref_name: str, r_label: str,
                      meta: dict) -> str:
     """summary.md: what ran, the table, and which differences exceed the uncertainty."""
+    kinds = meta["pillars"] if isinstance(meta["pillars"], (list, tuple)) else None
+    finest = (", ".join(f"{k}={v}" for k, v in meta["bem_discretisation"].items())
+              if kinds is None else
+              "; ".join(f"{pillar_label(p)}: " + ", ".join(f"{k}={v}" for k, v in d.items())
+                        for p, d in meta["bem_discretisation"].items()))
+    bems = ("BEM" if kinds is None else
+            "BEMs (" + ", ".join(f"{pillar_label(p)} pillars" for p in kinds) + ")")
     lines = [f"# {title(scene, meta['fem_model'], meta['pillars'])}", "",
              f"- FEM ({meta['fem_model']}): {meta['levels']} levels of mesh_size "
              f"{', '.join(f'{v:g}' for v in meta['fem_sizes'])}; finest VTU: "
              f"`{meta['vtu'] or 'not written'}`",
-             f"- BEM: {meta['levels']} levels of elements_per_diameter "
-             f"{', '.join(str(v) for v in meta['bem_sizes'])}; finest: "
-             + ", ".join(f"{k}={v}" for k, v in meta["bem_discretisation"].items()),
+             f"- {bems}: {meta['levels']} levels of elements_per_diameter "
+             f"{', '.join(str(v) for v in meta['bem_sizes'])}; finest: " + finest,
              (f"- closed form: {ref_name}" if ref_name != "none" else
               "- closed form: none applies (several pillars share the load)")
              + f"; profile radii are r / ({r_label})",
@@ -227,16 +380,34 @@ def summary_markdown(scene: Scene, rows: list[dict], ref_name: str, r_label: str
     if odd:
         lines.append("FEM sequences without an observed order: "
                      + "; ".join(f"{r['quantity']}: {r['fem_status']}" for r in odd))
-    real = [r["quantity"] for r in rows if r["exceeds"]]
-    lines.append("Differences larger than the numerical uncertainty (model differences): "
-                 + (", ".join(real) if real else "none"))
+    if kinds is None:
+        real = [r["quantity"] for r in rows if r["exceeds"]]
+        lines.append("Differences larger than the numerical uncertainty (model differences): "
+                     + (", ".join(real) if real else "none"))
+    else:
+        lines.append("")
+        for p in kinds:
+            real = [r["quantity"] for r in rows if r["bems"][p]["exceeds"]]
+            lines.append(f"- BEM ({pillar_label(p)} pillars) - FEM differences larger than "
+                         "the numerical uncertainty (model differences): "
+                         + (", ".join(real) if real else "none"))
     if meta.get("not_converged"):
         lines += ["", "**NOT CONVERGED**: " + "; ".join(meta["not_converged"])]
     return "\n".join(lines) + "\n"
 
 
 def profiles_csv(bem_res, fem_res) -> str:
-    """The pillar-top profiles of the finest BEM and FEM runs: model, r_m, pressure_Pa."""
+    """The pillar-top profiles of the finest BEM and FEM runs: model, r_m, pressure_Pa.  With
+    several BEMs (``{pillars: result}``): model, pillars, r_m, pressure_Pa, the FEM's pillars
+    being elastic."""
+    if isinstance(bem_res, dict):
+        series = [(res, p) for p, res in bem_res.items()] + [(fem_res, "elastic")]
+        lines = ["model,pillars,r_m,pressure_Pa"]
+        for res, p in series:
+            prof = res.pillar_top_profile
+            lines += [f"{res.model},{p},{r!r},{v!r}"
+                      for r, v in zip(prof["r_m"], prof["pressure_Pa"])]
+        return "\n".join(lines) + "\n"
     lines = ["model,r_m,pressure_Pa"]
     for label, res in ((bem_res.model, bem_res), (fem_res.model, fem_res)):
         prof = res.pillar_top_profile
@@ -254,7 +425,7 @@ def check_options(levels: int = 3, mesh_size: float | None = None,
 def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None, levels: int = 3,
                   mesh_size: float | None = None, elements_per_diameter: int | None = None,
                   render: bool = True, fem_model: str | None = None,
-                  pillars: str = "hooke") -> dict:
+                  pillars="hooke") -> dict:
     """Run both models on ``levels`` refinements each (one batch on the engine, cached in
     ``out/cases``), write the report folder and return the report dict (``rows``,
     ``converged``, ``not_converged``, ``render``, ...).
@@ -263,12 +434,17 @@ def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None, leve
     model where it applies); ``mesh_size`` is its coarsest level (default
     :data:`FEM_COARSEST`),
     ``elements_per_diameter`` the BEM's (default its ladder's), ``pillars`` its pillar model
-    (the paper's Hooke spring, or the elastic pillar).  The files of an earlier
+    (the paper's Hooke spring, or the elastic pillar), or several (``"both"``,
+    ``"hooke,elastic"`` or a sequence: :func:`pillar_models`): a three-way comparison, the
+    FEM once and one BEM per pillar model (rows: :func:`three_way_rows`; ``bems`` and
+    ``bems_finest`` in place of ``bem`` and ``bem_finest``).  The files of an earlier
     report in ``out`` are removed first and ``report.json`` is written last, so the folder
     never mixes two runs."""
     from ..output.report import clear_outputs
 
     t0 = time.perf_counter()
+    kinds = pillar_models(pillars)
+    several = len(kinds) > 1
     fem = fem_model or fem_model_for(scene)
     check_options(levels, mesh_size, elements_per_diameter, fem)
     fem_coarsest = FEM_COARSEST[fem] if mesh_size is None else mesh_size
@@ -276,29 +452,39 @@ def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None, leve
     r_ref, r_label = reference_radius(scene)
     fem_cases = level_cases(fem, scene, levels, coarsest=fem_coarsest, tag="fem",
                             vtu_finest=True)
-    bem_cases = level_cases(BEM, scene, levels, coarsest=elements_per_diameter, tag="bem",
-                            options=None if pillars == "hooke" else {"pillars": pillars})
+    bem_cases = {p: level_cases(BEM, scene, levels, coarsest=elements_per_diameter,
+                                tag=f"bem {p}" if several else "bem",
+                                options=None if p == "hooke" else {"pillars": p})
+                 for p in kinds}
     clear_outputs(out, OUTPUTS, "compare")
     own = engine is None
     engine = engine or Engine("serial")
     try:
-        outcomes = engine.run(fem_cases + bem_cases, cache, label="compare")
+        outcomes = engine.run(fem_cases + [c for p in kinds for c in bem_cases[p]], cache,
+                              label="compare")
     finally:
         if own:
             engine.close()
     fem_data = study_levels(fem, scene, outcomes[:len(fem_cases)])
     fem_res = fem_data["results"][-1]
     fem_studies = dict(fem_data["studies"]) | _profile_studies(fem_data, r_ref)
-    bem_data = study_levels(BEM, scene, outcomes[len(fem_cases):])
-    bem_res = bem_data["results"][-1]
-    bem_studies = dict(bem_data["studies"]) | _profile_studies(bem_data, r_ref)
     ref_name, reference = closed_form(scene)
-    rows = compare_rows(_values(bem_res, r_ref), _values(fem_res, r_ref), bem_studies,
-                        fem_studies, reference)
-    unconverged = [f"{data['model']} level {lv['level'] + 1} "
+    bem_data, bem_res, rows_by = {}, {}, {}
+    start = len(fem_cases)
+    for p in kinds:
+        bem_data[p] = study_levels(BEM, scene, outcomes[start:start + len(bem_cases[p])])
+        start += len(bem_cases[p])
+        bem_res[p] = bem_data[p]["results"][-1]
+        bem_studies = dict(bem_data[p]["studies"]) | _profile_studies(bem_data[p], r_ref)
+        rows_by[p] = compare_rows(_values(bem_res[p], r_ref), _values(fem_res, r_ref),
+                                  bem_studies, fem_studies, reference)
+    rows = three_way_rows(rows_by) if several else rows_by[kinds[0]]
+    unconverged = [f"{data['model']}"
+                   + (f" ({pillar_label(p)} pillars)" if several and p else "")
+                   + f" level {lv['level'] + 1} "
                    f"({data['ladder']['option']}={lv['value']}): {lv['message']}"
-                   for data in (fem_data, bem_data) for lv in data["levels"]
-                   if not lv["converged"]]
+                   for p, data in [(None, fem_data)] + list(bem_data.items())
+                   for lv in data["levels"] if not lv["converged"]]
 
     vtu = fem_data["levels"][-1]["vtu"]
     if vtu:
@@ -324,37 +510,54 @@ def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None, leve
         render_msg = msg if ok else f"not rendered on this machine: {msg}"
     from ..output.plots import plot_profiles
 
-    plot_profiles(_profile_curves(scene, bem_res, fem_data, r_ref), r_ref, out / "profiles.png",
-                  f"pressure across the {'contact' if scene.is_flat else 'pillar top'}: "
-                  f"{scene_label(scene)}", r_label, not_converged=unconverged)
-    meta = {"levels": levels, "fem_model": fem, "pillars": pillars,
+    where = ("contact" if scene.is_flat else
+             "centre pillar top (θ = 0)" if several else "pillar top")
+    curves = (_three_way_curves(scene, bem_res, fem_data, fem_studies, r_ref) if several
+              else _profile_curves(scene, bem_res[kinds[0]], fem_data, r_ref))
+    plot_profiles(curves, r_ref, out / "profiles.png",
+                  f"pressure across the {where}: {scene_label(scene)}", r_label,
+                  not_converged=unconverged)
+    first = bem_data[kinds[0]]
+    meta = {"levels": levels, "fem_model": fem,
+            "pillars": list(kinds) if several else kinds[0],
             "fem_sizes": [lv["value"] for lv in fem_data["levels"]],
-            "bem_sizes": [lv["value"] for lv in bem_data["levels"]],
-            "bem_discretisation": bem_res.discretisation, "vtu": vtu, "render": render_msg,
+            "bem_sizes": [lv["value"] for lv in first["levels"]],
+            "bem_discretisation": ({p: bem_res[p].discretisation for p in kinds} if several
+                                   else bem_res[kinds[0]].discretisation),
+            "vtu": vtu, "render": render_msg,
             "executor": engine.describe(), "wall_time_s": time.perf_counter() - t0}
+    if several:
+        bem_part = {"bems": {p: {k: v for k, v in d.items() if k != "results"}
+                             for p, d in bem_data.items()},
+                    "bems_finest": {p: res.to_dict() for p, res in bem_res.items()}}
+    else:
+        bem_part = {"bem": {k: v for k, v in first.items() if k != "results"},
+                    "bem_finest": bem_res[kinds[0]].to_dict()}
     report = {"scene": scene.to_dict(), "closed_form": {"name": ref_name, **reference},
               "profile_radius_m": r_ref, "profile_points": list(PROFILE_POINTS), "rows": rows,
               "fem": {k: v for k, v in fem_data.items() if k != "results"},
               "fem_profile_studies": {k: v for k, v in fem_studies.items()
                                       if k.startswith("sigma(")},
-              "bem": {k: v for k, v in bem_data.items() if k != "results"},
-              "bem_finest": bem_res.to_dict(), "fem_finest": fem_res.to_dict(),
+              **bem_part, "fem_finest": fem_res.to_dict(),
               "converged": not unconverged, "not_converged": unconverged, **meta}
     write_atomic(out / "summary.md", summary_markdown(scene, rows, ref_name, r_label,
                                                       {**meta, "not_converged": unconverged}))
-    write_atomic(out / "profiles.csv", profiles_csv(bem_res, fem_res))
+    write_atomic(out / "profiles.csv",
+                 profiles_csv(bem_res if several else bem_res[kinds[0]], fem_res))
     write_atomic(out / "report.json", json.dumps(report, indent=2, allow_nan=False, default=str))
     return report
 
 
-def bem_name(scene, pillars: str = "hooke") -> str:
-    """The BEM as a title calls it: its pillar model (a flat scene has no pillar)."""
-    return "BEM" if scene.is_flat else f"BEM ({'Hooke' if pillars == 'hooke' else pillars} " \
-                                       "pillars)"
+def bem_name(scene, pillars="hooke") -> str:
+    """The BEM as a title calls it: its pillar model (a flat scene has no pillar); several
+    pillar models (a three-way compare): each BEM, joined by 'and'."""
+    if not isinstance(pillars, str):
+        return " and ".join(f"BEM ({pillar_label(p)} pillars)" for p in pillars)
+    return "BEM" if scene.is_flat else f"BEM ({pillar_label(pillars)} pillars)"
 
 
-def title(scene, fem_model: str | None = None, pillars: str = "hooke") -> str:
-    if scene.is_flat:
+def title(scene, fem_model: str | None = None, pillars="hooke") -> str:
+    if scene.is_flat and isinstance(pillars, str):
         return f"BEM vs FEM on {scene_label(scene)} (flat substrate: both solve the Hertz problem)"
     fem = fem_model or fem_model_for(scene)
     return f"{bem_name(scene, pillars)} vs {fem} (elastic pillars) on {scene_label(scene)}"

@@ -57,8 +57,9 @@ def time_noise(timing: dict) -> float:
     return max(spread, TIME_NOISE_REL * float(timing["wall_time_s"]), TIME_NOISE_S)
 
 
-def physics_group(model: str, scene) -> str:
-    """Models that solve the same equations share a reference (a model's ``physics``); a
+def physics_group(model: str, scene, options: dict | None = None) -> str:
+    """Models that solve the same equations share a reference (a model's physics with the
+    case's ``options``: a BEM with ``pillars = elastic`` solves the elastic pillar's); a
     model with other physics (the elastic pillar of the FEM against the Hooke pillar of the
     BEM) is measured against its own, so that its errors are discretisation errors, not the
     modelling difference (which ``pillar-xval compare`` reports).  On a flat scene every model
@@ -67,7 +68,7 @@ def physics_group(model: str, scene) -> str:
 
     if scene.is_flat:
         return "half-space"
-    return (MODELS[model].physics if model in MODELS else "") or model
+    return (MODELS[model].physics_of(options) if model in MODELS else "") or model
 
 
 def rungs_for(ladder, coarsest=None, levels: int | None = None) -> list:
@@ -125,8 +126,13 @@ def check_options(models, ladders=None, *, coarsest: dict | None = None,
 
 def tradeoff(scene, models, cache_dir: Path | None = None, *, engine: Engine | None = None,
              repeats: int = 3, single_above: float = 20.0, max_time: float = 600.0,
-             ladders=None, coarsest: dict | None = None, levels: int | None = None) -> dict:
+             ladders=None, coarsest: dict | None = None, levels: int | None = None,
+             options: dict | None = None) -> dict:
     """Solve every rung of every model and attach errors against the Richardson reference.
+
+    ``options`` (``{"pillars": "elastic"}``, say) go to every model that takes them, on every
+    rung; they may change a model's physics and so its reference group
+    (:func:`physics_group`).
 
     Rungs (:func:`rungs_for`: the ladder's, or ``levels`` from ``coarsest[option]``) run one
     by one on ``engine`` (default: serial, in this process), cached in ``cache_dir`` when
@@ -136,9 +142,14 @@ def tradeoff(scene, models, cache_dir: Path | None = None, *, engine: Engine | N
     """
     from ..registry import MODELS
 
+    from ..registry import check_option
+
     ladders = ladders or all_ladders()
     plan = check_options(models, ladders, coarsest=coarsest, levels=levels, repeats=repeats,
                          single_above=single_above, max_time=max_time)
+    for key, value in (options or {}).items():
+        if value is not None:
+            check_option(key, value)
     own = engine is None
     engine = engine or Engine("serial", label="tradeoff")
     scratch = None
@@ -155,8 +166,10 @@ def tradeoff(scene, models, cache_dir: Path | None = None, *, engine: Engine | N
                 skipped[name] = f"not available ({exc})"
                 continue
             rungs = plan[name]
+            extra = {k: v for k, v in (options or {}).items()
+                     if v is not None and (name not in MODELS or k in MODELS[name].options)}
             for k, level in enumerate(rungs):
-                case = Case(name, scene, ladder.options_at(level), repeats=repeats,
+                case = Case(name, scene, {**ladder.options_at(level), **extra}, repeats=repeats,
                             single_above=single_above, tag=f"{name} {k + 1}/{len(rungs)}")
                 outcome = engine.run_one(case, cache_dir, label="tradeoff")
                 if isinstance(outcome.error, ValueError):  # the model refuses this scene
@@ -169,7 +182,9 @@ def tradeoff(scene, models, cache_dir: Path | None = None, *, engine: Engine | N
                        "peak_memory_MB": timing["peak_memory_MB"],
                        "iterations": result.iterations, "converged": bool(result.converged),
                        "message": str(result.diagnostics.get("message", "")),
-                       "cached": outcome.cached}
+                       "cached": outcome.cached,
+                       "physics": physics_group(name, scene, case.options)}
+                row.update(extra)
                 for q in QUANTITIES:
                     row[q.key] = float(getattr(result, q.attr))
                 rows.append(row)
@@ -182,8 +197,6 @@ def tradeoff(scene, models, cache_dir: Path | None = None, *, engine: Engine | N
             engine.close()
         if scratch is not None:
             scratch.cleanup()
-    for row in rows:
-        row["physics"] = physics_group(row["model"], scene)
     references = {group: reference_values([r for r in rows if r["physics"] == group])
                   for group in sorted({r["physics"] for r in rows})}
     for row in rows:
@@ -193,7 +206,7 @@ def tradeoff(scene, models, cache_dir: Path | None = None, *, engine: Engine | N
     return {"scene": scene.to_dict(), "models": list(models), "rows": rows,
             "references": references, "skipped": skipped, "repeats": repeats,
             "ladders": {m: {"option": ladders[m].option, "levels": plan[m]} for m in models},
-            "round_off": ROUND_OFF,
+            "options": dict(options or {}), "round_off": ROUND_OFF,
             "version": package_version()}
 
 
