@@ -135,14 +135,22 @@ def _values(result, r_ref: float) -> dict:
     return vals
 
 
-def _profile_studies(data: dict, r_ref: float) -> dict:
+def profile_key(x: float) -> str:
+    """The name of the profile sample at r = x r_ref: ``sigma(r=0.5)``."""
+    return f"sigma(r={x:g})"
+
+
+def profile_studies(data: dict, r_ref: float, points=PROFILE_POINTS) -> dict:
+    """The convergence study of the pillar-top pressure at r = x r_ref for each x in
+    ``points``, over a ladder's ``levels`` (each with its ``h``) and ``results``; a point
+    outside any level's profile is left out."""
     h = [lv["h"] for lv in data["levels"]]
-    samples = [profile_at(res.pillar_top_profile, r_ref, PROFILE_POINTS) for res in data["results"]]
+    samples = [profile_at(res.pillar_top_profile, r_ref, points) for res in data["results"]]
     out = {}
-    for i, x in enumerate(PROFILE_POINTS):
+    for i, x in enumerate(points):
         f = [s[i] for s in samples]
         if all(v is not None for v in f) and len(f) >= 2:
-            out[f"sigma(r={x:g})"] = study(h, f)
+            out[profile_key(x)] = study(h, f)
     return out
 
 
@@ -288,10 +296,10 @@ def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None, leve
             engine.close()
     fem_data = study_levels(fem, scene, outcomes[:len(fem_cases)])
     fem_res = fem_data["results"][-1]
-    fem_studies = dict(fem_data["studies"]) | _profile_studies(fem_data, r_ref)
+    fem_studies = dict(fem_data["studies"]) | profile_studies(fem_data, r_ref)
     bem_data = study_levels(BEM, scene, outcomes[len(fem_cases):])
     bem_res = bem_data["results"][-1]
-    bem_studies = dict(bem_data["studies"]) | _profile_studies(bem_data, r_ref)
+    bem_studies = dict(bem_data["studies"]) | profile_studies(bem_data, r_ref)
     ref_name, reference = closed_form(scene)
     rows = compare_rows(_values(bem_res, r_ref), _values(fem_res, r_ref), bem_studies,
                         fem_studies, reference)
