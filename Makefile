@@ -33,8 +33,11 @@ demo: $(STAMP)
 study-gecit: $(STAMP)
 	$(VENV)/bin/pillar-xval gecit --out $(OUT)/gecit
 
-# The multi-pillar cross-validation: Hooke BEM against fem-3d over Phi in {0.03, 0.1, 0.2, 0.4}
-# x E_p/E_l in {0.1, 1, 10, 1e6}, E_s = E_l (about an hour on 2 cores; resumes).
+# The multi-pillar cross-validation: the Hooke BEM and the elastic-pillar BEM against fem-3d over
+# Phi in {0.03, 0.1, 0.2, 0.4} x E_p/E_l in {0.1, 1, 10, 1e6} with E_s = E_l, and Phi in {0.2, 0.4}
+# x E_p/E_l in {0.1, 10} at the paper's E_s = E_p; the elastic BEM judged against its targets
+# (about 1.5 hours on 2 cores: the E_s = E_p scenes' fem-3d adds 15-25 minutes, the elastic
+# column about 5 plus 20-60 s per pillar kind on a fresh cache; resumes).
 study-lattice: $(STAMP)
 	$(VENV)/bin/pillar-xval lattice --out $(OUT)/lattice
 
@@ -86,8 +89,8 @@ bench-figures: $(STAMP)
 	$(PY) -m validation.bench.figures --out $(OUT)/bench-figures
 
 # The planner's error and cost models, measured (convergence ladders, Gecit grid, closed forms,
-# FEM truncation, the lattice study's Hooke error; resumable; about 1.5 h) and installed as the
-# package's data (validation/planner/data/*.json).
+# FEM truncation, the lattice study's Hooke error; resumable; about 2 h, 1.5 of them the lattice
+# study) and installed as the package's data (validation/planner/data/*.json).
 calibrate: $(STAMP)
 	$(VENV)/bin/pillar-xval lattice --out $(OUT)/lattice
 	$(VENV)/bin/pillar-xval calibrate --out $(OUT)/calibrate --lattice $(OUT)/lattice/lattice.json --install

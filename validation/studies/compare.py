@@ -198,14 +198,22 @@ def _values(result, r_ref: float) -> dict:
     return vals
 
 
-def _profile_studies(data: dict, r_ref: float) -> dict:
+def profile_key(x: float) -> str:
+    """The name of the profile sample at r = x r_ref: ``sigma(r=0.5)``."""
+    return f"sigma(r={x:g})"
+
+
+def profile_studies(data: dict, r_ref: float, points=PROFILE_POINTS) -> dict:
+    """The convergence study of the pillar-top pressure at r = x r_ref for each x in
+    ``points``, over a ladder's ``levels`` (each with its ``h``) and ``results``; a point
+    outside any level's profile is left out."""
     h = [lv["h"] for lv in data["levels"]]
-    samples = [profile_at(res.pillar_top_profile, r_ref, PROFILE_POINTS) for res in data["results"]]
+    samples = [profile_at(res.pillar_top_profile, r_ref, points) for res in data["results"]]
     out = {}
-    for i, x in enumerate(PROFILE_POINTS):
+    for i, x in enumerate(points):
         f = [s[i] for s in samples]
         if all(v is not None for v in f) and len(f) >= 2:
-            out[f"sigma(r={x:g})"] = study(h, f)
+            out[profile_key(x)] = study(h, f)
     return out
 
 
@@ -467,7 +475,7 @@ def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None, leve
             engine.close()
     fem_data = study_levels(fem, scene, outcomes[:len(fem_cases)])
     fem_res = fem_data["results"][-1]
-    fem_studies = dict(fem_data["studies"]) | _profile_studies(fem_data, r_ref)
+    fem_studies = dict(fem_data["studies"]) | profile_studies(fem_data, r_ref)
     ref_name, reference = closed_form(scene)
     bem_data, bem_res, rows_by = {}, {}, {}
     start = len(fem_cases)
@@ -475,7 +483,7 @@ def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None, leve
         bem_data[p] = study_levels(BEM, scene, outcomes[start:start + len(bem_cases[p])])
         start += len(bem_cases[p])
         bem_res[p] = bem_data[p]["results"][-1]
-        bem_studies = dict(bem_data[p]["studies"]) | _profile_studies(bem_data[p], r_ref)
+        bem_studies = dict(bem_data[p]["studies"]) | profile_studies(bem_data[p], r_ref)
         rows_by[p] = compare_rows(_values(bem_res[p], r_ref), _values(fem_res, r_ref),
                                   bem_studies, fem_studies, reference)
     rows = three_way_rows(rows_by) if several else rows_by[kinds[0]]

@@ -239,13 +239,13 @@ def load_lattice(path) -> dict:
 def lattice_hooke_table(report: dict) -> ErrorTable:
     """The Hooke pillar's error in a lattice, (Hooke - elastic) / elastic of the lattice
     study's Richardson estimates (bem-fft against fem-3d), on its Phi x E_p/E_l grid
-    (E_s = E_l, zeta = 0.3 um).  A quantity whose FEM estimate did not converge is left out
-    at that point."""
-    from ..lattice import LatticePoint
+    (E_s = E_l, zeta = 0.3 um; its E_s = E_p scenes are left out).  A quantity whose FEM
+    estimate did not converge is left out at that point."""
+    from ..lattice import LENS, LatticePoint
 
     points, errors = [], {q: [] for q in QKEYS}
     for row in report["rows"]:
-        if not row.get("converged"):
+        if not row.get("converged") or row.get("substrate", LENS) != LENS:
             continue
         x = features(LatticePoint(row["surface_fraction"], row["ratio"]).scene())
         points.append([x["phi"], x["log_ep"]])
