@@ -18,7 +18,7 @@ import numpy as np
 from ...output.report import legend_outside, save_figure
 
 UM, KPA = 1e6, 1e-3
-CONVENTION = "Table 1, E_s = E_p"
+CONVENTION = "Table 1, the paper's E_s = E_p"
 PILLAR_NAMES = {"hooke": "Hooke", "elastic": "elastic"}
 
 
@@ -145,9 +145,13 @@ def plot_fig3(panels: list[dict], path: Path, pixels: int = 520, dpi: int = 120,
         ax_prof.legend(fontsize=8)
         ax_prof.set_title(f"σ₀ = {s0 * KPA:.3g} kPa, a = {ah * UM:.3g} µm",
                           fontsize=10)
+    models = (convention(variants) if len(variants) == 1 else
+              f"{CONVENTION}; Hooke and elastic pillars, one row each")
     fig.suptitle(f"Fig. 3: contact pressure at ζ = 0.3 µm, "
-                 f"E_p = E_s = E_l = 1.6 MPa ({convention(variants)})", fontsize=11)
-    return save_figure(fig, path, dpi)
+                 f"E_p = E_s = E_l = 1.6 MPa ({models})", fontsize=11)
+    # Room for the suptitle above the first row's titles (about 0.5 in).
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, 1.0 - 0.5 / fig.get_size_inches()[1]))
+    return save_figure(fig, path, dpi, layout=False)
 
 
 # --- Fig. 4 -----------------------------------------------------------------------------
