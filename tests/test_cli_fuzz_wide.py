@@ -163,7 +163,7 @@ def test_fuzz_figures_inputs(tmp_path, cli, monkeypatch):
 
     started = []
 
-    def stub(out, grid, model, engine):
+    def stub(out, grid, model, engine, **kw):
         started.append((grid.name, model))
         return {"timing": {"unique_cases": 0, "cases_computed": 0, "threshold_solves": 0,
                            "total_s": 0.0, "scenes_s": 0.0, "threshold_bisection_s": 0.0,

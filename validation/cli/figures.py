@@ -3,6 +3,7 @@ PNG with the CSV of its data, and ``figures.md`` (the paper's numbers beside our
 
 from __future__ import annotations
 
+import argparse
 import json
 from pathlib import Path
 
@@ -20,7 +21,9 @@ def add_parser(sub) -> None:
                     "scene runs on the engine (cached in DIR/cases: a rerun resumes), the "
                     "master curves are fitted, the single-pillar threshold is bisected on the "
                     "exact solver, and DIR gets fig3.png ... fig8.png, their CSVs, "
-                    "figures.json, figures.md and timing.json.")
+                    "figures.json, figures.md (the paper's claims checked), claims.csv and "
+                    "timing.json.  --pillars elastic or both: the elastic-pillar BEM (its "
+                    "pillar compliance built once per pillar kind and cached on disk).")
     p.add_argument("--out", type=Path, default=Path("out") / "figures",
                    help="output folder (default out/figures)")
     p.add_argument("--model", default=DEFAULT_MODEL,
@@ -29,6 +32,11 @@ def add_parser(sub) -> None:
     p.add_argument("--elements-per-diameter", type=int, default=None, metavar="P",
                    help="square elements across a pillar (bem-richardson: the coarse level); "
                         "default 5")
+    p.add_argument("--pillars", type=_pillars, default="hooke", metavar="MODEL",
+                   help="the pillar model: 'hooke', the paper's uniformly shortening spring "
+                        "(default), 'elastic', the whole pillar's top compliance, or 'both': "
+                        "the two on the same axes, and figures.md checks each of the paper's "
+                        "claims with each")
     p.add_argument("--quick", "--coarse", action="store_true",
                    help="a coarse version of every figure (a few seconds; for tests)")
     p.add_argument("--json", action="store_true",
@@ -50,18 +58,18 @@ def run(args) -> int:
     grid = FigureGrid.quick(p or 5) if args.quick else FigureGrid.full(p or 5)
     check_out(args.out)
     with engine_from_args(args, "figures") as engine:
-        doc = run_figures(args.out, grid, model=args.model, engine=engine)
+        kw = {} if args.pillars == ("hooke",) else {"pillars": args.pillars}
+        doc = run_figures(args.out, grid, model=args.model, engine=engine, **kw)
     t = doc["timing"]
     failed = doc["failed"]
     if args.json:
-        keep = ("model", "options", "grid", "fig3", "fig3_search", "timing", "paths", "failed")
-        summary = {k: doc[k] for k in keep}
-        summary["thresholds"] = {k: doc["thresholds"][k] for k in
-                                 ("band", "common_exponent", "area_exponent", "zeta_t_over_h")}
-        summary["curves"] = [{k: c[k] for k in ("ratio", "zeta_um", "phi_s_fit", "phi_h_fit",
-                                                "fit_rms", "phi_h_band")}
-                             for c in doc["thresholds"]["curves"]]
-        summary["exact_phi_s"] = doc["thresholds"]["exact"]
+        if "variants" in doc:
+            summary = {k: doc[k] for k in ("pillars", "model", "options", "grid", "timing",
+                                           "paths", "failed", "claims")}
+            summary["variants"] = {v: _summary(d) for v, d in doc["variants"].items()}
+        else:
+            summary = _summary(doc)
+            summary.update({k: doc.get(k) for k in ("timing", "paths", "failed", "claims")})
         print(json.dumps(summary, default=float))
     else:
         print(f"figures: {t['unique_cases']} scenes ({t['cases_computed']} computed) and "
@@ -69,7 +77,36 @@ def run(args) -> int:
               f"(scenes {t['scenes_s']:.1f} s, bisection {t['threshold_bisection_s']:.1f} s, "
               f"fits and plots {t['analysis_and_plots_s']:.1f} s) on {t['executor']}")
         print(f"written to {args.out}/: fig3.png ... fig8.png, their CSVs, figures.md, "
-              f"figures.json, timing.json")
+              f"claims.csv, figures.json, timing.json")
+        claims = doc.get("claims") or []
+        if claims:
+            holds = ", ".join(f"{v} pillars {sum(c[v]['holds'] is True for c in claims)} of "
+                              f"{len(claims)}" for v in args.pillars)
+            print(f"the paper's claims that hold (figures.md, claims.csv): {holds}")
         if failed:
             print(f"{len(failed)} case(s) failed or did not converge (see figures.md)")
     return 1 if failed else 0
+
+
+def _summary(doc: dict) -> dict:
+    """One pillar model's numbers for --json."""
+    keep = ("model", "options", "grid", "fig3", "fig3_search", "failed")
+    summary = {k: doc[k] for k in keep}
+    summary["pillars"] = doc.get("pillars", "hooke")
+    summary["thresholds"] = {k: doc["thresholds"][k] for k in
+                             ("band", "common_exponent", "area_exponent", "zeta_t_over_h")}
+    summary["curves"] = [{k: c[k] for k in ("ratio", "zeta_um", "phi_s_fit", "phi_h_fit",
+                                            "fit_rms", "phi_h_band")}
+                         for c in doc["thresholds"]["curves"]]
+    summary["exact_phi_s"] = doc["thresholds"]["exact"]
+    return summary
+
+
+def _pillars(text: str) -> tuple[str, ...]:
+    """--pillars: hooke, elastic, both (or a comma list), as a tuple of pillar models."""
+    from ..studies.compare import pillar_models
+
+    try:
+        return pillar_models(text)
+    except InputError as exc:  # argparse names the option: "argument --pillars: ..."
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("--pillars ")) from None

@@ -1,8 +1,11 @@
 """The paper's Figs. 3-8 drawn from the data of :mod:`validation.studies.figures`.
 
-Each function takes the figure's data (SI inside, as the study returns it) and a path, and
-writes one PNG; axes are in the paper's units (um, kPa, uN) and scales (log where the paper's
-quantities span decades).  Every title states the paper's convention E_s = E_p.
+Each function takes the figure's data (SI inside, as the study returns it) per pillar model
+(``{"hooke": ..., "elastic": ...}``) and a path, and writes one PNG; axes are in the paper's
+units (um, kPa, uN) and scales (log where the paper's quantities span decades).  Every title
+states the paper's convention E_s = E_p (the figures' default) and the pillar model; with
+both models on one axes the Hooke pillar is drawn dashed with open markers (faint where the
+line style already encodes E_p/E_l, Figs. 7-8) and the elastic pillar solid and filled.
 """
 
 from __future__ import annotations
@@ -15,7 +18,28 @@ import numpy as np
 from ...output.report import legend_outside, save_figure
 
 UM, KPA = 1e6, 1e-3
-CONVENTION = "Table 1, E_s = E_p"
+CONVENTION = "Table 1, the paper's E_s = E_p"
+PILLAR_NAMES = {"hooke": "Hooke", "elastic": "elastic"}
+
+
+def convention(variants) -> str:
+    """The title's tail: Table 1, the paper's convention E_s = E_p, the pillar model(s)."""
+    variants = list(variants)
+    if len(variants) == 1:
+        return f"{CONVENTION}, {PILLAR_NAMES.get(variants[0], variants[0])} pillars"
+    return f"{CONVENTION}; pillars: Hooke dashed/open, elastic solid/filled"
+
+
+def variant_style(pillars: str, variants) -> dict:
+    """How one pillar model is drawn among ``variants``: ``ls`` (the line style of a curve
+    whose style is free), ``mfc`` (marker face: None filled, "none" open), ``alpha``, ``lw``
+    (a factor), ``suffix`` (for labels)."""
+    if len(list(variants)) == 1:
+        return {"ls": "-", "mfc": None, "alpha": 1.0, "lw": 1.0, "suffix": ""}
+    if pillars == "hooke":
+        return {"ls": "--", "mfc": "none", "alpha": 0.55, "lw": 0.8, "suffix": ", Hooke"}
+    return {"ls": "-", "mfc": None, "alpha": 1.0, "lw": 1.2,
+            "suffix": f", {PILLAR_NAMES.get(pillars, pillars)}"}
 RATIO_STYLES = {1e-3: "-.", 1.0: "-", 1e6: "--"}
 
 
@@ -61,10 +85,11 @@ def _ratio_colours(ratios):
 
 
 # --- Fig. 3 -----------------------------------------------------------------------------
-def plot_fig3(panels: list[dict], path: Path, pixels: int = 520, dpi: int = 120) -> Path:
+def plot_fig3(panels: list[dict], path: Path, pixels: int = 520, dpi: int = 120,
+              variants=("hooke",)) -> Path:
     """Pressure maps (left, images on the element grid) and sigma(r) along theta = 0 (right),
-    one row per scene.  ``panels``: dicts with ``result``, ``map`` (ElementMap), ``extent``,
-    ``hertz``, ``punch`` (closed forms) and ``phi``."""
+    one row per scene and pillar model.  ``panels``: dicts with ``result``, ``map``
+    (ElementMap), ``extent``, ``hertz``, ``punch`` (closed forms), ``phi`` and ``pillars``."""
     plt = _pyplot()
     from matplotlib import cm, colors
 
@@ -96,7 +121,9 @@ def plot_fig3(panels: list[dict], path: Path, pixels: int = 520, dpi: int = 120)
         ax_map.set_xlabel("x (µm)")
         ax_map.set_ylabel("y (µm)")
         ax_map.legend(loc="upper right", fontsize=8, framealpha=0.9)
-        ax_map.set_title(f"Φ = {p['phi']:g}: {res.pillars_in_contact} pillars in contact, "
+        who = (f"{PILLAR_NAMES.get(p.get('pillars', 'hooke'), p.get('pillars'))} pillars, "
+               if len(variants) > 1 else "")
+        ax_map.set_title(f"{who}Φ = {p['phi']:g}: {res.pillars_in_contact} pillars in contact, "
                          f"F_T = {res.total_force_N * UM:.3g} µN", fontsize=10)
 
         r, s = emap.along_x(max(res.contact_radius_m * 1.1, p["hertz"].contact_radius * 1.05))
@@ -118,166 +145,243 @@ def plot_fig3(panels: list[dict], path: Path, pixels: int = 520, dpi: int = 120)
         ax_prof.legend(fontsize=8)
         ax_prof.set_title(f"σ₀ = {s0 * KPA:.3g} kPa, a = {ah * UM:.3g} µm",
                           fontsize=10)
+    models = (convention(variants) if len(variants) == 1 else
+              f"{CONVENTION}; Hooke and elastic pillars, one row each")
     fig.suptitle(f"Fig. 3: contact pressure at ζ = 0.3 µm, "
-                 f"E_p = E_s = E_l = 1.6 MPa ({CONVENTION})", fontsize=11)
-    return save_figure(fig, path, dpi)
+                 f"E_p = E_s = E_l = 1.6 MPa ({models})", fontsize=11)
+    # Room for the suptitle above the first row's titles (about 0.5 in).
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, 1.0 - 0.5 / fig.get_size_inches()[1]))
+    return save_figure(fig, path, dpi, layout=False)
 
 
 # --- Fig. 4 -----------------------------------------------------------------------------
-def plot_fig4(curves: dict, area_rows: list[dict], path: Path, dpi: int = 120) -> Path:
+def plot_fig4(curves: dict, area_rows: dict, path: Path, dpi: int = 120) -> Path:
     """(a) sigma_0(Phi) at zeta = 0.3 um per E_p/E_l with the fitted master curves;
-    (b) A against pi a^2 at E_p = E_l per Phi, with A = Phi pi a^2."""
+    (b) A against pi a^2 at E_p = E_l per Phi, with A = Phi pi a^2.  ``curves`` and
+    ``area_rows`` per pillar model."""
     plt = _pyplot()
+    variants = list(curves)
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(14.5, 5.4),
                                  gridspec_kw={"width_ratios": [1.25, 1]})
-    colours = _ratio_colours(sorted(curves, reverse=True))
-    for ratio in sorted(curves, reverse=True):
-        c = curves[ratio]
-        ax.loglog(c["phi"], np.asarray(c["sigma0_Pa"]) * KPA, "o", ms=4,
-                  color=colours[ratio], label=_ratio_label(ratio))
-        phis = np.geomspace(min(c["phi"]), max(c["phi"]), 200)
-        ax.loglog(phis, np.asarray(c["master_Pa"](phis)) * KPA, "-", lw=1.0,
-                  color=colours[ratio])
+    ratios = sorted({r for v in variants for r in curves[v]}, reverse=True)
+    colours = _ratio_colours(ratios) if ratios else {}
+    for v in variants:
+        st = variant_style(v, variants)
+        for ratio in sorted(curves[v], reverse=True):
+            c = curves[v][ratio]
+            ax.loglog(c["phi"], np.asarray(c["sigma0_Pa"]) * KPA, "o", ms=4, mfc=st["mfc"],
+                      color=colours[ratio], alpha=st["alpha"],
+                      label=_ratio_label(ratio) + st["suffix"])
+            phis = np.geomspace(min(c["phi"]), max(c["phi"]), 200)
+            ax.loglog(phis, np.asarray(c["master_Pa"](phis)) * KPA, st["ls"],
+                      lw=1.0 * st["lw"], color=colours[ratio], alpha=st["alpha"])
     # Ten stiffness ratios: the legend goes beside the axes, clear of the curves.
     _dress(ax, "surface fraction Φ", "centre pressure σ₀ (kPa)",
            "(a) σ₀ at ζ = 0.3 µm; lines: master curve with fitted Φ_S, Φ_H", "upper left",
            bbox_to_anchor=(1.01, 1.0), frameon=False)
 
-    phis = sorted({r["phi"] for r in area_rows}, reverse=True)
+    phis = sorted({r["phi"] for v in variants for r in area_rows[v]}, reverse=True)
     cmap = plt.cm.rainbow
     for k, phi in enumerate(phis):
-        rows = sorted((r for r in area_rows if r["phi"] == phi), key=lambda r: r["zeta_m"])
-        apparent = np.array([math.pi * r["a_m"] ** 2 for r in rows]) * UM**2
-        real = np.array([r["A_m2"] for r in rows]) * UM**2
         colour = cmap(0.95 * k / max(1, len(phis) - 1))
-        bx.loglog(apparent, real, "o-", ms=3.5, lw=0.8, color=colour, label=f"Φ = {phi:g}")
-        # A = Phi pi a^2 where it exceeds one pillar top: the large-zeta asymptote.
-        start = max(apparent.min(), 0.8 * real.min() / phi)
-        if start < apparent.max():
-            line = np.geomspace(start, apparent.max(), 20)
-            bx.loglog(line, phi * line, "--", lw=0.8, color=colour)
+        for v in variants:
+            st = variant_style(v, variants)
+            rows = sorted((r for r in area_rows[v] if r["phi"] == phi),
+                          key=lambda r: r["zeta_m"])
+            if not rows:
+                continue
+            apparent = np.array([math.pi * r["a_m"] ** 2 for r in rows]) * UM**2
+            real = np.array([r["A_m2"] for r in rows]) * UM**2
+            bx.loglog(apparent, real, "o" + st["ls"], ms=3.5, lw=0.8 * st["lw"], color=colour,
+                      mfc=st["mfc"], alpha=st["alpha"], label=f"Φ = {phi:g}{st['suffix']}")
+            if v != variants[-1]:
+                continue
+            # A = Phi pi a^2 where it exceeds one pillar top: the large-zeta asymptote.
+            start = max(apparent.min(), 0.8 * real.min() / phi)
+            if start < apparent.max():
+                line = np.geomspace(start, apparent.max(), 20)
+                bx.loglog(line, phi * line, ":", lw=0.8, color=colour)
     _dress(bx, "apparent contact area π a² (µm²)", "real contact area A (µm²)",
-           "(b) E_p = E_l, ζ = 0.005-0.5 µm; dashed: A = Φ π a²", "upper left")
-    fig.suptitle(f"Fig. 4 ({CONVENTION})", fontsize=11)
+           "(b) E_p = E_l, ζ = 0.005-0.5 µm; dotted: A = Φ π a²",
+           "upper left" if len(variants) == 1 else "outside")
+    fig.suptitle(f"Fig. 4 ({convention(variants)})", fontsize=11)
     return save_figure(fig, path, dpi)
 
 
 # --- Fig. 5 -----------------------------------------------------------------------------
-def plot_fig5(rows: list[dict], closed_form, rigid_Pa: float, path: Path,
+def plot_fig5(rows: dict, closed_form, rigid_Pa: float, path: Path,
               dpi: int = 120) -> Path:
-    """sigma_0S against E_l/E_p at Phi = 2.3e-3 with eq. S0BvsE (``closed_form(x)``, Pa)."""
+    """sigma_0S against E_l/E_p at Phi = 2.3e-3 with eq. S0BvsE (``closed_form(x)``, Pa);
+    ``rows`` per pillar model."""
     plt = _pyplot()
+    variants = list(rows)
     fig, ax = plt.subplots(figsize=(7, 5))
-    x = np.array([r["El_over_Ep"] for r in rows])
-    y = np.array([r["sigma0_Pa"] for r in rows])
+    x = np.array([r["El_over_Ep"] for v in variants for r in rows[v]])
     line = np.geomspace(x.min() / 2, x.max() * 2, 300)
     ax.semilogx(line, closed_form(line) * KPA, "r-", lw=1.3, label="eq. S0BvsE (spring model)")
-    ax.semilogx(x, y * KPA, "ko", ms=5, label="exact BEM, one pillar")
+    for v in variants:
+        st = variant_style(v, variants)
+        xs = np.array([r["El_over_Ep"] for r in rows[v]])
+        ys = np.array([r["sigma0_Pa"] for r in rows[v]])
+        name = PILLAR_NAMES.get(v, v)
+        ax.semilogx(xs, ys * KPA, "o", color="k" if v == "hooke" else "tab:blue", ms=5,
+                    mfc=st["mfc"], label=f"exact BEM, one {name} pillar")
     ax.axhline(rigid_Pa * KPA, color="0.5", ls=":", lw=1,
                label="rigid punch, σ₀S(E_p → ∞)")
     _dress(ax, "E_l/E_p", "σ₀S (kPa)",
-           f"Fig. 5: single pillar, Φ = 2.3e-3, ζ = 0.3 µm ({CONVENTION})", "lower left")
+           f"Fig. 5: single pillar, Φ = 2.3e-3, ζ = 0.3 µm\n({convention(variants)})",
+           "lower left")
     return save_figure(fig, path, dpi)
 
 
 # --- Fig. 6 -----------------------------------------------------------------------------
-def plot_fig6(points: list[dict], area_exponent: float | None, path: Path,
-              dpi: int = 120) -> Path:
+def plot_fig6(points: dict, area_exponent: dict, path: Path, dpi: int = 120) -> Path:
     """(a) sigma_0* against Phi* with (1 + Phi*)^-3; (b) A* against Phi with Phi^0.7 (and
     our fitted exponent).  ``points``: dicts with ``zeta_m``, ``ratio``, ``phi``,
-    ``phi_star``, ``sigma_star``, ``area_star``."""
+    ``phi_star``, ``sigma_star``, ``area_star``; both arguments per pillar model (open
+    markers: Hooke pillars, when both are drawn)."""
     plt = _pyplot()
+    variants = list(points)
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(13, 5.2))
-    zetas = sorted({p["zeta_m"] for p in points})
+    zetas = sorted({p["zeta_m"] for v in variants for p in points[v]})
     norm = plt.Normalize(min(zetas) * UM, max(zetas) * UM)
     markers = {1e-3: "v", 1.0: "o", 1e6: "^"}
-    for ratio in sorted({p["ratio"] for p in points}):
-        sel = [p for p in points if p["ratio"] == ratio]
+    sc = None
+    for v, ratio in [(v, r) for v in variants
+                     for r in sorted({p["ratio"] for p in points[v]})]:
+        st = variant_style(v, variants)
+        sel = [p for p in points[v] if p["ratio"] == ratio]
         xs = np.array([p["phi_star"] for p in sel])
         ys = np.array([p["sigma_star"] for p in sel])
         cs = np.array([p["zeta_m"] for p in sel]) * UM
         keep = (xs > 0) & (ys > 0)
-        sc = ax.scatter(xs[keep], ys[keep], c=cs[keep], cmap="viridis", norm=norm, s=14,
-                        marker=markers.get(ratio, "s"), label=_ratio_label(ratio))
         a_star = np.array([p["area_star"] for p in sel])
         phis = np.array([p["phi"] for p in sel])
         keep_a = a_star > 0
-        bx.scatter(phis[keep_a], a_star[keep_a], c=cs[keep_a], cmap="viridis", norm=norm, s=14,
-                   marker=markers.get(ratio, "s"), label=_ratio_label(ratio))
+        for axis, xv, yv, k in ((ax, xs, ys, keep), (bx, phis, a_star, keep_a)):
+            colours = plt.cm.viridis(norm(cs[k]))
+            kw = ({"facecolors": "none", "edgecolors": colours} if st["mfc"] == "none"
+                  else {"c": colours})
+            sc = axis.scatter(xv[k], yv[k], s=14, marker=markers.get(ratio, "s"),
+                              label=_ratio_label(ratio) + st["suffix"], **kw)
     line = np.geomspace(1e-2, 10, 200)
     ax.loglog(line, (1 + line) ** -3, "k-", lw=1.3, label="(1 + Φ*)⁻³ (paper)")
     ax.set_xlim(1e-2, 10)
     ax.set_ylim(1e-3, 2)
     _dress(ax, "Φ* = (Φ - Φ_S)/Φ_H", "σ₀* = (σ₀ - σ₀H)/(σ₀S - σ₀H)",
            "(a) reduced centre pressure (points with Φ* > 0, σ₀* > 0)", "lower left")
-    fig.colorbar(sc, ax=ax, label="ζ (µm)")
+    from matplotlib import cm
+
+    fig.colorbar(cm.ScalarMappable(norm, "viridis"), ax=ax, label="ζ (µm)")
     lphi = np.geomspace(1e-3, 1, 100)
     bx.loglog(lphi, lphi**0.7, "k-", lw=1.3, label="Φ^0.7 (paper)")
-    if area_exponent is not None:
-        bx.loglog(lphi, lphi**area_exponent, "k--", lw=1.0,
-                  label=f"Φ^{area_exponent:.2f} (fitted)")
+    for v in variants:
+        m = area_exponent.get(v)
+        if m is not None:
+            st = variant_style(v, variants)
+            bx.loglog(lphi, lphi**m, ":" if v == "hooke" and len(variants) > 1 else "--",
+                      color="k", lw=1.0, label=f"Φ^{m:.2f} (fitted{st['suffix']})")
     _dress(bx, "surface fraction Φ", "A* = (A - A_S)/(A_H - A_S)",
            "(b) reduced real contact area (points with A* > 0)", "lower right")
-    fig.suptitle(f"Fig. 6: master curves, ζ = 0.05-0.5 µm ({CONVENTION})",
+    fig.suptitle(f"Fig. 6: master curves, ζ = 0.05-0.5 µm ({convention(variants)})",
                  fontsize=11)
     return save_figure(fig, path, dpi)
 
 
 # --- Figs. 7 and 8 ----------------------------------------------------------------------
-def plot_fig7(t: dict, path: Path, dpi: int = 120) -> Path:
-    """(a) Phi_S and (b) Phi_H against zeta/h: fitted, exact and closed-form."""
+def _faint(st: dict) -> dict:
+    """Figs. 7-8 encode E_p/E_l in the line style: a second pillar model is drawn faint and
+    thin (with open markers) rather than dashed."""
+    return {"alpha": st["alpha"], "lw": st["lw"]}
+
+
+def _threshold_series(thresholds: dict):
+    """(pillars, thresholds, style, E_p/E_l, its line style, fitted curves, exact Phi_S) for
+    each pillar model and stiffness ratio that has fitted curves, sorted in zeta/h."""
+    variants = list(thresholds)
+    for v in variants:
+        t, st = thresholds[v], variant_style(v, variants)
+        for ratio, style in RATIO_STYLES.items():
+            rows = sorted((r for r in t["curves"] if r["ratio"] == ratio),
+                          key=lambda r: r["zeta_h"])
+            exact = sorted((r for r in t["exact"] if r["ratio"] == ratio),
+                           key=lambda r: r["zeta_h"])
+            if rows:
+                yield v, t, st, ratio, style, rows, exact
+
+
+def plot_fig7(thresholds: dict, path: Path, dpi: int = 120) -> Path:
+    """(a) Phi_S and (b) Phi_H against zeta/h: fitted, exact and closed-form; ``thresholds``
+    per pillar model (the study's ``thresholds`` document)."""
     plt = _pyplot()
+    variants = list(thresholds)
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(13, 5.2))
-    for ratio, style in RATIO_STYLES.items():
-        rows = sorted((r for r in t["curves"] if r["ratio"] == ratio), key=lambda r: r["zeta_h"])
-        exact = sorted((r for r in t["exact"] if r["ratio"] == ratio), key=lambda r: r["zeta_h"])
-        if not rows:
-            continue
+    for v, t, st, ratio, style, rows, exact in _threshold_series(thresholds):
+        f = _faint(st)
         z = np.array([r["zeta_h"] for r in rows])
+        open_ = ratio != 1.0 or st["mfc"] == "none"
         ax.loglog(z, [r["phi_s_fit"] for r in rows], "o", color="tab:blue", ms=4,
-                  mfc="none" if ratio != 1.0 else "tab:blue")
-        ax.loglog([r["zeta_h"] for r in exact], [r["phi_s"] for r in exact], style, color="k",
-                  lw=1.2, label=f"exact (bisection), {_ratio_label(ratio)}")
-        ax.loglog([r["zeta_h"] for r in exact], [r["phi_s_paper"] for r in exact], style,
-                  color="tab:brown", lw=1.0)
-        bx.semilogx(z, [r["phi_h_fit"] for r in rows], "o" + style, color="tab:purple", ms=4,
-                    lw=1.0, label=f"fitted, {_ratio_label(ratio)}")
+                  mfc="none" if open_ else "tab:blue", alpha=f["alpha"])
+        ax.loglog([r["zeta_h"] for r in exact], [r["phi_s"] for r in exact], style,
+                  color="k", lw=1.2 * f["lw"], alpha=f["alpha"],
+                  label=f"exact (bisection), {_ratio_label(ratio)}{st['suffix']}")
+        if v == variants[-1]:
+            ax.loglog([r["zeta_h"] for r in exact], [r["phi_s_paper"] for r in exact],
+                      style, color="tab:brown", lw=1.0)
+        bx.semilogx(z, [r["phi_h_fit"] for r in rows], "o" + style, color="tab:purple",
+                    ms=4, lw=1.0 * f["lw"], alpha=f["alpha"], mfc=st["mfc"],
+                    label=f"fitted, {_ratio_label(ratio)}{st['suffix']}")
         band = [(r["zeta_h"], r["phi_h_band"]) for r in rows if r["phi_h_band"] is not None]
         if band:
-            bx.semilogx(*zip(*band), "s" + style, color="tab:green", ms=3.5, lw=0.9,
-                        label=f"within {t['band']:.0%} of Hertz, {_ratio_label(ratio)}")
+            bx.semilogx(*zip(*band), "s" + style, color="tab:green", ms=3.5,
+                        lw=0.9 * f["lw"], alpha=f["alpha"], mfc=st["mfc"],
+                        label=f"within {t['band']:.0%} of Hertz, "
+                              f"{_ratio_label(ratio)}{st['suffix']}")
+    t = thresholds[variants[-1]]
     ax.plot([], [], "o", color="tab:blue", ms=4, label="fitted (master curve); open: "
-            "E_p/E_l = 10⁻³, 10⁶")
+            "E_p/E_l = 10⁻³, 10⁶" + (", Hooke" if len(variants) > 1 else ""))
     ax.plot([], [], "-", color="tab:brown", label="eqs. rSzeta, PhiSrS (paper)")
     zl = np.array(t["large_zeta"]["zeta_h"])
     ax.loglog(zl, t["large_zeta"]["phi_s"], "r:", lw=1.6,
               label="large-ζ limit π d²/(4√3 R ζ)")
-    _dress(ax, "ζ/h", "Φ_S", "(a) single-pillar threshold Φ_S", "upper right")
+    _dress(ax, "ζ/h", "Φ_S", "(a) single-pillar threshold Φ_S",
+           "upper right" if len(variants) == 1 else "outside")
     _dress(bx, "ζ/h", "Φ_H", "(b) Hertz threshold Φ_H", "outside")
-    fig.suptitle(f"Fig. 7: thresholds against the reduced indentation ({CONVENTION})",
-                 fontsize=11)
+    fig.suptitle(f"Fig. 7: thresholds against the reduced indentation\n"
+                 f"({_fig78_convention(variants)})", fontsize=11)
     return save_figure(fig, path, dpi)
 
 
-def plot_fig8(t: dict, path: Path, dpi: int = 120) -> Path:
-    """Phase diagram in (Phi, zeta/h): Hertz beyond Phi_H, one pillar below Phi_S."""
+def _fig78_convention(variants) -> str:
+    variants = list(variants)
+    if len(variants) == 1:
+        return convention(variants)
+    return f"{CONVENTION}; pillars: Hooke faint/thin, elastic bold"
+
+
+def plot_fig8(thresholds: dict, path: Path, dpi: int = 120) -> Path:
+    """Phase diagram in (Phi, zeta/h): Hertz beyond Phi_H, one pillar below Phi_S;
+    ``thresholds`` per pillar model."""
     plt = _pyplot()
+    variants = list(thresholds)
     fig, ax = plt.subplots(figsize=(11, 6))
-    for ratio, style in RATIO_STYLES.items():
-        rows = sorted((r for r in t["curves"] if r["ratio"] == ratio), key=lambda r: r["zeta_h"])
-        exact = sorted((r for r in t["exact"] if r["ratio"] == ratio), key=lambda r: r["zeta_h"])
-        if not rows:
-            continue
+    for v, t, st, ratio, style, rows, exact in _threshold_series(thresholds):
+        f = _faint(st)
         z = [r["zeta_h"] for r in rows]
-        ax.semilogx([r["phi_h_fit"] for r in rows], z, style, color="darkviolet", lw=1.6,
-                    label=f"Φ_H (fit), {_ratio_label(ratio)}")
-        ax.semilogx([r["phi_s_fit"] for r in rows], z, style, color="deepskyblue", lw=1.6,
-                    label=f"Φ_S (fit), {_ratio_label(ratio)}")
+        ax.semilogx([r["phi_h_fit"] for r in rows], z, style, color="darkviolet",
+                    lw=1.6 * f["lw"], alpha=f["alpha"],
+                    label=f"Φ_H (fit), {_ratio_label(ratio)}{st['suffix']}")
+        ax.semilogx([r["phi_s_fit"] for r in rows], z, style, color="deepskyblue",
+                    lw=1.6 * f["lw"], alpha=f["alpha"],
+                    label=f"Φ_S (fit), {_ratio_label(ratio)}{st['suffix']}")
         ax.semilogx([r["phi_s"] for r in exact], [r["zeta_h"] for r in exact], style,
-                    color="k", lw=0.9, label=f"Φ_S (exact), {_ratio_label(ratio)}")
-        ax.semilogx([r["phi_s_paper"] for r in exact], [r["zeta_h"] for r in exact], style,
-                    color="tab:brown", lw=1.0)
-        ax.axhline(t["zeta_t_over_h"][str(ratio)], color="0.6", ls=style, lw=0.8)
+                    color="k", lw=0.9 * f["lw"], alpha=f["alpha"],
+                    label=f"Φ_S (exact), {_ratio_label(ratio)}{st['suffix']}")
+        if v == variants[-1]:
+            ax.semilogx([r["phi_s_paper"] for r in exact], [r["zeta_h"] for r in exact],
+                        style, color="tab:brown", lw=1.0)
+            ax.axhline(t["zeta_t_over_h"][str(ratio)], color="0.6", ls=style, lw=0.8)
+    t = thresholds[variants[-1]]
     ax.plot([], [], color="tab:brown", label="eqs. rSzeta, PhiSrS")
     ax.plot([], [], color="0.6", label="ζ_T/h (Hertz σ₀ = single-pillar σ₀)")
     zl = np.array(t["large_zeta"]["zeta_h"])
@@ -288,6 +392,7 @@ def plot_fig8(t: dict, path: Path, dpi: int = 120) -> Path:
     ax.text(0.55, 0.5 * max(zl), "Hertz", ha="center", fontsize=12, color="darkviolet")
     ax.text(1.6e-3, 0.6 * max(zl), "one pillar\n(SFP)", ha="left", fontsize=11,
             color="deepskyblue")
-    _dress(ax, "surface fraction Φ", "ζ/h", f"Fig. 8: contact regimes ({CONVENTION})",
+    _dress(ax, "surface fraction Φ", "ζ/h",
+           f"Fig. 8: contact regimes ({_fig78_convention(variants)})",
            "upper left", bbox_to_anchor=(1.02, 1.0), frameon=False)
     return save_figure(fig, path, dpi)

@@ -10,7 +10,9 @@ import numpy as np
 
 from outcome import write_atomic
 
+from .claims import verdict
 from .fits import PAPER_AREA_EXPONENT, PAPER_EXPONENT
+from .plots import PILLAR_NAMES
 
 __all__ = ["write_report"]
 
@@ -45,6 +47,12 @@ def _star_at(curve: dict, phi: float) -> float:
 
 
 def _table(doc: dict) -> list[str]:
+    rows = ["| quantity | paper | ours | difference | note |", "|---|---|---|---|---|"]
+    return rows + [f"| {' | '.join(r)} |" for r in _table_rows(doc)]
+
+
+def _table_rows(doc: dict) -> list[tuple[str, str, str, str, str]]:
+    """(quantity, paper, ours, difference, note) per row of the table."""
     f3 = {("sparse" if p["phi"] < 0.5 else "dense"): p for p in doc["fig3"] if p.get("ok")}
     t = doc["thresholds"]
     at03 = [c for c in doc["fig4a_curves"]]
@@ -53,10 +61,10 @@ def _table(doc: dict) -> list[str]:
     soft = min(at03, key=lambda c: c["ratio"])
     exact03 = [e for e in t["exact"] if abs(e["zeta_um"] - 0.3) < 1e-9]
     zt = list(t["zeta_t_over_h"].values())
-    rows = ["| quantity | paper | ours | difference | note |", "|---|---|---|---|---|"]
+    rows = []
 
     def add(q, paper, ours, diff, note=""):
-        rows.append(f"| {q} | {paper} | {ours} | {diff} | {note} |")
+        rows.append((q, paper, ours, diff, note))
 
     for key, name in (("sparse", "Fig. 3a, Phi = 0.03"), ("dense", "Fig. 3b, Phi = 0.82")):
         p = f3.get(key)
@@ -198,25 +206,85 @@ def _not_reproduced(doc: dict) -> list[str]:
     soft = [c for c in t["curves"] if c["band_stays"] is False]
     if soft:
         worst = min(soft, key=lambda c: c["band_lowest"])
+        hooke = doc.get("pillars", "hooke") == "hooke"
+        layer = "the Hooke layer's" if hooke else "the pillar layer's"
+        why = ("the pillars add 4h/(pi d E_p) of compliance in series" if hooke else
+               "the elastic pillars add their own compliance in series")
         out.append(
-            f"- **Hertz above Phi_H** holds for the centre pressure only within the Hooke "
-            f"layer's own compliance: on {len(soft)} of {len(t['curves'])} curves sigma_0 "
+            f"- **Hertz above Phi_H** holds for the centre pressure only within {layer} "
+            f"own compliance: on {len(soft)} of {len(t['curves'])} curves sigma_0 "
             f"falls below (1 - {t['band']:.0%}) sigma_0H at large Phi (down to "
             f"{worst['band_lowest']:.2f} sigma_0H at E_p/E_l = {worst['ratio']:g}, "
-            f"zeta = {worst['zeta_um']:g} um): the pillars add 4h/(pi d E_p) of compliance "
-            f"in series, which the Hertz value of eq. S0Hertz ignores, so sigma_0* < 0 there.")
+            f"zeta = {worst['zeta_um']:g} um): {why}, which the Hertz value of eq. S0Hertz "
+            f"ignores, so sigma_0* < 0 there.")
     return out
 
 
+def _merged_table(docs: dict) -> list[str]:
+    """The paper's numbers beside each pillar model's: one row per quantity, the value and
+    the difference from the paper per model ("-" where a model has no such row)."""
+    parsed = {}
+    order = []
+    for v, doc in docs.items():
+        for cells in _table_rows(doc):
+            q = cells[0]
+            if q not in order:
+                order.append(q)
+            parsed.setdefault(q, {})[v] = cells
+    names = [PILLAR_NAMES.get(v, v) for v in docs]
+    head = ["quantity", "paper"] + [x for n in names for x in (f"ours, {n} pillars",
+                                                               "difference")] + ["note"]
+    rows = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for q in order:
+        got = parsed[q]
+        any_ = next(iter(got.values()))
+        # A "paper" cell that is a model's own number (the radius search of Fig. 3b) goes
+        # with that model's column.
+        own = len({c[1] for c in got.values()}) > 1
+        cells = [q, "per model" if own else any_[1]]
+        for v in docs:
+            c = got.get(v)
+            cells += ([f"{c[2]} vs {c[1]}" if own else c[2], c[3]] if c else ["-", "-"])
+        notes = {v: c[4] for v, c in got.items()}
+        cells.append(any_[4] if len(set(notes.values())) == 1 else "; ".join(
+            f"{PILLAR_NAMES.get(v, v)}: {n}" for v, n in notes.items() if n))
+        rows.append("| " + " | ".join(cells) + " |")
+    return rows
+
+
+def _claims_table(claims: list[dict], variants) -> list[str]:
+    names = [PILLAR_NAMES.get(v, v) for v in variants]
+    head = ["figure", "the paper's claim", "criterion"] + \
+        [x for n in names for x in (f"{n} pillars", "holds")]
+    rows = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for c in claims:
+        cells = [c["figure"], c["claim"], c["criterion"]]
+        for v in variants:
+            cells += [c[v]["value"], f"**{verdict(c[v]['holds'])}**"]
+        rows.append("| " + " | ".join(cells) + " |")
+    return rows
+
+
 def write_report(out: Path, doc: dict) -> list[Path]:
-    """Write ``figures.md`` from the study's document; returns its path."""
-    g, timing = doc["grid"], doc.get("timing", {})
+    """Write ``figures.md`` from the study's document (one pillar model's, or ``variants``
+    with one per model); returns its path."""
+    docs = doc["variants"] if "variants" in doc else {doc.get("pillars", "hooke"): doc}
+    variants = list(docs)
+    first = docs[variants[0]]
+    g, timing = first["grid"], doc.get("timing", {})
+    names = " and ".join(f"{PILLAR_NAMES.get(v, v)}" for v in variants)
+    several = len(variants) > 1
     lines = [
         "# The paper's Figs. 3-8, reproduced",
         "",
-        f"Model `{doc['model']}` with {doc['options']} for Figs. 4-8; Fig. 3's maps at "
-        f"elements_per_diameter = {g['map_elements_per_diameter']}. Table 1 parameters with "
-        f"the paper's convention E_s = E_p. Grid `{g['name']}`: {len(g['phis'])} Phi from "
+        f"Model `{first['model']}` with {doc['options'] if several else first['options']} "
+        f"for Figs. 4-8 and {names} pillars"
+        + (" (the Hooke pillar is the paper's uniformly shortening spring, the elastic one the "
+           "whole pillar's top compliance: PHYSICS.md, \"The elastic-pillar BEM\")"
+           if several or variants != ["hooke"] else "")
+        + f"; Fig. 3's maps at elements_per_diameter = {g['map_elements_per_diameter']}. "
+        f"Table 1 parameters with the paper's convention E_s = E_p (the default). Grid "
+        f"`{g['name']}`: {len(g['phis'])} Phi from "
         f"{min(g['phis']):g} to {max(g['phis']):g}, zeta = {min(g['zetas_um']):g}-"
         f"{max(g['zetas_um']):g} um ({len(g['zetas_um'])} values), E_p/E_l = "
         f"{', '.join(f'{r:g}' for r in g['ratios'])} (Figs. 6-8) and "
@@ -226,31 +294,52 @@ def write_report(out: Path, doc: dict) -> list[Path]:
         "Phi_S and Phi_H are fitted with sigma_0* = (1 + Phi*)^-3 (least squares in "
         "sigma_0*). The exact Phi_S is the largest Phi with one pillar in contact, bisected "
         f"on the dense BEM at P = {g['threshold_elements_per_diameter']} "
-        f"({g['threshold_steps']} halvings in log Phi). The Hertz threshold of the toolkit is "
-        f"where sigma_0 first comes within {doc['thresholds']['band']:.0%} of sigma_0H: ten "
+        f"({g['threshold_steps']} halvings in log Phi)"
+        + (", with each pillar model" if several else "")
+        + ". The Hertz threshold of the toolkit is "
+        f"where sigma_0 first comes within {first['thresholds']['band']:.0%} of sigma_0H: ten "
         "times the figures' 1 % tolerance, so that no threshold is a discretisation artefact, "
         "and wider than the 4 % by which the paper calls its Phi = 0.82 scene \"very close\" "
         "to Hertz.",
         "",
         "## The paper's numbers and ours",
         "",
-        *_table(doc),
+        *(_merged_table(docs) if several else _table(first)),
         "",
-        "## What the exact contact solver does not reproduce, and why",
+        "## The paper's claims, " + ("with Hooke and with elastic pillars" if several
+                                     else f"with {names} pillars"),
         "",
-        *_not_reproduced(doc),
+        "Each claim of Figs. 4-8 checked by the criterion beside it (the tolerances are "
+        "explained in validation/studies/figures/claims.py); **yes**: the claim holds on our "
+        "figures with that pillar model, **no**: it does not, undecided: the data cannot tell. "
+        "The same lines are in claims.csv.",
         "",
+        *_claims_table(doc.get("claims", []), variants),
+        "",
+    ]
+    for v in variants:
+        lines += ["## What the exact contact solver does not reproduce, and why"
+                  + (f" ({PILLAR_NAMES.get(v, v)} pillars)" if several else ""), "",
+                  *_not_reproduced(docs[v]), ""]
+    extra = ""
+    if timing.get("pillar_kinds"):
+        extra = (f" Elastic pillars: {timing['pillar_kinds']} pillar kind(s), "
+                 f"{timing.get('pillar_kinds_built', 0)} built now, the rest read from the "
+                 f"disk cache ({timing.get('pillar_compliance_s', 0.0):.1f} s).")
+    lines += [
         "## Run",
         "",
         f"{timing.get('unique_cases', '?')} scenes ({timing.get('cases_computed', '?')} "
         f"computed, the rest cached) and {timing.get('threshold_solves', '?')} bisection "
         f"solves in {timing.get('total_s', math.nan):.1f} s on "
-        f"{timing.get('executor', '?')} ({timing.get('workers') or 'default'} workers).",
+        f"{timing.get('executor', '?')} ({timing.get('workers') or 'default'} workers)."
+        + extra,
     ]
     if doc.get("failed"):
         lines += ["", f"**{len(doc['failed'])} case(s) failed or did not converge**: "
                   + "; ".join(f"Phi = {f['phi']:g}, zeta = {f['zeta_m'] * 1e6:g} um, "
-                              f"E_p/E_l = {f['ratio']:g}: {f['status']}" for f in
-                              doc["failed"][:10])]
+                              f"E_p/E_l = {f['ratio']:g}"
+                              + (f" ({f['pillars']} pillars)" if "pillars" in f else "")
+                              + f": {f['status']}" for f in doc["failed"][:10])]
     path = write_atomic(Path(out) / "figures.md", "\n".join(lines) + "\n")
     return [path]

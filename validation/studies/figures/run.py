@@ -7,6 +7,11 @@ fitted (:mod:`.fits`), and each figure is written as a PNG with the CSV of its d
 (:mod:`.plots`), beside ``figures.json`` (every number), ``figures.md`` (the paper's
 numbers beside ours, :mod:`.report`) and ``timing.json``.
 
+``pillars = "elastic"`` or ``"both"`` runs the scenes and the bisection with the elastic-pillar
+BEM as well (the model's option ``pillars``; Hooke cases keep today's options and keys).
+Every elastic scene of the figures has E_s = E_p and Table 1's h/d and nu: one pillar kind,
+whose compliance is built (or read from the disk cache) once before the batch.
+
 How the paper's thresholds are fitted here: for each (zeta, E_p/E_l), sigma_0H is the Hertz
 value of eq. S0Hertz and sigma_0S the solver's own single-pillar plateau (sigma_0 at the
 smallest Phi, where one pillar touches and sigma_0 no longer depends on Phi: the paper takes
@@ -39,7 +44,7 @@ from .scenes import (FIG3_ZETA_UM, FigureGrid, expected_pillars, figure_sweeps,
 from .scenes import in_um as _um
 from .thresholds import analytic_thresholds, bisect_single_pillar
 
-__all__ = ["DENSE_MODELS", "HERTZ_BAND", "run_figures"]
+__all__ = ["DENSE_MODELS", "HERTZ_BAND", "pillar_variants", "run_figures", "variant_options"]
 
 # The maps of Fig. 3 are drawn from the dense model's elements.
 DENSE_MODELS = ("bem", "bem-richardson")
@@ -69,8 +74,8 @@ def _row(sweep_case, outcome) -> dict:
     return row
 
 
-def _run_batch(sweeps: dict, engine: Engine, folder: Path, extra: list[Case]):
-    """Every case of every sweep (Fig. 3's with their arrays) and ``extra``, in one batch."""
+def _listed(sweeps: dict) -> dict:
+    """Every case of every sweep, Fig. 3's with their arrays."""
     import dataclasses
 
     listed = {}
@@ -80,12 +85,7 @@ def _run_batch(sweeps: dict, engine: Engine, folder: Path, extra: list[Case]):
             cases = [dataclasses.replace(c, case=dataclasses.replace(c.case, fields=True))
                      for c in cases]
         listed[name] = cases
-    batch = [c.case for cs in listed.values() for c in cs] + list(extra)
-    batch.sort(key=lambda c: -expected_pillars(c.scene))
-    outcomes = engine.run(batch, folder, label="figures")
-    by_key = {case.key: o for case, o in zip(batch, outcomes)}
-    pairs = {name: [(c, by_key[c.case.key]) for c in cs] for name, cs in listed.items()}
-    return pairs, [by_key[c.key] for c in extra]
+    return listed
 
 
 def _curve_fit(rows: list[dict], zeta_um: float, ratio: float, band: float) -> dict:
@@ -127,16 +127,62 @@ def _curves(rows: list[dict], band: float) -> list[dict]:
     return out
 
 
+def pillar_variants(pillars) -> tuple[str, ...]:
+    """The pillar models of a figures run: ``"hooke"`` (default), ``"elastic"``, ``"both"``
+    (or a comma list / sequence), in the declaration's order.  InputError (one line naming
+    --pillars, the value and the allowed values) otherwise."""
+    from ..compare import pillar_models
+
+    return pillar_models(pillars)
+
+
+def variant_options(options: dict, pillars: str) -> dict:
+    """The model's options for one pillar model.  Hooke pillars add nothing (the model's
+    default): the default run's case keys, hence its cache, are today's."""
+    return dict(options) if pillars == "hooke" else {**options, "pillars": pillars}
+
+
+def _pillar_kinds(batch: list[Case]) -> list:
+    """The distinct pillar kinds (h/d, E_p/E_s, nu_p, nu_s) of the elastic-pillar cases."""
+    from fem_reference import PillarKind
+
+    from bem_solver._elastic_pillar import uses_elastic_block
+
+    kinds = {}
+    for c in batch:
+        if uses_elastic_block(c.scene, c.options.get("pillars", "hooke")):
+            kinds.setdefault(PillarKind.of_scene(c.scene), c.scene)
+    return list(kinds.items())
+
+
+def _build_compliances(batch: list[Case]) -> dict:
+    """Build (or read from the disk cache) each pillar kind's compliance once, here, before
+    the batch: the workers then read it from the cache instead of racing to build it."""
+    from bem_solver._elastic_pillar import scene_compliance
+
+    t0 = time.perf_counter()
+    kinds = _pillar_kinds(batch)
+    built = []
+    for kind, scene in kinds:
+        c = scene_compliance(scene)
+        built.append({"height_over_diameter": kind.height_over_diameter,
+                      "modulus_ratio": kind.modulus_ratio, "nu_pillar": kind.nu_pillar,
+                      "nu_substrate": kind.nu_substrate,
+                      "cached": bool(c.diagnostics.get("cached"))})
+    return {"pillar_kinds": len(kinds), "pillar_kinds_built": sum(not b["cached"] for b in built),
+            "pillar_compliance_s": time.perf_counter() - t0, "kinds": built}
+
+
 def run_figures(out: Path, grid: FigureGrid | None = None, *, model: str = "bem-richardson",
                 options: dict | None = None, engine: Engine | None = None,
-                band: float = HERTZ_BAND) -> dict:
+                band: float = HERTZ_BAND, pillars="hooke") -> dict:
     """Solve every scene of the figures, fit, plot and report into ``out``.
 
     Parameters
     ----------
     out : Path
-        Folder for the PNGs, CSVs, ``figures.json``, ``figures.md``, ``timing.json`` and the
-        case cache ``cases/``.
+        Folder for the PNGs, CSVs, ``figures.json``, ``figures.md``, ``claims.csv``,
+        ``timing.json`` and the case cache ``cases/``.
     grid : FigureGrid
         The swept values (default :meth:`FigureGrid.full`).
     model, options : str, dict
@@ -145,39 +191,66 @@ def run_figures(out: Path, grid: FigureGrid | None = None, *, model: str = "bem-
         Where the cases run (default: serial).
     band : float
         Relative band of the Hertz threshold (module docstring).
+    pillars : str
+        ``"hooke"`` (the paper's spring, default), ``"elastic"`` (the elastic-pillar BEM) or
+        ``"both"``: every scene and the bisection with each, one batch on the engine, drawn on
+        the same axes and checked claim by claim in ``figures.md`` (:mod:`.claims`).
 
     Returns
     -------
     dict
-        Everything written to ``figures.json``, plus ``paths`` (the files written).
+        Everything written to ``figures.json``, plus ``paths`` (the files written).  One
+        pillar model: the variant's document (``pillars`` names it); several: ``variants``
+        (one such document per pillar model) beside ``pillars``, ``claims``, ``timing``.
     """
+    from .claims import claim_rows, write_claims_csv
     from .report import write_report
 
     t_start = time.perf_counter()
     out = Path(out)
+    variants = pillar_variants(pillars)
     grid = grid or FigureGrid.full()
     options = {"elements_per_diameter": grid.elements_per_diameter, **(options or {})}
     own = engine is None
     engine = engine or Engine("serial")
     timing = {}
     try:
-        sweeps = figure_sweeps(grid, model, options)
-        dense = next(c.scene for c in sweeps["fig3"].cases()[0]
-                     if c.scene.pillars.surface_fraction > 0.5)
-        search_p = grid.search_elements_per_diameter
-        extra = [Case("bem", dense, {"elements_per_diameter": search_p, "contact": c},
-                      tag=f"Fig. 3b, {c} contact") for c in ("exact", "paper")]
+        listed, extras = {}, {}
+        for v in variants:
+            sweeps = figure_sweeps(grid, model, variant_options(options, v))
+            dense = next(c.scene for c in sweeps["fig3"].cases()[0]
+                         if c.scene.pillars.surface_fraction > 0.5)
+            search = variant_options({"elements_per_diameter":
+                                      grid.search_elements_per_diameter}, v)
+            extras[v] = [Case("bem", dense, {**search, "contact": c},
+                              tag=f"Fig. 3b, {c} contact, {v} pillars")
+                         for c in ("exact", "paper")]
+            listed[v] = _listed(sweeps)
+        batch = [c.case for v in variants for cs in listed[v].values() for c in cs] + \
+            [c for v in variants for c in extras[v]]
         t0 = time.perf_counter()
-        pairs, extra_out = _run_batch(sweeps, engine, out / "cases", extra)
+        if "elastic" in variants:
+            timing.update(_build_compliances(batch))
+        batch.sort(key=lambda c: -expected_pillars(c.scene))
+        outcomes = engine.run(batch, out / "cases", label="figures")
+        by_key = {case.key: o for case, o in zip(batch, outcomes)}
         timing["scenes_s"] = time.perf_counter() - t0
-        rows = {name: [_row(c, o) for c, o in p] for name, p in pairs.items()}
+        pairs = {v: {name: [(c, by_key[c.case.key]) for c in cs]
+                     for name, cs in listed[v].items()} for v in variants}
+        extra_out = {v: [by_key[c.key] for c in extras[v]] for v in variants}
+        rows = {v: {name: [_row(c, o) for c, o in p] for name, p in pairs[v].items()}
+                for v in variants}
 
         t0 = time.perf_counter()
-        points = sorted({(_um(r["zeta_m"]), r["ratio"]) for r in rows["master"]}
-                        | {(z, ratio) for z in grid.threshold_extra_zetas_um
-                           for ratio in grid.ratios})
-        exact = bisect_single_pillar(points, engine, out / "cases",
-                                     grid.threshold_elements_per_diameter, grid.threshold_steps)
+        exact = {}
+        for v in variants:
+            points = sorted({(_um(r["zeta_m"]), r["ratio"]) for r in rows[v]["master"]}
+                            | {(z, ratio) for z in grid.threshold_extra_zetas_um
+                               for ratio in grid.ratios})
+            exact[v] = bisect_single_pillar(points, engine, out / "cases",
+                                            grid.threshold_elements_per_diameter,
+                                            grid.threshold_steps,
+                                            options=variant_options({}, v))
         timing["threshold_bisection_s"] = time.perf_counter() - t0
     finally:
         if own:
@@ -187,22 +260,38 @@ def run_figures(out: Path, grid: FigureGrid | None = None, *, model: str = "bem-
     # One BLAS thread: the fits' small SVDs are 100x slower when OpenBLAS threads spin on a
     # loaded machine (measured: 0.5 s for a 600 x 61 Jacobian).
     with threadpool_limits(limits=1, user_api="blas"):
-        doc = _analyse(grid, model, options, rows, pairs, extra_out, exact, band)
-        doc["paths"] = [str(p) for p in write_figures(out, doc, pairs)]
+        docs = {v: _analyse(grid, model, variant_options(options, v), rows[v], pairs[v],
+                            extra_out[v], exact[v], band) for v in variants}
+        for v in variants:
+            docs[v]["pillars"] = v
+        paths = [str(p) for p in write_figures(out, docs, pairs)]
     timing["analysis_and_plots_s"] = time.perf_counter() - t0
-    computed = [o for p in pairs.values() for _, o in p if o.ok and not o.cached]
+    computed = [o for v in variants for p in pairs[v].values() for _, o in p
+                if o.ok and not o.cached]
     timing.update({
         "total_s": time.perf_counter() - t_start,
-        "cases": sum(len(p) for p in pairs.values()),
-        "unique_cases": len({c.case.key for p in pairs.values() for c, _ in p}),
+        "pillars": list(variants),
+        "cases": sum(len(p) for v in variants for p in pairs[v].values()),
+        "unique_cases": len({c.case.key for v in variants for p in pairs[v].values()
+                             for c, _ in p}),
         "cases_computed": len({o.case.key for o in computed}),
-        "threshold_solves": sum(e["solves"] for e in exact),
+        "threshold_solves": sum(e["solves"] for v in variants for e in exact[v]),
         "case_wall_time_sum_s": float(sum(o.timing.get("wall_time_s", 0.0) for o in computed)),
         "executor": engine.describe(), "workers": engine.workers,
     })
+    if len(variants) == 1:
+        doc = docs[variants[0]]
+    else:
+        first = docs[variants[0]]
+        doc = {"pillars": list(variants), "grid": first["grid"], "model": model,
+               "options": options, "variants": docs,
+               "failed": [{**f, "pillars": v} for v in variants for f in docs[v]["failed"]]}
+    doc["claims"] = claim_rows(docs)
     doc["timing"] = timing
+    doc["paths"] = paths
     write_atomic(out / "timing.json", json.dumps(timing, indent=2) + "\n")
     doc["paths"] += [str(out / "timing.json")]
+    doc["paths"] += [str(write_claims_csv(out, doc["claims"], variants))]
     doc["paths"] += [str(p) for p in write_report(out, doc)]
     write_atomic(out / "figures.json", json.dumps(doc, indent=1, default=float) + "\n")
     return doc

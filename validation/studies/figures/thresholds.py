@@ -102,13 +102,15 @@ def _one_pillar(outcome) -> bool:
 
 
 def bisect_single_pillar(points: list[tuple[float, float]], engine: Engine, folder,
-                         elements_per_diameter: int, steps: int) -> list[dict]:
+                         elements_per_diameter: int, steps: int,
+                         options: dict | None = None) -> list[dict]:
     """Largest Phi with one pillar in contact at each (zeta_um, ratio) of ``points``.
 
     Each bracket [lo, hi] (one pillar at lo, more at hi) starts around the rim-corrected
     closed form and is halved ``steps`` times in log Phi; the answer is its geometric middle,
-    uncertain by the returned ``rel_halfwidth``.  Returns one dict per point: ``phi_s``,
-    ``lo``, ``hi``, ``rel_halfwidth``, ``solves``.
+    uncertain by the returned ``rel_halfwidth``.  ``options``: the dense BEM's other options
+    (``{"pillars": "elastic"}`` bisects with elastic pillars).  Returns one dict per point:
+    ``phi_s``, ``lo``, ``hi``, ``rel_halfwidth``, ``solves``.
     """
     close = PHI_CLOSE_PACKING
     state = []
@@ -117,12 +119,14 @@ def bisect_single_pillar(points: list[tuple[float, float]], engine: Engine, fold
         state.append({"zeta_um": zeta_um, "ratio": ratio, "lo": guess / BRACKET,
                       "hi": min(guess * BRACKET, close), "lo_ok": False, "hi_ok": False,
                       "solves": 0})
-    opts = {"elements_per_diameter": int(elements_per_diameter)}
+    opts = {**(options or {}), "elements_per_diameter": int(elements_per_diameter)}
+    pillars = opts.get("pillars", "hooke")
 
     def run(which: list[tuple[dict, float]]) -> list[bool]:
         cases = [Case("bem", table1_scene(phi, s["zeta_um"], s["ratio"]), opts,
                       tag=f"Phi_S bisection zeta={s['zeta_um']:g} ratio={s['ratio']:g} "
-                          f"Phi={phi:.5g}") for s, phi in which]
+                          f"Phi={phi:.5g}" + ("" if pillars == "hooke" else f" {pillars} pillars"))
+                 for s, phi in which]
         for s, _ in which:
             s["solves"] += 1
         return [_one_pillar(o) for o in engine.run(cases, folder, label="threshold")]
