@@ -15,6 +15,7 @@ import pytest
 from outcome import ContactResult
 from scenes import analytic, load_scene
 from validation.engine import Case, Engine, case_key
+from validation.planner.tables import load_data
 from validation.registry import (MODELS, Ladder, Model, OptionSpec, check_option, get_model,
                                  ladders, option_vocabulary, run_model)
 
@@ -68,7 +69,12 @@ def test_every_candidate_model_is_planned_and_auto_runs_the_choice(direct):
     p = plan(scene, tolerance=AUTO_TOLERANCE)
     planned = {c["model"] for c in p["candidates"]}
     for name, model in MODELS.items():
-        assert (name in planned) == model.candidate, name
+        assert name in planned or not model.candidate, name
+    # beyond the declarations' candidates, only hand entries of the data (fem-3d, the
+    # elastic-pillar BEMs: issue 18) until a recalibration measures them
+    for c in load_data().candidates:
+        if not MODELS[c["model"]].candidate or "pillars" in c["options"]:
+            assert c["source"].startswith("hand"), c
     choice = p["choice"]
     assert choice is not None
     again = run_model(choice["model"], scene, **choice["options"])

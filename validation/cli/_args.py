@@ -243,10 +243,12 @@ def refuse_inapplicable(args, models, dests=None) -> None:
             continue
         owners = sorted(m for m, entry in MODELS.items() if dest in entry.options)
         chosen = ", ".join(models)
+        family = any(MODELS[m].options[dest].family for m in owners)
         raise InputError(
             f"{flag(dest)} {_show(value)}: does not apply to "
             f"{'--model' if len(models) == 1 else '--models'} {chosen}"
-            + (f" (it refines {', '.join(owners)})" if owners else ""))
+            + (f" (it {'refines' if family else 'is an option of'} {', '.join(owners)})"
+               if owners else ""))
 
 
 def _show(value) -> str:

@@ -7,6 +7,11 @@ done                                                               0
 solver missed tolerance    ``ContactResult.converged = False``     1
 bad input, or a scene      :class:`~scenes.InputError`             2
 outside a model            (:class:`~scenes.ScopeError`)
+no model for the request   :class:`~scenes.ScopeError`: ``plan``   2
+                           (``--budget`` leaves no candidate, or
+                           none can run the scene; the line names
+                           the budget and the cheapest candidate's
+                           time), ``solve --model auto`` likewise
 a tool underneath failed   :class:`~scenes.ToolError`, memory,     3
                            the file system
 an internal error (a bug)  any other exception                     4

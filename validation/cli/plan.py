@@ -7,7 +7,7 @@ import json
 
 from pathlib import Path
 
-from scenes import load_scene
+from scenes import ScopeError, load_scene
 
 from ._args import (add_engine_arguments, add_scene_arguments, check_out, engine_from_args,
                     integer, number, print_json)
@@ -32,12 +32,18 @@ def _add_plan(sub) -> None:
     p.add_argument("--quantities", default="F_T,sigma0", metavar="Q,Q",
                    help="comma-separated among F_T, sigma0, a, A (default F_T,sigma0)")
     p.add_argument("--budget", type=number(0.0, None, open_lo=True), default=None,
-                   metavar="SECONDS", help="leave out candidates predicted slower than this")
+                   metavar="SECONDS", help="leave out candidates predicted slower than this; "
+                                           "when none is left, one line naming the budget "
+                                           "and the cheapest candidate's time, exit 2")
     p.add_argument("--json", action="store_true", help="print the plan as one JSON document")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    """Print the plan; exit 2 (``ScopeError``, one line: the reason) when it has no choice:
+    no candidate within ``--budget`` (the line names the budget and the cheapest candidate's
+    predicted time), or none that can run the scene.  With --json the plan is printed
+    first."""
     from ..planner.plan import check_request, plan, plan_text
 
     tolerance, quantities, budget = check_request(args.tolerance, args.quantities, args.budget)
@@ -45,8 +51,10 @@ def run(args) -> int:
     p = plan(scene, tolerance, quantities, budget)
     if args.json:
         print_json(p)
-    else:
+    elif p["choice"] is not None:
         print(plan_text(p))
+    if p["choice"] is None:
+        raise ScopeError(p["reason"])
     return 0
 
 

@@ -7,7 +7,7 @@ from scenes import load_scene
 from ..registry import model_names
 from ._args import (add_choice_arguments, add_model_argument, add_output_arguments,
                     add_refinement_arguments, add_scene_arguments, check_out, not_converged,
-                    print_json, refuse_inapplicable)
+                    number, print_json, refuse_inapplicable)
 
 # What `solve --out DIR` writes (result.json last: its presence means the folder is whole).
 OUTPUTS = ("elements.csv", "pillars.csv", "pressure.png", "fields.vtu", "fields.json",
@@ -28,10 +28,24 @@ def add_parser(sub) -> None:
                                                    "boundary-element solver)")
     add_refinement_arguments(p, ladder=False)
     add_choice_arguments(p)
+    add_request_arguments(p)
     add_output_arguments(p, "folder for result.json, element and pillar CSVs, pressure.png "
                             "(and fields.vtu for the FEM)",
                          "print the result as exactly one JSON document")
     p.set_defaults(func=run)
+
+
+def add_request_arguments(p) -> None:
+    """--tolerance, --quantities, --budget: the planner's request, for ``--model auto`` only
+    (as ``plan`` takes them; refused for any other model)."""
+    p.add_argument("--tolerance", type=number(0.0, 1.0, open_lo=True), default=None,
+                   metavar="REL", help="auto: relative error allowed on each quantity "
+                                       "(default 0.01 = 1 %%)")
+    p.add_argument("--quantities", default=None, metavar="Q,Q",
+                   help="auto: comma-separated among F_T, sigma0, a, A (default F_T,sigma0)")
+    p.add_argument("--budget", type=number(0.0, None, open_lo=True), default=None,
+                   metavar="SECONDS", help="auto: leave out candidates predicted slower than "
+                                           "this")
 
 
 def model_options(args) -> dict:
@@ -44,8 +58,17 @@ def model_options(args) -> dict:
 
 def run(args) -> int:
     refuse_inapplicable(args, [args.model])
-    scene = load_scene(args.scene, args.overrides)
     options = model_options(args)
+    if args.model == "auto":  # the request checked before the scene is read or solved
+        from ..planner.plan import DEFAULT_QUANTITIES, DEFAULT_TOLERANCE, check_request
+
+        tolerance, quantities, budget = check_request(
+            options.get("tolerance", DEFAULT_TOLERANCE),
+            options.get("quantities", ",".join(DEFAULT_QUANTITIES)), options.get("budget"))
+        options.update(tolerance=tolerance, quantities=list(quantities))
+        if budget is not None:
+            options["budget"] = budget
+    scene = load_scene(args.scene, args.overrides)
     vtu_path = None
     if args.out is not None:
         from ..output.report import clear_outputs
@@ -62,6 +85,9 @@ def run(args) -> int:
         print_json(result.to_dict())
     else:
         print(result.summary())
+        planned = result.diagnostics.get("plan")
+        if planned:
+            print(f"auto: chose {planned['choice']['label']}: {planned['reason']}")
         if args.out is not None:
             print(f"written to {args.out}/")
     if result.converged:

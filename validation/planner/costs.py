@@ -5,8 +5,11 @@ model option it reads (a model's declaration says which: ``Model.cost``); the fu
 the fit's terms (natural logs of counts) and a memory estimate in bytes.  The dense BEM and
 fem-axisym estimate their own memory (``bem_solver.estimate_memory``,
 ``fem_reference.axisym.estimate_memory``, the same functions that refuse a scene too large for the
-machine); the FFT grid's memory is a fitted line in its padded points (``calibrate``).  A model
-added later names one of these sizes in its cost law, or adds one here.
+machine); the FFT grid's memory is a fitted line in its padded points (``calibrate``); fem-3d
+counts its unknowns and memory with ``fem_reference.solid3d.estimate_memory``.  A model
+added later names one of these sizes in its cost law, or adds one here.  A one-off set-up
+(the elastic pillar's compliance, once per pillar kind) is a :data:`SETUPS` entry: the
+planner adds its seconds unless it is already paid (cached).
 """
 
 from __future__ import annotations
@@ -15,7 +18,7 @@ import math
 
 from scenes import Scene
 
-__all__ = ["SIZES", "fft_grid", "size_terms"]
+__all__ = ["SETUPS", "SIZES", "compliance_cached", "fft_grid", "size_terms"]
 
 def fft_grid(scene: Scene, cells_per_diameter: int) -> dict:
     """Candidate cells and padded FFT points of the FFT BEM, estimated without building its
@@ -63,11 +66,40 @@ def _fem(scene, value):
     return {"log_dofs": math.log(est["dofs"])}, est["bytes"]
 
 
+def _fem3d(scene, value):
+    from fem_reference.solid3d import estimate_memory
+
+    est = estimate_memory(scene, float(value))
+    return {"log_dofs": math.log(max(est["dofs"], 1.0))}, est["bytes"]
+
+
 def _none(scene, value):
     return {}, 0.0
 
 
-SIZES = {"dense-unknowns": _dense, "fft-grid": _fft, "fem-dofs": _fem, "none": _none}
+SIZES = {"dense-unknowns": _dense, "fft-grid": _fft, "fem-dofs": _fem, "fem3d-dofs": _fem3d,
+         "none": _none}
+
+
+def compliance_cached(scene: Scene) -> bool:
+    """Whether the elastic-pillar BEM finds the scene's pillar compliance in the disk cache
+    (``fem_reference.modal_compliance`` at the BEM's modes and mesh), or needs none (no
+    pillars, or pillars and substrate both rigid: the Hooke and elastic models coincide)."""
+    if scene.pillars is None or (scene.pillars.material.rigid and scene.substrate.rigid):
+        return True
+    # The lookup modal_compliance makes first (its cache_dir / cache_key), at the modes and
+    # mesh the BEMs ask for (bem_solver._elastic_pillar.scene_compliance).  Not a function of
+    # fem_reference._pillar_compliance: its source is hashed into every cached operator's key.
+    from fem_reference import DEFAULT_MODES, PillarKind
+    from fem_reference._pillar_compliance import cache_dir, cache_key
+
+    key = cache_key(PillarKind.of_scene(scene), DEFAULT_MODES, 1.0)
+    return (cache_dir() / f"{key}.npz").exists()
+
+
+# One-off set-up costs a candidate may carry (cost_models.json, a "setup" of a scaled cost):
+# each returns True when it is already paid for this scene.
+SETUPS = {"pillar-compliance": compliance_cached}
 
 
 def size_terms(size: str, scene: Scene, value) -> tuple[dict, float | None]:

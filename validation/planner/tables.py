@@ -1,7 +1,11 @@
 """Measured error tables and cost fits: the data the planner reads, and how it reads them.
 
 The data files (``validation/planner/data/error_models.json``, ``cost_models.json``) are written by
-``pillar-xval calibrate`` and shipped with the package.  Everything model-specific is data:
+``pillar-xval calibrate`` and shipped with the package; entries whose ``source`` (``note``
+for costs) starts with "hand" are written by hand from validation studies until calibrate
+measures them (fem-3d, the elastic-pillar BEMs), and calibrate carries them over.  A
+candidate may name its ``physics`` (the components it does not carry: ``plan.REMOVED_BY``)
+and its ``cost`` (a key of the cost models: a fit, or a :class:`ScaledCost` variant).  Everything model-specific is data:
 a new model, a new rung or a new study adds candidates, tables and fits, not code.
 
 An error table holds one measured relative error per calibration scene (a point in a
@@ -36,7 +40,7 @@ import numpy as np
 
 from scenes import InputError
 
-__all__ = ["CostFit", "DATA_FORMAT", "ErrorTable", "PlannerData", "load_data"]
+__all__ = ["CostFit", "DATA_FORMAT", "ErrorTable", "PlannerData", "ScaledCost", "load_data"]
 
 DATA_FORMAT = "pillar-xval planner data 1"
 # Errors below this are round-off, not discretisation: floor of the log10 interpolation.
@@ -248,15 +252,23 @@ class CostFit:
     rms: float = 0.0
     memory: dict = field(default_factory=dict)
     samples: int = 0
+    note: str = ""
 
     def to_dict(self) -> dict:
-        return {k: getattr(self, k) for k in ("model", "size", "option", "term", "powers",
-                                               "coef", "rms", "memory", "samples")}
+        out = {k: getattr(self, k) for k in ("model", "size", "option", "term", "powers",
+                                              "coef", "rms", "memory", "samples")}
+        if self.note:
+            out["note"] = self.note
+        return out
 
     def time(self, n: float) -> float:
         return float(sum(c * n**p for c, p in zip(self.coef, self.powers)))
 
-    def predict(self, scene, options: dict) -> tuple[float, float]:
+    def setup_time(self, scene) -> float:
+        """Seconds of a one-off set-up still to pay on ``scene`` (none for a fit)."""
+        return 0.0
+
+    def predict(self, scene, options: dict, regime: str | None = None) -> tuple[float, float]:
         """(wall time s, peak memory bytes) of the model with ``options`` on ``scene``."""
         from .costs import size_terms
 
@@ -272,6 +284,51 @@ class CostFit:
         else:
             memory = self.memory.get("fixed", 0.0)
         return self.time(n), float(memory)
+
+
+@dataclass
+class ScaledCost:
+    """A variant of a measured model: its ``base`` fit's time times ``factor`` (one number,
+    or one per regime with ``"default"``), the base's memory, plus a one-off ``setup``
+    (``{"kind": K, "time_s": t}``, :data:`.costs.SETUPS`: t seconds unless already paid on
+    the scene, e.g. the elastic pillar's compliance in the disk cache).  Written by hand where
+    a variant's own timings are a ratio measured against its base (``note`` says where)."""
+
+    key: str
+    base_fit: CostFit
+    factor: float | dict = 1.0
+    setup: dict = field(default_factory=dict)
+    note: str = ""
+
+    @property
+    def model(self) -> str:
+        return self.base_fit.model
+
+    @property
+    def option(self) -> str | None:
+        return self.base_fit.option
+
+    def to_dict(self) -> dict:
+        return {"base": self.base_fit.model, "factor": self.factor, "setup": self.setup,
+                "note": self.note}
+
+    def _factor(self, regime: str | None) -> float:
+        if isinstance(self.factor, dict):
+            return float(self.factor.get(regime, self.factor["default"]))
+        return float(self.factor)
+
+    def setup_time(self, scene) -> float:
+        from .costs import SETUPS
+
+        if not self.setup:
+            return 0.0
+        paid = SETUPS[self.setup["kind"]](scene)
+        return 0.0 if paid else float(self.setup["time_s"])
+
+    def predict(self, scene, options: dict, regime: str | None = None) -> tuple[float, float]:
+        """(wall time s, peak memory bytes): the base's, the time scaled, the set-up added."""
+        time_s, memory = self.base_fit.predict(scene, options, regime)
+        return time_s * self._factor(regime) + self.setup_time(scene), memory
 
 
 @dataclass
@@ -306,10 +363,17 @@ def load_data(folder: str | Path | None = None) -> PlannerData:
         if doc.get("format") != DATA_FORMAT:
             raise InputError(f"planner data: {folder / name} is not in the format "
                              f"{DATA_FORMAT!r}; regenerate it with make calibrate")
+    fits = {m: CostFit(**c) for m, c in costs["models"].items()}
+    for key, c in costs.get("variants", {}).items():
+        if c["base"] not in fits:
+            raise InputError(f"planner data: cost variant {key!r} names the base "
+                             f"{c['base']!r}, which {folder / 'cost_models.json'} lacks")
+        fits[key] = ScaledCost(key, fits[c["base"]], c.get("factor", 1.0), c.get("setup", {}),
+                               c.get("note", ""))
     return PlannerData(
         candidates=errors["candidates"],
         tables=[ErrorTable(**t) for t in errors["tables"]],
-        costs={m: CostFit(**c) for m, c in costs["models"].items()},
+        costs=fits,
         provenance={"errors": errors.get("provenance", {}),
                     "costs": costs.get("provenance", {})},
         policy={**DEFAULT_POLICY, **errors.get("policy", {})})

@@ -474,10 +474,47 @@ def calibrate(out: Path, engine: Engine | None = None, *, n_lattice: int = 40,
               "candidates": CANDIDATES, "tables": [t.to_dict() for t in tables]}
     costs = {"format": DATA_FORMAT, "provenance": provenance,
              "models": {m: f.to_dict() for m, f in fits.items()}}
+    keep_hand_entries(errors, costs)
     report = {"provenance": provenance, "scenes": records, "gecit": gecit_doc["rows"],
               "truncation": truncation,
               "hooke_check": _hooke_check(lattice_records, tables)}
     return {"errors": errors, "costs": costs, "report": report}
+
+
+HAND = "hand"
+
+
+def keep_hand_entries(errors: dict, costs: dict, folder: Path | None = None) -> None:
+    """Carry the installed data's hand entries (``source``/``note`` starting with "hand":
+    fem-3d and the elastic-pillar BEMs as candidates, issue 18) into a new calibration that
+    does not measure them yet: candidates, error tables, cost fits and cost variants that the
+    calibration did not write itself.  ``folder``: the installed data (default the
+    package's)."""
+    from ...planner.tables import data_dir
+
+    folder = Path(folder) if folder is not None else data_dir()
+    try:
+        old_errors = json.loads((folder / "error_models.json").read_text())
+        old_costs = json.loads((folder / "cost_models.json").read_text())
+    except (OSError, ValueError):
+        return
+    labels = {c["label"] for c in errors["candidates"]}
+    errors["candidates"] = list(errors["candidates"]) + [
+        c for c in old_errors.get("candidates", ())
+        if str(c.get("source", "")).startswith(HAND) and c["label"] not in labels]
+    errors["tables"] = list(errors["tables"]) + [
+        t for t in old_errors.get("tables", ()) if str(t.get("source", "")).startswith(HAND)
+        and t not in errors["tables"]]
+    for name, fit in old_costs.get("models", {}).items():
+        if name not in costs["models"] and str(fit.get("note", "")).startswith(HAND):
+            costs["models"][name] = fit
+    variants = {k: v for k, v in old_costs.get("variants", {}).items()
+                if str(v.get("note", "")).startswith(HAND) and v["base"] in costs["models"]}
+    if variants:
+        costs["variants"] = variants
+    hand = old_errors.get("provenance", {}).get("hand_entries")
+    if hand:
+        errors["provenance"] = {**errors["provenance"], "hand_entries": hand}
 
 
 def _hooke_check(records: list, tables: list) -> list:
