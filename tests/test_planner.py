@@ -304,6 +304,38 @@ def test_lattice_study_supplies_the_hooke_error_in_lattices(tmp_path):
         load_lattice(tmp_path / "missing.json")
 
 
+def test_lattice_study_supplies_the_elastic_bem_error_in_lattices():
+    """The elastic column of a lattice report replaces the hand bound of the elastic BEM's
+    coupling error in lattices, interpolated like the Hooke table; a report without the
+    column leaves the bound in place."""
+    from validation.studies.calibrate import with_lattice
+
+    def err(phi, ratio):  # grows with stiffness and Phi, as the study measured
+        return 0.01 + 0.2 * phi * math.log10(ratio + 1.0)
+
+    report = _lattice_report({(phi, ratio): -0.5 for phi in (0.1, 0.3) for ratio in (0.1, 10.0)})
+    for row in report["rows"]:
+        q = {"fem": 1.0, "bem": 1.0 + err(row["surface_fraction"], row["ratio"])}
+        row["elastic_quantities"] = {"F_T": dict(q), "sigma0": dict(q)}
+    bound = ErrorTable("model", ["bem", "bem-fft"], ["multi"], [], [[]], {"sigma0": [0.03]},
+                       component="elastic-coupling", option={"pillars": "elastic"},
+                       source="hand: a bound")
+    tables = with_lattice([bound], report)
+    coupling = [t for t in tables if t.component == "elastic-coupling"]
+    assert len(coupling) == 1 and coupling[0].source.startswith("lattice")
+    assert coupling[0].applies("bem-fft", {"pillars": "elastic"}, "multi")
+    assert not coupling[0].applies("bem-fft", {}, "multi")
+    x = features(load_scene("paper-fig3-sparse", ["pillars.surface_fraction=0.2",
+                                                   "pillars.E_Pa=1.6e7", "substrate.E_Pa=1.6e6"]))
+    value, outside = coupling[0].predict(x, "sigma0")
+    corners = [err(phi, r) for phi in (0.1, 0.3) for r in (0.1, 10.0)]
+    assert min(corners) < value < max(corners) and not outside
+    for row in report["rows"]:
+        del row["elastic_quantities"]
+    kept = [t for t in with_lattice([bound], report) if t.component == "elastic-coupling"]
+    assert kept == [bound]
+
+
 @pytest.mark.parametrize("name, sets, expect", [
     ("hertz", [], {"hertz"}),
     # a rigid pillar: bem-fft N=24 is -0.37 % from fem-axisym mesh 0.5 in F_T, cheaper than it

@@ -23,11 +23,13 @@ def add_parser(sub) -> None:
     p.add_argument("--install", action="store_true",
                    help="copy error_models.json and cost_models.json into validation/planner/data")
     p.add_argument("--lattice", type=Path, default=None, metavar="LATTICE_JSON",
-                   help="lattice.json of `pillar-xval lattice`: the Hooke pillar's error in "
-                        "lattices, measured against fem-3d (without it the Gecit grid's "
-                        "single-pillar error stands in)")
+                   help="lattice.json of `pillar-xval lattice`: the Hooke pillar's error and "
+                        "the elastic-pillar BEM's in lattices, measured against fem-3d "
+                        "(without it the Gecit grid's single-pillar error and a hand bound "
+                        "stand in)")
     p.add_argument("--lattice-only", action="store_true",
-                   help="with --lattice: replace only the lattice Hooke table of the installed "
+                   help="with --lattice: replace only the lattice tables (Hooke, elastic BEM) of the "
+                        "installed "
                         "error_models.json (seconds; the other studies are not re-run)")
     p.add_argument("--quick", action="store_true",
                    help="a handful of scenes per study (a smoke test, not a calibration)")
@@ -100,6 +102,6 @@ def _lattice_only(args, lattice) -> int:
     if args.json:
         print_json({"written": done, "lattice_rows": len(lattice["rows"])})
     else:
-        print(f"lattice Hooke table from {args.lattice} ({len(lattice['rows'])} lattices): "
+        print(f"lattice tables (Hooke, elastic BEM) from {args.lattice} ({len(lattice['rows'])} lattices): "
               + ", ".join(done))
     return 0

@@ -45,7 +45,8 @@ from ...planner.features import features, regime
 from ...planner.tables import DATA_FORMAT, DEFAULT_POLICY, CostFit, ErrorTable
 from ..tradeoff import reference_values
 
-__all__ = ["CALIBRATION_SEED", "CANDIDATES", "calibrate", "lattice_hooke_table", "load_lattice",
+__all__ = ["CALIBRATION_SEED", "CANDIDATES", "calibrate", "lattice_elastic_table",
+           "lattice_hooke_table", "load_lattice",
            "relattice", "with_lattice", "write_data", "write_document"]
 
 CALIBRATION_SEED = 20240901
@@ -236,11 +237,11 @@ def load_lattice(path) -> dict:
     return report
 
 
-def lattice_hooke_table(report: dict) -> ErrorTable:
-    """The Hooke pillar's error in a lattice, (Hooke - elastic) / elastic of the lattice
-    study's Richardson estimates (bem-fft against fem-3d), on its Phi x E_p/E_l grid
-    (E_s = E_l, zeta = 0.3 um; its E_s = E_p scenes are left out).  A quantity whose FEM
-    estimate did not converge is left out at that point."""
+def _lattice_errors(report: dict, column: str) -> tuple[list, dict]:
+    """(points, errors): (BEM - FEM) / FEM of the lattice study's Richardson estimates in
+    ``column`` (``quantities``: the Hooke BEM; ``elastic_quantities``: the elastic-pillar BEM)
+    on its Phi x E_p/E_l grid (E_s = E_l; its E_s = E_p scenes are left out).  A quantity
+    whose estimate is missing or not finite is left out at that point."""
     from ..lattice import LENS, LatticePoint
 
     points, errors = [], {q: [] for q in QKEYS}
@@ -250,11 +251,18 @@ def lattice_hooke_table(report: dict) -> ErrorTable:
         x = features(LatticePoint(row["surface_fraction"], row["ratio"]).scene())
         points.append([x["phi"], x["log_ep"]])
         for q in QKEYS:
-            v = row["quantities"].get(q) or {}
+            v = (row.get(column) or {}).get(q) or {}
             fem, bem = v.get("fem"), v.get("bem")
             ok = fem is not None and bem is not None and fem != 0 and math.isfinite(fem) \
                 and math.isfinite(bem)
             errors[q].append((bem - fem) / fem if ok else None)
+    return points, errors
+
+
+def lattice_hooke_table(report: dict) -> ErrorTable:
+    """The Hooke pillar's error in a lattice: the Hooke bem-fft against fem-3d
+    (:func:`_lattice_errors`)."""
+    points, errors = _lattice_errors(report, "quantities")
     return ErrorTable(
         "model", [m for m in HOOKE_MODELS if "multi" in MODELS[m].scopes], ["multi"],
         ["phi", "log_ep"], points, errors,
@@ -266,18 +274,43 @@ def lattice_hooke_table(report: dict) -> ErrorTable:
              "values (the Gecit grid measures the substrate's share on one pillar)")
 
 
+def lattice_elastic_table(report: dict) -> ErrorTable | None:
+    """The elastic-pillar BEM's model error in a lattice (its pillars coupled through the
+    half-space at the top plane): its bem-fft column against fem-3d, or None when the report
+    has no elastic column."""
+    if not any(r.get("elastic_quantities") for r in report["rows"]):
+        return None
+    points, errors = _lattice_errors(report, "elastic_quantities")
+    return ErrorTable(
+        "model", ["bem", "bem-fft"], ["multi"], ["phi", "log_ep"], points, errors,
+        component="elastic-coupling", option={"pillars": "elastic"},
+        source="lattice: elastic-pillar bem-fft (Richardson) against the elastic-pillar "
+               "fem-3d (Richardson)",
+        note=f"measured on {len(points)} lattices, E_s = E_l, zeta = "
+             f"{report.get('zeta_um', 0.3)} um; it grows with E_p / E_s and Phi (stiff pillars "
+             "on a soft substrate, where coupling through the top plane is least like coupling "
+             "through the bases); scenes at E_s = E_p, where the study measured it smaller, "
+             "take these values (conservative)")
+
+
 def with_lattice(tables: list, report: dict) -> list:
-    """``tables`` with the lattice study's Hooke table for multi-pillar scenes: the Gecit
-    grid's Hooke table keeps the single-pillar regime only."""
+    """``tables`` with the lattice study's tables for multi-pillar scenes: the Hooke table
+    (the Gecit grid's Hooke table keeps the single-pillar regime only) and, when the report
+    has the elastic column, the elastic BEM's coupling table in place of any other
+    multi-pillar coupling table (a hand bound)."""
     from dataclasses import replace
 
+    elastic = lattice_elastic_table(report)
     out = [replace(t, regimes=[r for r in t.regimes if r != "multi"],
                    note="measured on one pillar; multi-pillar scenes use the lattice study's "
                         "table")
-           if t.component == "hooke" and "multi" in t.regimes else t for t in tables]
-    lattice = lattice_hooke_table(report)
-    lattice.loo = lattice.leave_one_out()
-    return out + [lattice]
+           if t.component == "hooke" and "multi" in t.regimes else t for t in tables
+           if elastic is None or not (t.component == "elastic-coupling"
+                                      and "multi" in t.regimes)]
+    new = [lattice_hooke_table(report)] + ([elastic] if elastic is not None else [])
+    for t in new:
+        t.loo = t.leave_one_out()
+    return out + new
 
 
 def relattice(errors: dict, report: dict, source: str = "") -> dict:
@@ -502,9 +535,15 @@ def keep_hand_entries(errors: dict, costs: dict, folder: Path | None = None) -> 
     errors["candidates"] = list(errors["candidates"]) + [
         c for c in old_errors.get("candidates", ())
         if str(c.get("source", "")).startswith(HAND) and c["label"] not in labels]
+    def measured(t):  # the calibration measured this table itself (e.g. from the lattice)
+        return any(m.get("component") == t.get("component") and m.get("option") ==
+                   t.get("option") and set(m.get("regimes", ())) & set(t.get("regimes", ()))
+                   and set(m.get("models", ())) & set(t.get("models", ()))
+                   for m in errors["tables"])
+
     errors["tables"] = list(errors["tables"]) + [
         t for t in old_errors.get("tables", ()) if str(t.get("source", "")).startswith(HAND)
-        and t not in errors["tables"]]
+        and t not in errors["tables"] and not measured(t)]
     for name, fit in old_costs.get("models", {}).items():
         if name not in costs["models"] and str(fit.get("note", "")).startswith(HAND):
             costs["models"][name] = fit
