@@ -6,7 +6,7 @@ STAMP  := $(VENV)/.installed
 OUT    ?= out
 
 .PHONY: demo study-gecit study-lattice figures test test-slow bench-bem bench-fft bench-gpu bench-fem3d \
-	bench-engine bench-figures bench-startup clean calibrate validate-planner extremes
+	bench-engine bench-figures bench-startup clean calibrate validate-planner extremes regimes
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -102,6 +102,10 @@ validate-planner: $(STAMP)
 # Every model over the corners and edges of the parameter space: table and heat map.
 extremes: $(STAMP)
 	$(VENV)/bin/pillar-xval extremes --out $(OUT)/extremes
+
+# Which model the planner picks over Phi x zeta/h, with the Hooke sigma0 error's contours.
+regimes: $(STAMP)
+	$(VENV)/bin/pillar-xval regimes --out $(OUT)/regimes
 
 clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache

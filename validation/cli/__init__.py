@@ -42,7 +42,8 @@ __all__ = ["COMMANDS", "DEBUG_ENV", "EXIT_INTERNAL_ERROR", "add_scene_arguments"
 COMMANDS = ("validation.cli.solve", "validation.cli.compare", "validation.cli.converge",
             "validation.cli.gecit", "validation.cli.tradeoff", "validation.cli.sweep",
             "validation.cli.figures", "validation.cli.lattice", "validation.cli.plan",
-            "validation.cli.calibrate", "validation.cli.extremes", "validation.cli.check")
+            "validation.cli.calibrate", "validation.cli.extremes", "validation.cli.check",
+            "validation.cli.regimes")
 
 
 _LAZY = ("Parser", "add_scene_arguments", "one_line")

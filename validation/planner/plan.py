@@ -40,8 +40,8 @@ from ..registry import QUANTITIES
 from .features import features, regime
 from .tables import PlannerData, load_data
 
-__all__ = ["DEFAULT_QUANTITIES", "DEFAULT_TOLERANCE", "check_request", "plan", "plan_text",
-           "solve_auto"]
+__all__ = ["DEFAULT_QUANTITIES", "DEFAULT_TOLERANCE", "check_request", "hooke_error", "plan",
+           "plan_text", "solve_auto"]
 
 DEFAULT_TOLERANCE = 0.01
 DEFAULT_QUANTITIES = ("F_T", "sigma0")
@@ -240,6 +240,29 @@ def plan(scene: Scene, tolerance: float = DEFAULT_TOLERANCE, quantities=DEFAULT_
                 "predicted_errors": {q: choice["errors"][q]["total"] for q in quantities},
                 "time_s": choice["time_s"], "memory_MB": choice["memory_MB"]},
             "reason": reason, "data": data.provenance}
+
+
+def hooke_error(scene: Scene, quantity: str = "sigma0", data: PlannerData | None = None,
+                reg: dict | None = None, x: dict | None = None) -> float | None:
+    """The Hooke pillar's model error of ``quantity`` on ``scene`` as the planner counts it
+    for a Hooke-pillar candidate: the ``hooke`` part of that candidate's predicted error
+    (|interpolated error| + its leave-one-out margin, :func:`_candidate`), the same number
+    ``plan`` adds to the Hooke BEM's error.  The first candidate of the data that carries a
+    ``hooke`` table for the scene's regime stands for all of them (those tables apply to a
+    model whatever its resolution).  None where no ``hooke`` table covers the scene (a flat
+    scene has no pillars)."""
+    data = _data(data)
+    reg = reg or regime(scene)
+    x = x or features(scene, reg)
+    for cand in data.candidates:
+        if cand.get("closed_form") or "hooke" in REMOVED_BY.get(cand.get("physics", ""), ()) \
+                or reg["name"] not in cand.get("regimes", ()):
+            continue
+        c = _candidate(scene, x, reg, cand, data, (quantity,))
+        part = c["errors"].get(quantity, {}).get("parts", {}).get("hooke")
+        if part is not None:
+            return part
+    return None
 
 
 def _elastic_left_out(cands: list) -> str:

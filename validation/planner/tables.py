@@ -31,6 +31,8 @@ from __future__ import annotations
 
 import json
 import math
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass, field
 from functools import cached_property
 from importlib import resources
@@ -175,17 +177,42 @@ def _interpolate(points: np.ndarray, values: np.ndarray, q: np.ndarray) -> tuple
     if grid is not None:
         return grid
     if n > dim:
-        from scipy.interpolate import LinearNDInterpolator
-        from scipy.spatial import QhullError
-
-        try:
-            value = float(LinearNDInterpolator(points, values)(q[None, :])[0])
-        except (QhullError, ValueError):
-            value = math.nan
+        linear = _triangulated(points, values)
+        value = math.nan if linear is None else float(linear(q[None, :])[0])
         if math.isfinite(value):
             return value, False
     nearest = int(np.argmin(np.sum((points - q[None, :]) ** 2, axis=1)))
     return float(values[nearest]), True
+
+
+# Triangulated interpolants kept for reuse (a plan interpolates the same tables at every
+# scene; building one, and its first evaluation, costs milliseconds, a lookup microseconds).
+TRIANGULATION_CACHE = 512
+_TRIANGULATIONS: OrderedDict = OrderedDict()
+_TRIANGULATIONS_LOCK = threading.Lock()
+
+
+def _triangulated(points: np.ndarray, values: np.ndarray):
+    """The piecewise-linear interpolant of ``values`` on the Delaunay triangulation of
+    ``points`` (None where Qhull cannot triangulate them), built once per (points, values)
+    and kept in a bounded cache: the same interpolant, so the same values, as a fresh one."""
+    key = (points.shape, points.tobytes(), values.tobytes())
+    with _TRIANGULATIONS_LOCK:
+        if key in _TRIANGULATIONS:
+            _TRIANGULATIONS.move_to_end(key)
+            return _TRIANGULATIONS[key]
+    from scipy.interpolate import LinearNDInterpolator
+    from scipy.spatial import QhullError
+
+    try:
+        linear = LinearNDInterpolator(points, values)
+    except (QhullError, ValueError):
+        linear = None
+    with _TRIANGULATIONS_LOCK:
+        _TRIANGULATIONS[key] = linear
+        while len(_TRIANGULATIONS) > TRIANGULATION_CACHE:
+            _TRIANGULATIONS.popitem(last=False)
+    return linear
 
 
 # A table is a tensor grid when its points take few distinct values per feature and fill at
