@@ -32,6 +32,7 @@ SINGLE_THREAD_BELOW = 3000
 # the previous iterate (a few dozen products instead of an O(n^3) factorisation).
 CHOLESKY_MAX = 1200
 CG_RTOL = 1e-14
+CG_RTOL_SEARCH = 1e-6  # active sets that are not yet the last one
 
 
 def solve_active_set(A: np.ndarray, b: np.ndarray, *, scale: float, weights=None,
@@ -76,24 +77,37 @@ def _solve(A, b, scale, weights, groups, initial, tol, max_iterations) -> Contac
     seen = set()
     p = np.zeros(n)
     method = "active-set"
+    # Sets that conjugate gradients solve are first solved to CG_RTOL_SEARCH (the next set
+    # needs no more), and to CG_RTOL once a set repeats: the answer is that of the exact
+    # iteration.  A cycle met by the loose solves turns them off.
+    loose = True
     for it in range(1, max_iterations + 1):
         p_prev, p = p, np.zeros(n)
-        if active.any():
-            idx = np.nonzero(active)[0]
-            sub, ok = _spd_solve(A, s, idx, -bs[idx], p_prev[idx],
-                                 None if groups is None else groups[idx])
-            if not ok:
-                return _finish(A, b, p_prev * s, scale, weights, tol, it, method,
-                               f"conjugate gradients missed {CG_RTOL:g} on an active set of "
-                               f"{len(idx)} unknowns")
-            p[idx] = sub
-        gap = s * _symmetric_product(A, s * p) + bs
-        new = p - gap > 0
+        rtol = CG_RTOL_SEARCH if loose else CG_RTOL
+        while True:
+            if active.any():
+                idx = np.nonzero(active)[0]
+                sub, ok = _spd_solve(A, s, idx, -bs[idx], p_prev[idx],
+                                     None if groups is None else groups[idx], rtol)
+                if not ok:
+                    return _finish(A, b, p_prev * s, scale, weights, tol, it, method,
+                                   f"conjugate gradients missed {rtol:g} on an active set of "
+                                   f"{len(idx)} unknowns")
+                p[idx] = sub
+            gap = s * _symmetric_product(A, s * p) + bs
+            new = p - gap > 0
+            if rtol == CG_RTOL or np.count_nonzero(active) <= CHOLESKY_MAX \
+                    or not np.array_equal(new, active):
+                break
+            rtol, p_prev = CG_RTOL, p.copy()  # the set repeats: solve it exactly
         if np.array_equal(new, active):
             return _finish(A, b, p * s, scale, weights, tol, it, method)
         key = new.tobytes()
         if key in seen:
-            break
+            if not loose:
+                break
+            loose = False
+            seen.clear()
         seen.add(key)
         active = new
     method = "nnls"
@@ -137,7 +151,7 @@ def _scaled(A, s, rows, cols):
     return A[np.ix_(rows, cols)] * s[rows][:, None] * s[cols][None, :]
 
 
-def _spd_solve(A, s, idx, rhs, x0, groups=None) -> tuple[np.ndarray, bool]:
+def _spd_solve(A, s, idx, rhs, x0, groups=None, rtol=CG_RTOL) -> tuple[np.ndarray, bool]:
     """Solve (S A S)[idx, idx] x = rhs (SPD): Cholesky when small, else block-preconditioned
     CG whose products use the whole of A (a zero-padded vector) instead of a copy of the
     submatrix."""
@@ -178,7 +192,7 @@ def _spd_solve(A, s, idx, rhs, x0, groups=None) -> tuple[np.ndarray, bool]:
     z = precondition(r)
     d = z.copy()
     rz = r @ z
-    stop = CG_RTOL * np.linalg.norm(rhs)
+    stop = rtol * np.linalg.norm(rhs)
     for _ in range(10 * len(rhs)):
         if np.linalg.norm(r) <= stop:
             return x, True
