@@ -303,12 +303,18 @@ class CompliancePlan:
     def apply_few(self, index, values):
         """A d for d = ``values`` on the cells ``index`` and zero elsewhere, from the kernel
         table directly (one scaled copy of the table per cell, in four quadrant slices): the
-        constrained CG's gap update after a step that clips a few pressures.  None where one
-        application is cheaper (more than ``few_max`` cells) or with an elastic pillar term;
-        then the caller applies the operator."""
+        constrained CG's gap update after a step that clips a few pressures (an elastic
+        pillar term on those cells' pillars only).  None where one application is cheaper
+        (more than ``few_max`` cells, or an elastic pillar term with a box convolution); then
+        the caller applies the operator."""
         m = int(index.shape[0])
-        if self.pillar_term is not None or m > self.few_max:
+        if m > self.few_max:
             return None
+        pillar_part = None
+        if self.pillar_term is not None:
+            pillar_part = self.pillar_term.apply_few(index, values)
+            if pillar_part is None:
+                return None
         be = self.backend
         xp = be.xp
         on_numpy = isinstance(be, NumpyDevice)
@@ -345,6 +351,8 @@ class CompliancePlan:
         if self.has_spring:
             forces = be.segment_sum(xp.take(self.pillar, index), values, self.n_pillars)
             u += self.spring * xp.take(forces, self.pillar)
+        if pillar_part is not None:
+            u += pillar_part
         self.direct_updates += 1
         return u
 
