@@ -7,7 +7,9 @@ excluded, first-call costs included) whose ``PYTHONPATH`` is this checkout or th
 alternate between the two (ABBA order), so that the load of a shared machine weighs on both
 alike.  Per case and side: the median and the spread of the solve's wall time and CPU time
 (``time.process_time``, both threads), the iterations, and the answers F_T, sigma0 and a with
-their largest relative difference between the sides.  With ``--warm`` each interpreter
+their largest relative difference between the sides; for the FFT, the operator applications
+and the fine level's solve time per iteration over the bare FFT pair on its padded grid
+(:func:`validation.bench.fft.fft_floor`, timed right after the solve).  With ``--warm`` each interpreter
 solves twice and the second solve is timed.  Prints the table and writes it with the runs
 and the load averages to ``DIR/bench_ab.md`` and ``DIR/bench_ab.json``.
 
@@ -47,9 +49,15 @@ for _ in range(2 if warm else 1):
     t, c = time.perf_counter(), time.process_time()
     r = solve(scene, *args, **kw)
     wall, cpu = time.perf_counter() - t, time.process_time() - c
-print(json.dumps({"wall_s": wall, "cpu_s": cpu, "iterations": r.iterations,
-                  "converged": r.converged, "F_T": r.total_force_N,
-                  "sigma0": r.centre_pressure_Pa, "a": r.contact_radius_m}))
+out = {"wall_s": wall, "cpu_s": cpu, "iterations": r.iterations, "converged": r.converged,
+       "F_T": r.total_force_N, "sigma0": r.centre_pressure_Pa, "a": r.contact_radius_m}
+if case["model"] != "dense":  # the fine level's time per iteration over the bare FFT pair
+    from validation.bench.fft import fft_floor
+    d = r.diagnostics
+    out["applications"] = d["operator_applications"]
+    out["per_iteration_over_fft_pair"] = (d["timings_s"]["solve"] / max(r.iterations, 1)
+                                          / fft_floor(d["fft_shape"]))
+print(json.dumps(out))
 """
 
 
@@ -86,7 +94,10 @@ def summarise(case, runs) -> list[dict]:
                      "wall_median_s": statistics.median(wall), "wall_min_s": min(wall),
                      "wall_max_s": max(wall), "cpu_median_s": statistics.median(cpu),
                      "iterations": rs[-1]["iterations"], "converged": rs[-1]["converged"],
-                     "F_T": rs[-1]["F_T"], "sigma0": rs[-1]["sigma0"], "a": rs[-1]["a"]})
+                     "F_T": rs[-1]["F_T"], "sigma0": rs[-1]["sigma0"], "a": rs[-1]["a"],
+                     "applications": rs[-1].get("applications"),
+                     "per_iteration_over_fft_pair": statistics.median(
+                         [r.get("per_iteration_over_fft_pair", float("nan")) for r in rs])})
     base, this = rows
     this["speed-up"] = base["wall_median_s"] / this["wall_median_s"]
     this["max_rel_diff"] = max(_rel(base[q], this[q]) for q in ("F_T", "sigma0", "a"))
@@ -94,13 +105,16 @@ def summarise(case, runs) -> list[dict]:
 
 
 def table(rows) -> str:
-    head = ("| case | side | wall median s (min-max) | CPU median s | iterations | F_T N | "
-            "sigma0 Pa | a m | speed-up | max rel diff |")
-    lines = [head, "|" + "---|" * 10]
+    head = ("| case | side | wall median s (min-max) | CPU median s | iterations "
+            "(applications) | iteration / FFT pair | F_T N | sigma0 Pa | a m | speed-up | "
+            "max rel diff |")
+    lines = [head, "|" + "---|" * 11]
     for r in rows:
+        apps = "" if r["applications"] is None else f" ({r['applications']})"
         lines.append(
             f"| {r['case']} | {r['side']} | {r['wall_median_s']:.3f} ({r['wall_min_s']:.3f}-"
-            f"{r['wall_max_s']:.3f}) | {r['cpu_median_s']:.3f} | {r['iterations']} | "
+            f"{r['wall_max_s']:.3f}) | {r['cpu_median_s']:.3f} | {r['iterations']}{apps} | "
+            f"{r['per_iteration_over_fft_pair']:.2f} | "
             f"{r['F_T']:.10g} | {r['sigma0']:.10g} | {r['a']:.10g} | "
             f"{r.get('speed-up', float('nan')):.2f} | {r.get('max_rel_diff', float('nan')):.2e} |")
     return "\n".join(lines)
@@ -110,6 +124,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--baseline", type=Path, required=True,
                     help="checkout of the old code (its root: bem_solver/, contact/, ...)")
+    ap.add_argument("--this", type=Path, default=ROOT,
+                    help="checkout of the new code (default: this one)")
     ap.add_argument("--out", type=Path, required=True, help="folder for bench_ab.md/.json")
     ap.add_argument("--case", type=parse_case, action="append",
                     help="dense, fft:N, elastic-fft:N, optionally @tol (repeatable; "
@@ -118,7 +134,7 @@ def main(argv=None) -> int:
     ap.add_argument("--warm", action="store_true", help="time a second solve per interpreter")
     args = ap.parse_args(argv)
     cases = args.case or [parse_case("dense")]
-    sides = {"baseline": args.baseline.resolve(), "this": ROOT}
+    sides = {"baseline": args.baseline.resolve(), "this": args.this.resolve()}
     load = [os.getloadavg()]
     rows, raw = [], {}
     for case in cases:
@@ -138,7 +154,8 @@ def main(argv=None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "bench_ab.md").write_text(text)
     (args.out / "bench_ab.json").write_text(json.dumps(
-        {"baseline": str(sides["baseline"]), "this": str(ROOT), "rows": rows, "runs": raw,
+        {"baseline": str(sides["baseline"]), "this": str(sides["this"]), "rows": rows,
+         "runs": raw,
          "load_average": load, "warm": args.warm}, indent=1))
     return 0
 
