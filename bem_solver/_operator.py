@@ -88,8 +88,10 @@ def _lower_column_sums(scene: Scene, disc: Discretisation) -> np.ndarray:
     block to block, and on the pairs within FAR_FIELD_RATIO sides of b (candidates from r^2
     with a margin for that rounding, then the exact test of
     :func:`bem_solver._love.unit_force_influence` on their differences) Love's exact rotated
-    coefficient.  The images of a rep are contiguous: the sum over them is one reduction per
-    run of reps with the same number of images."""
+    coefficient (:func:`bem_solver._love.love_square_near`) instead: those entries are zeroed
+    in the blocks, evaluated after them in chunks and added to the sums.  The images of a rep
+    are contiguous: the sum over them is one reduction per run of reps with the same number
+    of images."""
     scale, _ = _coefficients(scene)
     n = disc.n_unknowns
     T = np.zeros((n, n))
@@ -144,24 +146,26 @@ def _lower_column_sums(scene: Scene, disc: Discretisation) -> np.ndarray:
         S *= scale
         # Columns of this block beyond the diagonal: the upper triangle stays zero.
         T[j0:j1, j0:j1] = np.tril(T[j0:j1, j0:j1])
-        return img[keep], col[keep], dx[keep], dy[keep]
+        return img[keep].astype(np.int32), col[keep].astype(np.int32)
 
     cos, sin = np.cos(disc.img_angle), np.sin(disc.img_angle)
 
     def near(part):
-        img, col, dx, dy = part
+        img, col = part
+        dx = disc.rep_x[col] - disc.img_x[img]
+        dy = disc.rep_y[col] - disc.img_y[img]
         c, s = cos[img], sin[img]
         return scale * love_square_near(dx * c + dy * s, -dx * s + dy * c,
                                         0.5 * disc.img_side[img])
 
     with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(_THREADS) as pool:
-        pairs = [np.concatenate(a) for a in zip(*pool.map(work, blocks))]
+        img, col = (np.concatenate(a) for a in zip(*pool.map(work, blocks)))
         # Chunks of the near pairs small enough for their temporaries to be reused heap
-        # memory (no page faults).
-        chunks = max(1, -(-len(pairs[0]) // _NEAR_CHUNK))
-        parts = [np.array_split(a, chunks) for a in pairs]
-        values = np.concatenate(list(pool.map(near, zip(*parts))))
-    np.add.at(T, (disc.img_rep[pairs[0]], pairs[1]), values)
+        # memory (no page faults); their sums go into T as they come.
+        cut = range(_NEAR_CHUNK, len(img), _NEAR_CHUNK)
+        parts = list(zip(np.split(img, cut), np.split(col, cut)))
+        for (i, j), values in zip(parts, pool.map(near, parts)):
+            np.add.at(T, (disc.img_rep[i], j), values)
     return T
 
 
