@@ -34,6 +34,10 @@ BYTES_PER_OPERATOR_ENTRY = 5 * 8.0
 # Work arrays of a solve of any size: blocks of Love coefficients on two threads (measured
 # peaks of 5-40 MB on scenes with under a hundred unknowns).
 BYTES_FIXED = 48 * 2.0**20
+# Love's exact pairs of the assembly, kept until the sums are done: ~230 per unknown within
+# FAR_FIELD_RATIO sides (the upper triangle of a flat scene's 452; 179 on paper-fig3-dense),
+# two int32 indices each, twice while they are gathered from the blocks.
+BYTES_PER_UNKNOWN_NEAR = 4e3
 
 
 def lens_gap(scene: Scene, x, y):
@@ -206,7 +210,7 @@ def estimate_memory(scene: Scene, elements_per_diameter: int = 11, cells: str = 
         1.0, elements / len(cell_pattern(P, cells).x))
     check = 3 * 8.0 * outer / 12.0 * (loaded if scene.pillars is not None else elements)
     peak = (BYTES_FIXED + BYTES_PER_IMAGE * (elements + outer)
-            + BYTES_PER_OPERATOR_ENTRY * unknowns**2)
+            + BYTES_PER_OPERATOR_ENTRY * unknowns**2 + BYTES_PER_UNKNOWN_NEAR * unknowns)
     return {"bytes": float(peak + check), "unknowns": float(unknowns),
             "elements": float(elements), "outer_elements": float(outer)}
 

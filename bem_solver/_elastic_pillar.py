@@ -36,6 +36,7 @@ from ._limits import PILLAR_MODELS
 from ._love import unit_force_influence
 
 FFT_THREADS = 2  # the pillar boxes' batched transforms (this machine has two cores)
+CHUNK_CELLS = 8192  # cells per chunk of the mode projections
 
 
 def check_pillars(pillars: str) -> None:
@@ -253,27 +254,46 @@ class FFTPillarTerm:
         values = ((1.0 - t) * (1.0 - 2.0 * t), 4.0 * t * (1.0 - t), t * (2.0 * t - 1.0))
         self.n_pillars = len(grid.pillar_xy)
         self.n_edges = n_edges
-        key = grid.pillar * n_edges + e
-        n_keys = self.n_pillars * n_edges
-        cols = np.arange(self.n)
-        self.project = [sps.csr_matrix((v, (key, cols)), shape=(n_keys, self.n))
-                        for v in values]
-        self.back = [P.T.tocsr() for P in self.project]
+        self.n_top = len(compliance.r_top)
+        # Projection of cell forces onto the P2 points of their pillar's top: a sparse
+        # matrix (pillar, point) x cells with the three hats of each cell's edge.  The cells
+        # are taken by pillar (the permutation ``order``), in chunks of whole pillars of
+        # about CHUNK_CELLS cells: each chunk's product reads its cells x modes block in
+        # cache and writes only its pillars' rows; the projection back is the transpose.
+        order = np.argsort(grid.pillar, kind="stable")
+        self.order = order
+        rows = np.concatenate([grid.pillar * self.n_top + 2 * e + l for l in range(3)])
+        cols = np.tile(np.argsort(order), 3)  # the position of each cell in ``order``
+        project = sps.csr_matrix((np.concatenate(values), (rows, cols)),
+                                 shape=(self.n_pillars * self.n_top, self.n))
+        first = np.searchsorted(grid.pillar[order], np.arange(self.n_pillars + 1))
+        self.chunks, p0 = [], 0
+        while p0 < self.n_pillars:
+            p1 = p0 + 1
+            while p1 < self.n_pillars and first[p1 + 1] - first[p0] <= CHUNK_CELLS:
+                p1 += 1
+            r0, r1 = p0 * self.n_top, p1 * self.n_top
+            block = project[r0:r1, first[p0]:first[p1]]
+            self.chunks.append((first[p0], first[p1], r0, r1, block, block.T.tocsr()))
+            p0 = p1
+        self.position = np.argsort(order)  # of each cell in ``order``
+        self.chunk_of = np.repeat(np.arange(len(self.chunks)),
+                                  [c1 - c0 for c0, c1, *_ in self.chunks])
         trig, weights, modes = [], [], []
         w = compliance.mode_weights()
         for m in range(compliance.modes + 1):
             for f in ((np.cos,) if m == 0 else (np.cos, np.sin)):
                 trig.append(f(m * theta))
                 modes.append(m)
-        self.trig = np.column_stack(trig)                          # (cells, K)
+        trig = np.column_stack(trig)                               # (cells, K)
+        self.trig = trig[order]                                    # (cells by pillar, K)
         S = compliance.excess
         self.S = np.stack([w[m] * S[m] for m in modes]) * fem_scale  # (K, n_top, n_top)
-        self.n_top = len(compliance.r_top)
         # Local Love part: each pillar's box of the grid.
         self.local = None
         if local != 0.0:
             self.local = self._local_plan(grid, local, correction_builder)
-        self.diagonal = self._diagonal(values, e)
+        self.diagonal = self._diagonal(values, e, trig)
         # Mean excess of the mode part under a uniform load on the whole top (m/N).
         rr = np.linspace(0.0, 1.0, 4001)
         mid, dr = 0.5 * (rr[1:] + rr[:-1]), np.diff(rr)
@@ -309,16 +329,23 @@ class FFTPillarTerm:
         return {"M": M, "index": index, "spectrum": spectrum, "correction": correction,
                 "self": float(block[0, 0])}
 
-    def _diagonal(self, values, e):
-        """X[b, b] (m/Pa per unit q: times L^2)."""
+    def _diagonal(self, values, e, trig):
+        """X[b, b] (m/Pa per unit q: times L^2): sum_k trig_k^2 v^T S_k[edge] v over the three
+        hats v of each cell's edge, by edge: (cells x K) (K x 6) products with the unique
+        entries of the 3 x 3 blocks of S_k on that edge."""
         n = self.n
         d = np.zeros(n)
-        pillar_edge = np.stack([2 * e, 2 * e + 1, 2 * e + 2], axis=1)   # (cells, 3)
-        v = np.stack(values, axis=1)
-        for k in range(self.trig.shape[1]):
-            Sk = self.S[k]
-            sub = Sk[pillar_edge[:, :, None], pillar_edge[:, None, :]]  # (cells, 3, 3)
-            d += self.trig[:, k] ** 2 * np.einsum("bi,bij,bj->b", v, sub, v)
+        v = np.stack(values, axis=1)                                   # (cells, 3)
+        iu, ju = np.triu_indices(3)
+        vv = v[:, iu] * v[:, ju] * np.where(iu == ju, 1.0, 2.0)        # (cells, 6)
+        t2 = trig * trig
+        for edge in range(self.n_edges):
+            cells = np.nonzero(e == edge)[0]
+            if cells.size == 0:
+                continue
+            nodes = 2 * edge + np.arange(3)
+            blocks = self.S[:, nodes[iu], nodes[ju]]                   # (K, 6)
+            d[cells] = np.einsum("bm,bm->b", t2[cells] @ blocks, vv[cells])
         d *= self.L2
         if self.local is not None:
             d += self.local["self"]
@@ -327,20 +354,40 @@ class FFTPillarTerm:
         return d
 
     def __call__(self, q):
-        F = q * self.L2
-        FT = F[:, None] * self.trig                                   # (cells, K)
-        K = self.trig.shape[1]
-        M = np.zeros((self.n_pillars, self.n_top, K))
-        for l, P in enumerate(self.project):
-            M[:, l:2 * self.n_edges + l:2, :] += (P @ FT).reshape(self.n_pillars, self.n_edges, K)
-        # Per mode column k: U_k = M_k S_k (S_k symmetric), one batched matrix product.
-        U = np.matmul(M.transpose(2, 0, 1), self.S).transpose(1, 2, 0)  # (pillars, n_top, K)
-        u = np.zeros(self.n)
-        for l, P in enumerate(self.back):
-            part = np.ascontiguousarray(U[:, l:2 * self.n_edges + l:2, :]).reshape(-1, K)
-            u += (P @ part * self.trig).sum(axis=1)
+        u = self._modes(q, range(len(self.chunks)))
         if self.local is not None:
             u += self._local_apply(q)
+        return u
+
+    def apply_few(self, index, values):
+        """The term of d = ``values`` on the cells ``index`` and zero elsewhere, on the chunks
+        of their pillars only (zero on the other pillars); None with a local part (a box
+        convolution of every pillar)."""
+        if self.local is not None:
+            return None
+        q = np.zeros(self.n)
+        q[index] = values
+        return self._modes(q, np.unique(self.chunk_of[self.position[index]]).tolist())
+
+    def _modes(self, q, chunks):
+        """The mode part of the term of q, computed on the given chunks (zero elsewhere)."""
+        F = (q * self.L2)[self.order]
+        trig = self.trig
+        K = trig.shape[1]
+        M = np.zeros((self.n_pillars * self.n_top, K))
+        for c in chunks:
+            c0, c1, r0, r1, P, _ = self.chunks[c]
+            M[r0:r1] = P @ (F[c0:c1, None] * trig[c0:c1])
+        # Per mode column k: U_k = M_k S_k (S_k symmetric), one batched matrix product.
+        M = M.reshape(self.n_pillars, self.n_top, K)
+        U = np.matmul(M.transpose(2, 0, 1), self.S).transpose(1, 2, 0)  # (pillars, n_top, K)
+        U = np.ascontiguousarray(U).reshape(-1, K)
+        u_sorted = np.zeros(self.n)
+        for c in chunks:
+            c0, c1, r0, r1, _, B = self.chunks[c]
+            u_sorted[c0:c1] = np.einsum("ik,ik->i", B @ U[r0:r1], trig[c0:c1])
+        u = np.empty(self.n)
+        u[self.order] = u_sorted
         return u
 
     def _local_apply(self, q):

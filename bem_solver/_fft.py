@@ -387,6 +387,9 @@ def _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, mess
         "residual_history": [float(v) for v in history],
         "message": message,
         "operator_applications": plan.applications,
+        # Clipping steps whose gap was updated from the kernel table (few cells clipped)
+        # instead of an application.
+        "direct_gap_updates": plan.direct_updates,
         "reentry_iterations": int(outcome.reentries),
         "fft_shape": list(plan.fft_shape),
         "grid_shape": list(grid.shape),

@@ -19,7 +19,8 @@ reduced operator is M = E^T Ks E, computed without forming Ks: for representativ
 M[i, j] = |orbit(i)| * sum over the images b of j of K(x_i, b), by invariance of the
 discretisation under the orbit group (D6 off the centre pillar, D2 on it; the centre
 pillar's representatives come first, so its rows only ever meet groups that map its grid onto
-itself).  Only the upper triangle is evaluated.
+itself).  Only the upper triangle is evaluated (as the lower triangle of the transpose, whose
+rows the assembly writes contiguously).
 """
 
 from __future__ import annotations
@@ -29,15 +30,17 @@ import queue
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from scenes import Scene
 
 from ._discretise import Discretisation
-from ._love import FAR_FIELD_RATIO, unit_force_influence
+from ._love import FAR_FIELD_RATIO, love_square_near, unit_force_influence
 
-# Entries evaluated per block: temporaries of ~2 MB stay in cache.
-_BLOCK = 250_000
+# Entries evaluated per block: work arrays of ~0.5 MB stay in a core's cache.
+_BLOCK = 65_536
 _THREADS = 2
+_NEAR_CHUNK = 8192  # near pairs per evaluation of Love's exact coefficient
 
 
 def _coefficients(scene: Scene) -> tuple[float, float]:
@@ -52,50 +55,57 @@ def _influence(px, py, disc: Discretisation, cols: slice | np.ndarray, scale: fl
         disc.img_angle[cols][None, :], disc.img_side[cols][None, :])
 
 
-def _near_pairs(disc: Discretisation, reps, c0: int, c1: int):
-    """(rep i, image b) pairs, b in [c0, c1), i <= rep(b), within ``FAR_FIELD_RATIO`` sides of
-    image b, where Love's exact (rotated) coefficient replaces the far form; found with k-d
-    trees (``reps``: the tree of the representatives) instead of testing every entry."""
-    from scipy.spatial import cKDTree
-
-    side = disc.img_side[c0:c1]
-    reach = FAR_FIELD_RATIO * float(side.max(initial=0.0)) * (1.0 + 1e-9)
-    imgs = cKDTree(np.column_stack([disc.img_x[c0:c1], disc.img_y[c0:c1]]))
-    pairs = imgs.sparse_distance_matrix(reps, reach, output_type="ndarray")
-    col, row = pairs["i"].astype(np.int64) + c0, pairs["j"].astype(np.int64)
-    # The same test as unit_force_influence: r^2 <= FAR_FIELD_RATIO^2 side^2, exactly.
-    dx = disc.rep_x[row] - disc.img_x[col]
-    dy = disc.rep_y[row] - disc.img_y[col]
-    s = disc.img_side[col]
-    keep = (dx * dx + dy * dy <= FAR_FIELD_RATIO**2 * (s * s)) \
-        & (row <= disc.img_rep[col])  # the upper triangle only
-    return row[keep], col[keep]
-
-
-def _upper_row_sums(scene: Scene, disc: Discretisation) -> np.ndarray:
-    """R[i, j] (i <= j) = sum over images b of rep j of the Love part of K(x_i, b): the
-    displacement at rep i per unit force on every image of rep j.  Lower triangle: zero.
-
-    Every entry takes the far form 1/r + s^2 / (24 r^3), in place in work arrays reused from
-    block to block, then the near pairs of the block (:func:`_near_pairs`) Love's exact
-    rotated coefficient: bit for bit the values of
-    :func:`bem_solver._love.unit_force_influence`, without its test of every entry."""
-    scale, _ = _coefficients(scene)
-    n = disc.n_unknowns
-    R = np.zeros((n, n))
-    if n == 0:
-        return R
-    from scipy.spatial import cKDTree
-
-    start = disc.rep_start
-    reps = cKDTree(np.column_stack([disc.rep_x, disc.rep_y]))
-    far_coef = disc.img_side * disc.img_side / 24.0
+def _block_ranges(disc: Discretisation) -> list[tuple[int, int]]:
+    """(j0, j1): ranges of representatives whose images times the representatives 0..j1 make
+    ~``_BLOCK`` entries each (the work arrays stay in a core's cache)."""
+    n, start = disc.n_unknowns, disc.rep_start
     per_rep = max(np.mean(np.diff(start)), 1.0)
     blocks, j0 = [], 0
-    while j0 < n:  # blocks of ~_BLOCK entries over the triangle
+    while j0 < n:
         j1 = min(n, j0 + max(1, int(_BLOCK / max(j0, 64) / per_rep)))
         blocks.append((j0, j1))
         j0 = j1
+    return blocks
+
+
+def _weight_runs(weight: np.ndarray, j0: int, j1: int):
+    """(a, b, w): runs of representatives j0+a .. j0+b-1 with the same number w of images."""
+    w = weight[j0:j1]
+    cut = np.flatnonzero(w[1:] != w[:-1]) + 1
+    edges = np.concatenate([[0], cut, [len(w)]])
+    return [(int(a), int(b), int(w[a])) for a, b in zip(edges[:-1], edges[1:])]
+
+
+def _lower_column_sums(scene: Scene, disc: Discretisation) -> np.ndarray:
+    """T[j, i] (i <= j) = sum over images b of rep j of the Love part of K(x_i, b): the
+    displacement at rep i per unit force on every image of rep j.  Upper triangle: zero.
+    (T is the transpose of the upper triangle R[i, j] of the reduced operator's row sums.)
+
+    By blocks of representatives j (rows: their images b; columns: the reps i <= j):
+    r^2 = |x_b|^2 + |x_i|^2 - 2 x_b . x_i by one matrix product (its rounding, a few eps
+    |x|^2, is far below the pairs' r^2 beyond FAR_FIELD_RATIO sides at any size the dense
+    limit admits), the far form (r^2 + s^2/24) / r^3 in place in work arrays reused from
+    block to block, and on the pairs within FAR_FIELD_RATIO sides of b (candidates from r^2
+    with a margin for that rounding, then the exact test of
+    :func:`bem_solver._love.unit_force_influence` on their differences) Love's exact rotated
+    coefficient (:func:`bem_solver._love.love_square_near`) instead: those entries are zeroed
+    in the blocks, evaluated after them in chunks and added to the sums.  The images of a rep
+    are contiguous: the sum over them is one reduction per run of reps with the same number
+    of images."""
+    scale, _ = _coefficients(scene)
+    n = disc.n_unknowns
+    T = np.zeros((n, n))
+    if n == 0:
+        return T
+    start, weight = disc.rep_start, np.diff(disc.rep_start)
+    img_r2 = disc.img_x * disc.img_x + disc.img_y * disc.img_y
+    rep_r2 = disc.rep_x * disc.rep_x + disc.rep_y * disc.rep_y
+    lhs = np.column_stack([disc.img_x, disc.img_y, img_r2])
+    rhs = np.ascontiguousarray(np.vstack([-2.0 * disc.rep_x, -2.0 * disc.rep_y, np.ones(n)]))
+    far_coef = (disc.img_side * disc.img_side / 24.0)[:, None]
+    near_r2 = FAR_FIELD_RATIO**2 * (disc.img_side * disc.img_side)
+    rounding = 64.0 * np.finfo(float).eps * (img_r2.max() + rep_r2.max())
+    blocks = _block_ranges(disc)
 
     size = max((j1 * (start[j1] - start[j0]) for j0, j1 in blocks), default=0)
     buffers = queue.SimpleQueue()  # two work arrays per thread, reused (no page faults)
@@ -105,41 +115,58 @@ def _upper_row_sums(scene: Scene, disc: Discretisation) -> np.ndarray:
     def work(block):
         bufs = buffers.get()
         try:
-            _block(block, *bufs)
+            return _block(block, *bufs)
         finally:
             buffers.put(bufs)
 
-    def _block(block, buf_x, buf_y):
+    def _block(block, buf_a, buf_b):
         j0, j1 = block
         c0, c1 = start[j0], start[j1]
-        shape = (j1, c1 - c0)
-        dx = np.subtract.outer(disc.rep_x[:j1], disc.img_x[c0:c1],
-                               out=buf_x[:shape[0] * shape[1]].reshape(shape))
-        dy = np.subtract.outer(disc.rep_y[:j1], disc.img_y[c0:c1],
-                               out=buf_y[:shape[0] * shape[1]].reshape(shape))
-        np.multiply(dx, dx, out=dx)
-        np.multiply(dy, dy, out=dy)
-        r2 = np.add(dx, dy, out=dx)
-        inv = np.sqrt(r2, out=dy)
-        with np.errstate(divide="ignore"):  # r = 0: a near pair, replaced below
-            np.divide(1.0, inv, out=inv)
-        k = np.multiply(inv, inv, out=r2)
-        k *= far_coef[None, c0:c1]
-        k += 1.0
-        k *= inv
-        rows, cols = _near_pairs(disc, reps, c0, c1)
-        if rows.size:
-            k[rows, cols - c0] = unit_force_influence(
-                disc.rep_x[rows], disc.rep_y[rows], disc.img_x[cols], disc.img_y[cols],
-                disc.img_angle[cols], disc.img_side[cols])[0]
-        k *= scale
-        R[:j1, j0:j1] = np.add.reduceat(k, start[j0:j1] - c0, axis=1)
-        # Rows of this block below the diagonal: the lower triangle stays zero.
-        R[j0:j1, j0:j1] = np.triu(R[j0:j1, j0:j1])
+        shape = (c1 - c0, j1)
+        r2 = np.matmul(lhs[c0:c1], rhs[:, :j1], out=buf_a[:shape[0] * shape[1]].reshape(shape))
+        r2 += rep_r2[None, :j1]
+        # Candidates within the block's largest near radius (plus the product's rounding).
+        near = np.flatnonzero(r2 <= near_r2[c0:c1].max() * (1.0 + 1e-9) + rounding)
+        with np.errstate(divide="ignore", invalid="ignore"):  # r^2 <= 0: near, replaced
+            r3 = np.sqrt(r2, out=buf_b[:shape[0] * shape[1]].reshape(shape))
+            r3 *= r2
+            r2 += far_coef[c0:c1]
+            k = np.divide(r2, r3, out=r2).reshape(-1)
+        img, col = np.divmod(near, j1)
+        img += c0
+        dx = disc.rep_x[col] - disc.img_x[img]
+        dy = disc.rep_y[col] - disc.img_y[img]
+        keep = (dx * dx + dy * dy <= near_r2[img]) & (col <= disc.img_rep[img])
+        k[near[keep]] = 0.0  # Love's exact coefficient is added after the sums
+        k = k.reshape(shape)
+        S = T[j0:j1, :j1]
+        for a, b, w in _weight_runs(weight, j0, j1):
+            rows_ab = k[start[j0 + a] - c0:start[j0 + b] - c0]
+            np.add.reduce(rows_ab.reshape(b - a, w, j1), axis=1, out=S[a:b])
+        S *= scale
+        # Columns of this block beyond the diagonal: the upper triangle stays zero.
+        T[j0:j1, j0:j1] = np.tril(T[j0:j1, j0:j1])
+        return img[keep].astype(np.int32), col[keep].astype(np.int32)
 
-    with ThreadPoolExecutor(_THREADS) as pool:
-        list(pool.map(work, blocks))
-    return R
+    cos, sin = np.cos(disc.img_angle), np.sin(disc.img_angle)
+
+    def near(part):
+        img, col = part
+        dx = disc.rep_x[col] - disc.img_x[img]
+        dy = disc.rep_y[col] - disc.img_y[img]
+        c, s = cos[img], sin[img]
+        return scale * love_square_near(dx * c + dy * s, -dx * s + dy * c,
+                                        0.5 * disc.img_side[img])
+
+    with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(_THREADS) as pool:
+        img, col = (np.concatenate(a) for a in zip(*pool.map(work, blocks)))
+        # Chunks of the near pairs small enough for their temporaries to be reused heap
+        # memory (no page faults); their sums go into T as they come.
+        cut = range(_NEAR_CHUNK, len(img), _NEAR_CHUNK)
+        parts = list(zip(np.split(img, cut), np.split(col, cut)))
+        for (i, j), values in zip(parts, pool.map(near, parts)):
+            np.add.at(T, (disc.img_rep[i], j), values)
+    return T
 
 
 def reduced_operator(scene: Scene, disc: Discretisation,
@@ -151,24 +178,26 @@ def reduced_operator(scene: Scene, disc: Discretisation,
     Hooke term."""
     _, c_h = _coefficients(scene)
     w = disc.rep_weight.astype(float)
-    M = _upper_row_sums(scene, disc)
+    # Built as its transpose: the lower triangle MT[j, i] = M[i, j] (i <= j), whose rows
+    # the assembly writes contiguously.
+    MT = _lower_column_sums(scene, disc)
     if pillar_block is not None:
-        M += np.triu(pillar_block)
+        MT += np.tril(pillar_block.T)
     elif c_h > 0.0 and len(disc.orbit_size):
         # Images of rep j on the pillar of rep i: only when both lie on the same pillar orbit,
         # then w_j / (pillars in that orbit) of them.  Reps are grouped by orbit: add the
-        # term on each orbit's diagonal block (upper triangle).
+        # term on each orbit's diagonal block (lower triangle of MT).
         per_pillar = w / disc.orbit_size[disc.rep_orbit]
         runs = _runs(disc.rep_orbit)
         if runs is None:
             same = disc.rep_orbit[:, None] == disc.rep_orbit[None, :]
-            M += np.triu(c_h * same * per_pillar[None, :])
+            MT += np.tril(c_h * same * per_pillar[:, None])
         for lo, hi in runs or ():
-            M[lo:hi, lo:hi] += np.triu(c_h * np.broadcast_to(per_pillar[None, lo:hi],
-                                                             (hi - lo, hi - lo)))
-    M *= w[:, None]
-    _mirror_upper(M)
-    return M
+            MT[lo:hi, lo:hi] += np.tril(c_h * np.broadcast_to(per_pillar[lo:hi, None],
+                                                              (hi - lo, hi - lo)))
+    MT *= w[None, :]
+    _mirror_upper(MT.T)  # the lower triangle onto the upper: M = MT.T = MT
+    return MT
 
 
 def _mirror_upper(M: np.ndarray, block: int = 512) -> None:

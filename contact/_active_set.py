@@ -19,7 +19,6 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve, solve_triangular
 from scipy.linalg.blas import dsymv as symv
-from scipy.linalg.lapack import dpotrs as potrs
 from scipy.optimize import nnls
 from threadpoolctl import threadpool_limits
 
@@ -32,6 +31,7 @@ SINGLE_THREAD_BELOW = 3000
 # the previous iterate (a few dozen products instead of an O(n^3) factorisation).
 CHOLESKY_MAX = 1200
 CG_RTOL = 1e-14
+CG_RTOL_SEARCH = 1e-6  # active sets that are not yet the last one
 
 
 def solve_active_set(A: np.ndarray, b: np.ndarray, *, scale: float, weights=None,
@@ -76,24 +76,37 @@ def _solve(A, b, scale, weights, groups, initial, tol, max_iterations) -> Contac
     seen = set()
     p = np.zeros(n)
     method = "active-set"
+    # Sets that conjugate gradients solve are first solved to CG_RTOL_SEARCH (the next set
+    # needs no more), and to CG_RTOL once a set repeats: the answer is that of the exact
+    # iteration.  A cycle met by the loose solves turns them off.
+    loose = True
     for it in range(1, max_iterations + 1):
         p_prev, p = p, np.zeros(n)
-        if active.any():
-            idx = np.nonzero(active)[0]
-            sub, ok = _spd_solve(A, s, idx, -bs[idx], p_prev[idx],
-                                 None if groups is None else groups[idx])
-            if not ok:
-                return _finish(A, b, p_prev * s, scale, weights, tol, it, method,
-                               f"conjugate gradients missed {CG_RTOL:g} on an active set of "
-                               f"{len(idx)} unknowns")
-            p[idx] = sub
-        gap = s * _symmetric_product(A, s * p) + bs
-        new = p - gap > 0
+        rtol = CG_RTOL_SEARCH if loose else CG_RTOL
+        while True:
+            if active.any():
+                idx = np.nonzero(active)[0]
+                sub, ok = _spd_solve(A, s, idx, -bs[idx], p_prev[idx],
+                                     None if groups is None else groups[idx], rtol)
+                if not ok:
+                    return _finish(A, b, p_prev * s, scale, weights, tol, it, method,
+                                   f"conjugate gradients missed {rtol:g} on an active set of "
+                                   f"{len(idx)} unknowns")
+                p[idx] = sub
+            gap = s * _symmetric_product(A, s * p) + bs
+            new = p - gap > 0
+            if rtol == CG_RTOL or np.count_nonzero(active) <= CHOLESKY_MAX \
+                    or not np.array_equal(new, active):
+                break
+            rtol, p_prev = CG_RTOL, p.copy()  # the set repeats: solve it exactly
         if np.array_equal(new, active):
             return _finish(A, b, p * s, scale, weights, tol, it, method)
         key = new.tobytes()
         if key in seen:
-            break
+            if not loose:
+                break
+            loose = False
+            seen.clear()
         seen.add(key)
         active = new
     method = "nnls"
@@ -137,7 +150,7 @@ def _scaled(A, s, rows, cols):
     return A[np.ix_(rows, cols)] * s[rows][:, None] * s[cols][None, :]
 
 
-def _spd_solve(A, s, idx, rhs, x0, groups=None) -> tuple[np.ndarray, bool]:
+def _spd_solve(A, s, idx, rhs, x0, groups=None, rtol=CG_RTOL) -> tuple[np.ndarray, bool]:
     """Solve (S A S)[idx, idx] x = rhs (SPD): Cholesky when small, else block-preconditioned
     CG whose products use the whole of A (a zero-padded vector) instead of a copy of the
     submatrix."""
@@ -145,16 +158,32 @@ def _spd_solve(A, s, idx, rhs, x0, groups=None) -> tuple[np.ndarray, bool]:
         return cho_solve(cho_factor(_scaled(A, s, idx, idx)), rhs), True
     if groups is None:
         groups = np.zeros(len(rhs), int)
-    blocks = []
-    for g in np.unique(groups):
-        sel = np.nonzero(groups == g)[0]
-        if len(sel) > CHOLESKY_MAX:  # a block too large to factor: Jacobi on its diagonal
-            blocks.append((sel, None))
-        else:
-            blocks.append((sel, cho_factor(_scaled(A, s, idx[sel], idx[sel]))))
     si = s[idx]
     diag = A[idx, idx] * si * si
+    # Block Jacobi on the groups: the inverses of the blocks that can be factored, padded to
+    # the next power of two of their size and applied by one batched product per size
+    # (27 blocks a CG iteration on the largest paper scene: one LAPACK call per block cost
+    # more than the products); larger blocks are scaled by their diagonal.
+    by_width, large = {}, []
+    for g in np.unique(groups):
+        sel = np.nonzero(groups == g)[0]
+        if len(sel) > CHOLESKY_MAX:
+            large.append(sel)
+        else:
+            by_width.setdefault(1 << (len(sel) - 1).bit_length(), []).append(sel)
+    jacobi = np.concatenate(large) if large else np.zeros(0, int)
+    batches = []
+    for width, sels in by_width.items():
+        gather = np.full((len(sels), width), len(rhs))  # the padding reads a zero
+        inverse = np.zeros((len(sels), width, width))
+        for k, sel in enumerate(sels):
+            gather[k, :len(sel)] = sel
+            block = _scaled(A, s, idx[sel], idx[sel])
+            inverse[k, :len(sel), :len(sel)] = cho_solve(cho_factor(block), np.eye(len(sel)))
+        valid = gather < len(rhs)
+        batches.append((gather, inverse, valid, gather[valid]))
     padded = np.zeros(len(s))
+    r_ext = np.zeros(len(rhs) + 1)
 
     def product(d):
         padded[idx] = si * d
@@ -162,15 +191,10 @@ def _spd_solve(A, s, idx, rhs, x0, groups=None) -> tuple[np.ndarray, bool]:
 
     def precondition(r):
         z = np.empty_like(r)
-        for sel, factor in blocks:
-            if factor is None:
-                z[sel] = r[sel] / diag[sel]
-            else:
-                # cho_solve's own LAPACK call, without its per-call checks (27 blocks a
-                # CG iteration on the largest paper scene: the checks cost more than it).
-                z[sel], info = potrs(factor[0], r[sel], lower=factor[1])
-                if info != 0:
-                    raise np.linalg.LinAlgError(f"potrs: info = {info}")
+        r_ext[:-1] = r
+        for gather, inverse, valid, target in batches:
+            z[target] = np.matmul(inverse, r_ext[gather][:, :, None])[:, :, 0][valid]
+        z[jacobi] = r[jacobi] / diag[jacobi]
         return z
 
     x = x0.copy()
@@ -178,7 +202,7 @@ def _spd_solve(A, s, idx, rhs, x0, groups=None) -> tuple[np.ndarray, bool]:
     z = precondition(r)
     d = z.copy()
     rz = r @ z
-    stop = CG_RTOL * np.linalg.norm(rhs)
+    stop = rtol * np.linalg.norm(rhs)
     for _ in range(10 * len(rhs)):
         if np.linalg.norm(r) <= stop:
             return x, True

@@ -9,7 +9,8 @@ from scipy.integrate import dblquad
 from contact import solve_active_set as solve_contact
 from bem_solver import (cell_pattern, discretise, disk_rectangle_area, expansion, full_operator,
                         lens_gap, love_rectangle, reduced_operator, solve_dense)
-from bem_solver._love import FAR_FIELD_RATIO, FAR_FIELD_RTOL, unit_force_influence
+from bem_solver._love import (FAR_FIELD_RATIO, FAR_FIELD_RTOL, love_square_near,
+                              unit_force_influence)
 from scenes import load_scene
 
 RTOL_ROUNDOFF = 1e-12   # identities that hold exactly up to floating-point rounding
@@ -32,6 +33,19 @@ def test_love_self_term_and_far_field():
     exact = love_rectangle(r * np.cos(theta), r * np.sin(theta), 0.5, 0.5)
     approx = unit_force_influence(r * np.cos(theta), r * np.sin(theta), 0.0, 0.0, 0.0, 1.0)
     assert np.max(np.abs(approx / exact - 1)) < FAR_FIELD_RTOL
+
+
+def test_love_square_near_matches_corner_sum():
+    # The regrouped corner sum of the operator's near pairs: every sign, zero distances to
+    # the corner lines (x = +-h, y = +-h, and the axes), the self term, out to the far radius.
+    rng = np.random.default_rng(1)
+    h = rng.uniform(0.1, 0.5, 4000)
+    x = rng.uniform(-FAR_FIELD_RATIO, FAR_FIELD_RATIO, h.size) * h
+    y = rng.uniform(-FAR_FIELD_RATIO, FAR_FIELD_RATIO, h.size) * h
+    x[:400], y[200:600] = 0.0, 0.0
+    x[1000:1200], y[1100:1300], x[1400:1500] = h[1000:1200], -h[1100:1300], -h[1400:1500]
+    exact = love_rectangle(x, y, h, h) / (4 * h * h)
+    assert np.max(np.abs(love_square_near(x, y, h) / exact - 1)) < RTOL_ROUNDOFF
 
 
 def test_cell_areas():

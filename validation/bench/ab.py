@@ -1,0 +1,164 @@
+"""Interleaved before/after timing of solves against another checkout of the toolkit:
+``python -m validation.bench.ab --baseline DIR --out DIR [--case dense] [--case fft:58] ...``.
+
+Each run is one solve in a fresh interpreter (as ``pillar-xval solve`` runs it: imports
+excluded, first-call costs included) whose ``PYTHONPATH`` is this checkout or the baseline
+(a read-only checkout of the old code, e.g. ``git archive main | tar -x -C DIR``); the runs
+alternate between the two (ABBA order), so that the load of a shared machine weighs on both
+alike.  Per case and side: the median and the spread of the solve's wall time and CPU time
+(``time.process_time``, both threads), the iterations, and the answers F_T, sigma0 and a with
+their largest relative difference between the sides; for the FFT, the operator applications
+and the fine level's solve time per iteration over the bare FFT pair on its padded grid
+(:func:`validation.bench.fft.fft_floor`, timed right after the solve).  With ``--warm`` each interpreter
+solves twice and the second solve is timed.  Prints the table and writes it with the runs
+and the load averages to ``DIR/bench_ab.md`` and ``DIR/bench_ab.json``.
+
+Cases: ``dense`` (the dense BEM at its default P = 11 on paper-fig3-dense, zeta = 0.5 um),
+``fft:N`` and ``elastic-fft:N`` (the FFT BEM with Hooke or elastic pillars at N cells per
+diameter on paper-fig3-dense), optionally ``@tol`` (the FFT's tolerance), e.g. ``fft:58@1e-12``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+from pathlib import Path
+
+SCENE = ("paper-fig3-dense", ["load.indentation_um=0.5"])
+ROOT = Path(__file__).resolve().parents[2]
+
+WORKER = r"""
+import json, sys, time
+case, warm = json.loads(sys.argv[1]), sys.argv[2] == "1"
+from scenes import load_scene
+scene = load_scene(case["scene"], case["overrides"])
+if case["model"] == "dense":
+    from bem_solver import solve_dense as solve
+else:
+    from bem_solver import solve_fft as solve
+if case["model"] != "dense" and case["pillars"] == "elastic":
+    from bem_solver._elastic_pillar import scene_compliance
+    scene_compliance(scene)  # the cached compliance, read outside the timing
+args = () if case["model"] == "dense" else (case["cells"],)
+kw = {} if case["model"] == "dense" else {"pillars": case["pillars"], **case["options"]}
+for _ in range(2 if warm else 1):
+    t, c = time.perf_counter(), time.process_time()
+    r = solve(scene, *args, **kw)
+    wall, cpu = time.perf_counter() - t, time.process_time() - c
+out = {"wall_s": wall, "cpu_s": cpu, "iterations": r.iterations, "converged": r.converged,
+       "F_T": r.total_force_N, "sigma0": r.centre_pressure_Pa, "a": r.contact_radius_m}
+if case["model"] != "dense":  # the fine level's time per iteration over the bare FFT pair
+    from validation.bench.fft import fft_floor
+    d = r.diagnostics
+    out["applications"] = d["operator_applications"]
+    out["per_iteration_over_fft_pair"] = (d["timings_s"]["solve"] / max(r.iterations, 1)
+                                          / fft_floor(d["fft_shape"]))
+print(json.dumps(out))
+"""
+
+
+def parse_case(text: str) -> dict:
+    name, _, tol = text.partition("@")
+    model, _, cells = name.partition(":")
+    if model not in ("dense", "fft", "elastic-fft") or (model != "dense") != bool(cells):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected dense, fft:N or elastic-fft:N")
+    options = {"tol": float(tol)} if tol else {}
+    return {"label": text, "model": "dense" if model == "dense" else "fft",
+            "pillars": "elastic" if model == "elastic-fft" else "hooke",
+            "cells": int(cells) if cells else None, "options": options,
+            "scene": SCENE[0], "overrides": SCENE[1]}
+
+
+def run_once(root: Path, case: dict, warm: bool) -> dict:
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    out = subprocess.run([sys.executable, "-c", WORKER, json.dumps(case), "1" if warm else "0"],
+                         env=env, cwd=root, capture_output=True, text=True, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def _rel(a, b):
+    return abs(a - b) / max(abs(a), abs(b), 1e-300)
+
+
+def summarise(case, runs) -> list[dict]:
+    rows = []
+    for side in ("baseline", "this"):
+        rs = runs[side]
+        wall = [r["wall_s"] for r in rs]
+        cpu = [r["cpu_s"] for r in rs]
+        rows.append({"case": case["label"], "side": side, "repeats": len(rs),
+                     "wall_median_s": statistics.median(wall), "wall_min_s": min(wall),
+                     "wall_max_s": max(wall), "cpu_median_s": statistics.median(cpu),
+                     "iterations": rs[-1]["iterations"], "converged": rs[-1]["converged"],
+                     "F_T": rs[-1]["F_T"], "sigma0": rs[-1]["sigma0"], "a": rs[-1]["a"],
+                     "applications": rs[-1].get("applications"),
+                     "per_iteration_over_fft_pair": statistics.median(
+                         [r.get("per_iteration_over_fft_pair", float("nan")) for r in rs])})
+    base, this = rows
+    this["speed-up"] = base["wall_median_s"] / this["wall_median_s"]
+    this["max_rel_diff"] = max(_rel(base[q], this[q]) for q in ("F_T", "sigma0", "a"))
+    return rows
+
+
+def table(rows) -> str:
+    head = ("| case | side | wall median s (min-max) | CPU median s | iterations "
+            "(applications) | iteration / FFT pair | F_T N | sigma0 Pa | a m | speed-up | "
+            "max rel diff |")
+    lines = [head, "|" + "---|" * 11]
+    for r in rows:
+        apps = "" if r["applications"] is None else f" ({r['applications']})"
+        lines.append(
+            f"| {r['case']} | {r['side']} | {r['wall_median_s']:.3f} ({r['wall_min_s']:.3f}-"
+            f"{r['wall_max_s']:.3f}) | {r['cpu_median_s']:.3f} | {r['iterations']}{apps} | "
+            f"{r['per_iteration_over_fft_pair']:.2f} | "
+            f"{r['F_T']:.10g} | {r['sigma0']:.10g} | {r['a']:.10g} | "
+            f"{r.get('speed-up', float('nan')):.2f} | {r.get('max_rel_diff', float('nan')):.2e} |")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--baseline", type=Path, required=True,
+                    help="checkout of the old code (its root: bem_solver/, contact/, ...)")
+    ap.add_argument("--this", type=Path, default=ROOT,
+                    help="checkout of the new code (default: this one)")
+    ap.add_argument("--out", type=Path, required=True, help="folder for bench_ab.md/.json")
+    ap.add_argument("--case", type=parse_case, action="append",
+                    help="dense, fft:N, elastic-fft:N, optionally @tol (repeatable; "
+                         "default: dense)")
+    ap.add_argument("--repeats", type=int, default=5, help="runs per side and case (5)")
+    ap.add_argument("--warm", action="store_true", help="time a second solve per interpreter")
+    args = ap.parse_args(argv)
+    cases = args.case or [parse_case("dense")]
+    sides = {"baseline": args.baseline.resolve(), "this": args.this.resolve()}
+    load = [os.getloadavg()]
+    rows, raw = [], {}
+    for case in cases:
+        runs = {"baseline": [], "this": []}
+        for k in range(args.repeats):
+            order = ("baseline", "this") if k % 2 == 0 else ("this", "baseline")
+            for side in order:
+                runs[side].append(run_once(sides[side], case, args.warm))
+        raw[case["label"]] = runs
+        rows += summarise(case, runs)
+        load.append(os.getloadavg())
+    text = (table(rows) + f"\n\nrepeats {args.repeats} per side (interleaved ABBA), "
+            f"{'second (warm)' if args.warm else 'first (cold)'} solve per interpreter; "
+            "load average (1, 5, 15 min) before and after each case: "
+            + ", ".join("(" + ", ".join(f"{x:.2f}" for x in la) + ")" for la in load) + "\n")
+    print(text)
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "bench_ab.md").write_text(text)
+    (args.out / "bench_ab.json").write_text(json.dumps(
+        {"baseline": str(sides["baseline"]), "this": str(sides["this"]), "rows": rows,
+         "runs": raw,
+         "load_average": load, "warm": args.warm}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
