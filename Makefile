@@ -6,7 +6,8 @@ STAMP  := $(VENV)/.installed
 OUT    ?= out
 
 .PHONY: demo study-gecit study-lattice figures test test-slow bench-bem bench-fft bench-gpu bench-fem3d \
-	bench-engine bench-figures bench-startup clean calibrate validate-planner extremes regimes
+	bench-elastic bench-engine bench-figures bench-startup clean calibrate validate-planner extremes \
+	regimes
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -75,6 +76,13 @@ bench-gpu: $(STAMP)
 # Phi = 0.2 and on the densest paper scene (about 12 minutes).
 bench-fem3d: $(STAMP)
 	$(PY) -m validation.bench.fem3d --out $(OUT)/bench-fem3d --levels 2.83,2,1.41 --dense 2.83,2,1.41
+
+# The elastic-pillar BEM's cost against fem-3d at equal accuracy (issue 17, item 5): Phi = 0.2
+# and 0.82, fem-3d at mesh_size 2.83, 2, 1.41 (its Richardson estimate the reference), the FFT
+# and dense BEMs with Hooke and elastic pillars, the compliance build uncached; the table and
+# the claims in $(OUT)/bench-elastic/elastic_fem3d.md (30-60 minutes; resumes).
+bench-elastic: $(STAMP)
+	$(PY) -m validation.bench.elastic_fem3d --out $(OUT)/bench-elastic
 
 # CLI start-up: `pillar-xval --version` and `solve --help`, median of 5 fresh processes each.
 bench-startup: $(STAMP)
