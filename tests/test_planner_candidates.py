@@ -252,3 +252,18 @@ def test_a_recalibration_keeps_the_hand_entries(tmp_path):
     coupling = [t for t in again["tables"] if t["component"] == "elastic-coupling"
                 and "multi" in t["regimes"]]
     assert [t["source"][:7] for t in coupling] == ["lattice"]
+
+
+def test_the_planner_validation_judges_only_measured_candidates():
+    """validate-plan's lattice reference has Hooke pillars: the hand-entered candidates
+    (fem-3d, the elastic BEMs) stay out of the plans it judges, and nothing else does."""
+    from validation.studies.calibrate.validate import measured_only
+
+    data = load_data()
+    kept = measured_only(data)
+    hand = [c for c in data.candidates if str(c.get("source", "")).startswith("hand")]
+    assert hand and len(kept.candidates) == len(data.candidates) - len(hand)
+    assert not any(c["model"] == "fem-3d" or c.get("options", {}).get("pillars") == "elastic"
+                   for c in kept.candidates)
+    p = plan(_lattice(), 0.05, "sigma0", data=kept)
+    assert p["choice"] is None or p["choice"]["model"] in ("bem", "bem-fft", "hertz")
