@@ -122,7 +122,7 @@ def closed_form(scene: Scene) -> tuple[str, dict]:
         name, out = "spring model", {"F_T": s.force, "sigma0": s.centre_pressure, "a": d / 2.0,
                                      "A": math.pi * d * d / 4.0}
         profile = s.pressure(r)
-    out.update({f"sigma(r={x:g})": float(v) for x, v in zip(PROFILE_POINTS, profile)})
+    out.update({profile_key(x): float(v) for x, v in zip(PROFILE_POINTS, profile)})
     return name, out
 
 
@@ -140,7 +140,7 @@ def compare_rows(bem: dict, fem: dict, bem_studies: dict | None, fem_studies: di
                  reference: dict) -> list[dict]:
     """One row per quantity: values, difference, uncertainty bands and the verdict."""
     rows = []
-    for key in [q.key for q in QUANTITIES] + [f"sigma(r={x:g})" for x in PROFILE_POINTS]:
+    for key in [q.key for q in QUANTITIES] + [profile_key(x) for x in PROFILE_POINTS]:
         fb, ff = bem.get(key), fem.get(key)
         st_f = fem_studies.get(key)
         u_f, gci_f = _band(st_f)
@@ -194,7 +194,7 @@ def three_way_rows(rows_by: dict[str, list[dict]]) -> list[dict]:
 def _values(result, r_ref: float) -> dict:
     vals = quantity_values(result)
     for x, v in zip(PROFILE_POINTS, profile_at(result.pillar_top_profile, r_ref, PROFILE_POINTS)):
-        vals[f"sigma(r={x:g})"] = v
+        vals[profile_key(x)] = v
     return vals
 
 
@@ -349,7 +349,7 @@ def _three_way_curves(scene: Scene, bem_res: dict, fem_data: dict, fem_studies: 
                             f"mesh_size={finest['value']:g}",
                    "style": "k-", **fem_res.pillar_top_profile})
     centre = profile_at(fem_res.pillar_top_profile, r_ref, PROFILE_POINTS)
-    band = [(x, v, *_band(fem_studies.get(f"sigma(r={x:g})")))
+    band = [(x, v, *_band(fem_studies.get(profile_key(x))))
             for x, v in zip(PROFILE_POINTS, centre)]
     band = [b for b in band if b[1] is not None and b[2] is not None]
     if band:

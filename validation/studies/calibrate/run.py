@@ -301,12 +301,13 @@ def with_lattice(tables: list, report: dict) -> list:
     from dataclasses import replace
 
     elastic = lattice_elastic_table(report)
+    if elastic is not None:
+        tables = [t for t in tables
+                  if not (t.component == "elastic-coupling" and "multi" in t.regimes)]
     out = [replace(t, regimes=[r for r in t.regimes if r != "multi"],
                    note="measured on one pillar; multi-pillar scenes use the lattice study's "
                         "table")
-           if t.component == "hooke" and "multi" in t.regimes else t for t in tables
-           if elastic is None or not (t.component == "elastic-coupling"
-                                      and "multi" in t.regimes)]
+           if t.component == "hooke" and "multi" in t.regimes else t for t in tables]
     new = [lattice_hooke_table(report)] + ([elastic] if elastic is not None else [])
     for t in new:
         t.loo = t.leave_one_out()
@@ -517,6 +518,11 @@ def calibrate(out: Path, engine: Engine | None = None, *, n_lattice: int = 40,
 HAND = "hand"
 
 
+def is_hand(entry: dict, key: str = "source") -> bool:
+    """Whether a data entry (candidate, table, cost fit) was written by hand, not measured."""
+    return str(entry.get(key, "")).startswith(HAND)
+
+
 def keep_hand_entries(errors: dict, costs: dict, folder: Path | None = None) -> None:
     """Carry the installed data's hand entries (``source``/``note`` starting with "hand":
     fem-3d and the elastic-pillar BEMs as candidates, issue 18) into a new calibration that
@@ -534,7 +540,7 @@ def keep_hand_entries(errors: dict, costs: dict, folder: Path | None = None) -> 
     labels = {c["label"] for c in errors["candidates"]}
     errors["candidates"] = list(errors["candidates"]) + [
         c for c in old_errors.get("candidates", ())
-        if str(c.get("source", "")).startswith(HAND) and c["label"] not in labels]
+        if is_hand(c) and c["label"] not in labels]
     def measured(t):  # the calibration measured this table itself (e.g. from the lattice)
         return any(m.get("component") == t.get("component") and m.get("option") ==
                    t.get("option") and set(m.get("regimes", ())) & set(t.get("regimes", ()))
@@ -542,13 +548,13 @@ def keep_hand_entries(errors: dict, costs: dict, folder: Path | None = None) -> 
                    for m in errors["tables"])
 
     errors["tables"] = list(errors["tables"]) + [
-        t for t in old_errors.get("tables", ()) if str(t.get("source", "")).startswith(HAND)
+        t for t in old_errors.get("tables", ()) if is_hand(t)
         and t not in errors["tables"] and not measured(t)]
     for name, fit in old_costs.get("models", {}).items():
-        if name not in costs["models"] and str(fit.get("note", "")).startswith(HAND):
+        if name not in costs["models"] and is_hand(fit, "note"):
             costs["models"][name] = fit
     variants = {k: v for k, v in old_costs.get("variants", {}).items()
-                if str(v.get("note", "")).startswith(HAND) and v["base"] in costs["models"]}
+                if is_hand(v, "note") and v["base"] in costs["models"]}
     if variants:
         costs["variants"] = variants
     hand = old_errors.get("provenance", {}).get("hand_entries")

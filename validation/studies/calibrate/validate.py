@@ -41,6 +41,7 @@ from outcome import write_atomic
 from ...engine import Case, Engine
 from ...registry import MODELS, quantity_values
 from ...analysis.verification import gci_three
+from .run import is_hand
 from .scenes import flat_scenes, lattice_scenes
 from ...planner.plan import DEFAULT_QUANTITIES, DEFAULT_TOLERANCE, plan
 from ...planner.tables import PlannerData, load_data
@@ -128,8 +129,7 @@ def measured_only(data: PlannerData) -> PlannerData:
     """``data`` without its hand-entered candidates (module docstring)."""
     from dataclasses import replace
 
-    return replace(data, candidates=[c for c in data.candidates
-                                     if not str(c.get("source", "")).startswith("hand")])
+    return replace(data, candidates=[c for c in data.candidates if not is_hand(c)])
 
 
 def validate_planner(out: Path, engine: Engine | None = None, *, scenes=None,
