@@ -19,8 +19,9 @@ from outcome.memory import memory_short
 
 from ._cells import VARIANTS, cell_pattern
 from ._discretise import Discretisation, discretise, overlap_radius
-from ._elastic_pillar import (cached_excess_block, check_pillars, image_cells, reduced_block,
-                              representative_rows, scene_compliance, uses_elastic_block)
+from ._elastic_pillar import (cached_excess_block, check_pillars, coupling_block, image_cells,
+                              reduced_block, representative_rows, scene_compliance,
+                              uses_coupling, uses_elastic_block)
 from ._operator import reduced_operator
 
 MAX_UNKNOWNS = 12_000  # dense reduced operator: 1.2 GB at this size
@@ -120,6 +121,8 @@ def solve_dense(scene: Scene, elements_per_diameter: int = 11, cells: str = "cov
         if elastic is not None:
             img_cell = image_cells(disc, elastic["pattern"], scene.pillars.diameter_m)
             block = reduced_block(disc, elastic["X"], img_cell, elastic["rows"])
+            if uses_coupling(scene, elastic["modal"]):
+                block += coupling_block(scene, disc, elastic["modal"])
         M = reduced_operator(scene, disc, block)
         # Rows of the reduced operator are weighted by the orbit sizes: gap_i / w_i is in m.
         b = disc.rep_weight * (lens_gap(scene, disc.rep_x, disc.rep_y) - scene.indentation_m)
@@ -153,7 +156,10 @@ def _compliance_summary(modal) -> dict:
     return {"modes": modal.modes, "mesh_size": modal.mesh_size,
             "top_points": int(len(modal.r_top)), "cached": bool(d.get("cached", False)),
             "reciprocity_asymmetry": d.get("reciprocity_asymmetry"),
-            "build_time_s": d.get("time_s", {}).get("total")}
+            "build_time_s": d.get("time_s", {}).get("total"),
+            "coupling": ("half-space at the tops, corrected by the base's second moments"
+                         if getattr(modal, "base_moments", None) is not None
+                         else "half-space at the tops")}
 
 
 def _initial_radius(scene: Scene, contact: str) -> float:

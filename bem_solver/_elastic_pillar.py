@@ -15,7 +15,21 @@ half-space of pillar material on the P2 points of the top (:mod:`fem_reference`,
 once per pillar kind and cached), phi the P2 hats of those points, (r, theta) cell collocation
 points relative to the pillar centre, and the second term the local singular part, on the same
 Love coefficients as the half-space term.  Both terms are symmetric (the second as the BEM
-symmetrises Love's coefficients).  Pillar-to-pillar coupling stays in the half-space term.
+symmetrises Love's coefficients).
+
+Pillar-to-pillar coupling.  The half-space term couples two pillars as if each passed its
+top load straight down to the substrate (a column).  A real pillar spreads it: a stiff one
+passes it on as a rigid punch.  The load's force and moment reach the base unchanged
+(equilibrium), so the first correction is in the second moments of the load at the base:
+with ΔM_i(x) (m^2, per unit force at x on pillar i) their excess over the column's (x - c_i)
+(x - c_i)^T, the coupling of cells x on pillar i and x' on pillar j != i gains
+
+    ΔK(x, x') = gamma_s / (2 pi) [ΔM_i(x) + ΔM_j(x')] : grad grad (1/|c_i - c_j|),
+
+the next term of the multipole expansion of the Boussinesq field between the two bases
+(:func:`coupling_moments`, :func:`coupling_kernel`; the moments come from the same Fourier
+FEM, ``ModalCompliance.base_moments``).  ΔK is symmetric, zero on one pillar and decays like
+|c_i - c_j|^-3.
 
 The compliance comes from :mod:`fem_reference` (imported when first needed, the one place
 where the boundary-element package uses the finite-element one) unless the caller passes a
@@ -78,6 +92,73 @@ def _constants(scene: Scene, compliance):
     E_p = compliance.kind.effective_pillar_modulus(E_s, p.material.E_Pa)
     gamma_p = (1.0 - p.material.nu ** 2) / E_p
     return 1.0 / (E_p * 0.5 * p.diameter_m), gamma_p - s.compliance
+
+
+def coupling_moments(scene: Scene, compliance, x, y) -> np.ndarray:
+    """(len(x), 3): the excess second moment ΔM(x) = alpha I + beta R(2 theta) of the load a
+    pillar passes to its substrate per unit force at (x, y) on its top (m, relative to the
+    pillar centre, global axes), as (alpha, beta cos 2 theta, beta sin 2 theta) in m^2:
+    alpha = a^2 (R_0 - r^2) / 2, beta = a^2 (R_2 - r^2) / 2 (the column's moments r^2
+    subtracted).  Zero without base moments (a rigid substrate)."""
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    out = np.zeros((len(x), 3))
+    R = getattr(compliance, "base_moments", None)
+    if R is None:
+        return out
+    a = 0.5 * scene.pillars.diameter_m
+    phi = compliance.trace_basis(np.hypot(x, y) / a)
+    excess = np.asarray(R) - compliance.r_top[None, :] ** 2          # (2, n_top)
+    alpha = 0.5 * a * a * (phi @ excess[0])
+    beta = 0.5 * a * a * (phi @ excess[1])
+    theta2 = 2.0 * np.arctan2(y, x)
+    out[:, 0], out[:, 1], out[:, 2] = alpha, beta * np.cos(theta2), beta * np.sin(theta2)
+    return out
+
+
+def coupling_kernel(scene: Scene, centres) -> np.ndarray:
+    """(3, n, n): gamma_s / (2 pi) times (tr H, H_xx - H_yy, 2 H_xy) of H = grad grad 1/|D|
+    between the pillar centres (D = c_i - c_j; zero for i = j), so that the coupling
+    correction of x on pillar i and x' on pillar j is sum_k (m_k(x) + m_k(x')) h_k[i, j] with
+    m = :func:`coupling_moments` (m/N)."""
+    c = np.asarray(centres, dtype=float).reshape(-1, 2)
+    dx = c[:, None, 0] - c[None, :, 0]
+    dy = c[:, None, 1] - c[None, :, 1]
+    d2 = dx * dx + dy * dy
+    same = d2 <= (1e-9 * scene.pillars.diameter_m) ** 2
+    d2 = np.where(same, 1.0, d2)
+    inv3 = np.where(same, 0.0, d2 ** -1.5)
+    scale = scene.substrate.compliance / (2.0 * math.pi)
+    # H = (3 e e^T - I) / D^3: tr H = 1/D^3, H_xx - H_yy = 3 cos 2psi / D^3, 2 H_xy = 3 sin 2psi / D^3.
+    return scale * np.stack([inv3, 3.0 * (dx * dx - dy * dy) / d2 * inv3,
+                             6.0 * dx * dy / d2 * inv3])
+
+
+def uses_coupling(scene: Scene, compliance) -> bool:
+    """True when the coupling correction applies: elastic pillars on an elastic substrate."""
+    return (not scene.substrate.rigid and scene.substrate.compliance > 0.0
+            and getattr(compliance, "base_moments", None) is not None)
+
+
+def coupling_block(scene: Scene, disc, compliance) -> np.ndarray:
+    """C[i, j] = sum over the images b of rep j on pillars other than rep i's of
+    ΔK(x_i, x_b) (m/N, unweighted, as :func:`reduced_block`)."""
+    n = disc.n_unknowns
+    centre = disc.pillar_xy[disc.img_pillar]
+    m_img = coupling_moments(scene, compliance, disc.img_x - centre[:, 0],
+                             disc.img_y - centre[:, 1])
+    rep_img = disc.rep_start[:-1]
+    m_rep, p_rep = m_img[rep_img], disc.img_pillar[rep_img]
+    h = coupling_kernel(scene, disc.pillar_xy)
+    n_p = len(disc.pillar_xy)
+    shape = (n_p, n)
+    count = sp.csr_matrix((np.ones(len(disc.img_x)), (disc.img_pillar, disc.img_rep)),
+                          shape=shape)
+    C = np.zeros((n, n))
+    for k in range(3):
+        moment = sp.csr_matrix((m_img[:, k], (disc.img_pillar, disc.img_rep)), shape=shape)
+        hk = h[k][:, p_rep]                                   # (n_p, n_i), symmetric h
+        C += m_rep[:, k, None] * (count.T @ hk).T + (moment.T @ hk).T
+    return C
 
 
 def excess_block(scene: Scene, x, y, side, compliance, rows=None) -> np.ndarray:
@@ -210,8 +291,10 @@ def full_block(disc, X: np.ndarray, img_cell: np.ndarray) -> np.ndarray:
     return np.where(same, X[np.ix_(img_cell, img_cell)], 0.0)
 
 
-__all__ = ["FFTPillarTerm", "PILLAR_MODELS", "cached_excess_block", "check_pillars", "excess_block", "full_block", "image_cells",
-           "reduced_block", "representative_rows", "scene_compliance", "uses_elastic_block"]
+__all__ = ["FFTPillarTerm", "PILLAR_MODELS", "cached_excess_block", "check_pillars",
+           "coupling_block", "coupling_kernel", "coupling_moments", "excess_block",
+           "full_block", "image_cells", "reduced_block", "representative_rows",
+           "scene_compliance", "uses_coupling", "uses_elastic_block"]
 
 
 class FFTPillarTerm:
@@ -299,6 +382,13 @@ class FFTPillarTerm:
         mid, dr = 0.5 * (rr[1:] + rr[:-1]), np.diff(rr)
         moments = (compliance.trace_basis(mid) * (mid * dr)[:, None]).sum(axis=0)
         self.mean_mode = float(2.0 * moments @ (self.S[0] / w[0]) @ moments / math.pi)
+        # Pillar-to-pillar coupling correction (module docstring): per cell its excess base
+        # moments, per pillar pair the kernel h.
+        self.coupling = None
+        if uses_coupling(scene, compliance):
+            self.coupling = {"m": coupling_moments(scene, compliance, dx, dy),
+                             "h": coupling_kernel(scene, grid.pillar_xy),
+                             "pillar": np.asarray(grid.pillar)}
 
     def _local_plan(self, grid, local, correction_builder):
         from ._fft_operator import kernel_block
@@ -357,17 +447,37 @@ class FFTPillarTerm:
         u = self._modes(q, range(len(self.chunks)))
         if self.local is not None:
             u += self._local_apply(q)
+        if self.coupling is not None:
+            u += self._coupling_apply(q)
         return u
+
+    def _coupling_apply(self, q):
+        """sum_b ΔK[a, b] q_b L^2 over the cells b of the other pillars: per pillar the force
+        and the moment-weighted forces, three pillar-by-pillar products (O(cells + pillars^2))."""
+        c = self.coupling
+        f = q * self.L2
+        pillar, m, h = c["pillar"], c["m"], c["h"]
+        force = np.bincount(pillar, f, minlength=self.n_pillars)
+        u = np.zeros(self.n)
+        per_pillar = np.zeros(self.n_pillars)
+        for k in range(3):
+            u += m[:, k] * (h[k] @ force)[pillar]
+            per_pillar += h[k] @ np.bincount(pillar, f * m[:, k], minlength=self.n_pillars)
+        return u + per_pillar[pillar]
 
     def apply_few(self, index, values):
         """The term of d = ``values`` on the cells ``index`` and zero elsewhere, on the chunks
-        of their pillars only (zero on the other pillars); None with a local part (a box
+        of their pillars only (zero on the other pillars, but for the coupling correction,
+        which reaches every pillar); None with a local part (a box
         convolution of every pillar)."""
         if self.local is not None:
             return None
         q = np.zeros(self.n)
         q[index] = values
-        return self._modes(q, np.unique(self.chunk_of[self.position[index]]).tolist())
+        u = self._modes(q, np.unique(self.chunk_of[self.position[index]]).tolist())
+        if self.coupling is not None:   # every pillar: O(cells) work, no FFT
+            u += self._coupling_apply(q)
+        return u
 
     def _modes(self, q, chunks):
         """The mode part of the term of q, computed on the given chunks (zero elsewhere)."""

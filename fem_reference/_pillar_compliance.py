@@ -56,7 +56,7 @@ from .forms.fourier import mode_divergence_coupling, mode_shear_stiffness
 
 # Version of the operator's definition and discretisation: part of the cache key, with the
 # hash of this module's and the form's sources.
-COMPLIANCE_VERSION = 1
+COMPLIANCE_VERSION = 2   # 2: the base moments
 DEFAULT_MODES = 6   # n <= 6: tilt (n = 1) matters, n >= 2 below 3e-5 (PHYSICS.md); 6 is the
 #                    centre pillar's D6 harmonic
 # Moduli contrasts are capped at RIGID_CONTRAST: a pillar stiffer than RIGID_CONTRAST * E_s
@@ -148,6 +148,12 @@ class ModalCompliance:
     odd indices); ``pillar[n]`` and ``halfspace[n]`` (len(r_top) square, dimensionless, see
     the module's units): compliance of mode n of the pillar on its substrate and of the
     half-space of pillar material; ``excess[n]`` = their difference, symmetrised.
+    ``base_moments`` (2 x n_top): for a unit load at each top point, the second radial
+    moment (units of a^2) of the normal load the pillar passes to its substrate, its mode-0
+    part R_0 = int t rho^2 and mode-2 part R_2 = int t rho^2 cos 2(phi - theta) (a column
+    passes the load straight down: R_0 = R_2 = r^2; a rigid pillar as a rigid punch:
+    R_0 = 2/3, R_2 = 0; a rigid substrate: r^2, unused).  The BEM's pillar-to-pillar
+    coupling corrects its top-plane Boussinesq field with them.
     ``diagnostics``: reciprocity (relative asymmetry of every matrix before symmetrising),
     linear residual, mesh and timing."""
 
@@ -158,6 +164,7 @@ class ModalCompliance:
     pillar: np.ndarray       # (modes + 1, n_top, n_top)
     halfspace: np.ndarray
     diagnostics: dict = field(default_factory=dict)
+    base_moments: np.ndarray | None = None   # (2, n_top): R_0, R_2 (units of a^2)
 
     @property
     def excess(self) -> np.ndarray:
@@ -296,8 +303,12 @@ class _Body:
                 -self.c * self.M)
 
 
-def _mode_compliance(ub, bodies, n, fixed_extra, top, axis_nodes):
-    """Compliance matrix of mode n on the top u_z dofs (n_top square) and its diagnostics."""
+def _mode_compliance(ub, bodies, n, fixed_extra, top, axis_nodes, base=None):
+    """Compliance matrix of mode n on the top u_z dofs (n_top square), the linear residual and
+    the unknowns; with ``base`` = (base u_z dofs, their weights V), also the load that each top
+    point's unit load passes through the base, weighted by V: sum_i V_i r_i over the base
+    nodes, r the nodal force of the first body (the pillar) on what lies below it (len
+    n_top; None without ``base``)."""
     A = sum(b.blocks(n)[0] for b in bodies)
     Bs = [b.blocks(n)[1] for b in bodies]
     Cs = [b.blocks(n)[2] for b in bodies]
@@ -356,7 +367,19 @@ def _mode_compliance(ub, bodies, n, fixed_extra, top, axis_nodes):
     x = s[:, None] * y
     C = np.zeros((len(top), len(top)))
     C[np.ix_(top_free, top_free)] = x[cols]
-    return C, rel, len(free)
+    moment = None
+    if base is not None:
+        # The pillar's internal nodal forces A_p u + B_p^T p_p: the applied unit load at its
+        # top point, zero inside, and at the base nodes minus the load it passes on (the sum
+        # over every node vanishes for a rigid translation).
+        full = T @ x
+        A_p, B_p, _ = bodies[0].blocks(n)
+        n_p = B_p.shape[0]
+        internal = A_p @ full[:n_u] + B_p.T @ full[n_u:n_u + n_p]
+        dofs, weights = base
+        moment = np.zeros(len(top))
+        moment[top_free] = -(weights @ internal[dofs])
+    return C, rel, len(free), moment
 
 
 _PARDISO = []
@@ -430,12 +453,21 @@ def compute_modal_compliance(kind: PillarKind, modes: int = DEFAULT_MODES,
     bodies_b = [pillar, _Body(ub, sk, sub["collar"], 1.0, nu_p),
                 _Body(ub, sk, sub["substrate"], 1.0, nu_p)]
     t_asm = time.perf_counter()
+    base_z = ub.get_dofs("pillar_base").all("u^3")
+    base = (base_z, ub.doflocs[0, base_z] ** 2)   # V = rho^2 (units of a^2)
+    # Second radial moments of the load the pillar passes to its substrate (modes 0 and 2),
+    # per unit load at each top point; a column (the Hooke model) passes rho^2 = r_top^2.
+    moments = np.tile(r_top ** 2, (2, 1))
     Ca, Cb, residual, asym, dofs = [], [], 0.0, 0.0, []
     for n in range(modes + 1):
         say(f"mode {n} of {modes}")
         for bodies, fixed, out in ((bodies_a, np.concatenate(fixed_a), Ca),
                                    (bodies_b, far, Cb)):
-            C, rel, nd = _mode_compliance(ub, bodies, n, fixed, top, axis_nodes)
+            want = (out is Ca and n in (0, 2) and not kind.rigid_substrate)
+            C, rel, nd, moment = _mode_compliance(ub, bodies, n, fixed, top, axis_nodes,
+                                                  base if want else None)
+            if moment is not None:
+                moments[n // 2] = moment
             residual = max(residual, rel)
             scale = np.max(np.abs(C)) or 1.0
             asym = max(asym, float(np.max(np.abs(C - C.T)) / scale))
@@ -455,8 +487,10 @@ def compute_modal_compliance(kind: PillarKind, modes: int = DEFAULT_MODES,
             "mesh_min_quality": float(mesh.quality().min()),
             "time_s": {"mesh": t_mesh - t0, "assemble": t_asm - t_mesh,
                        "modes": t_end - t_asm, "total": t_end - t0}}
+    if not np.all(np.isfinite(moments)):
+        raise SolveError("the pillar's base moments are not finite")
     return ModalCompliance(kind, int(modes), float(mesh_size), r_top, np.array(Ca),
-                           np.array(Cb), diag)
+                           np.array(Cb), diag, moments)
 
 
 # --- cache --------------------------------------------------------------------------------
@@ -514,7 +548,8 @@ def modal_compliance(kind: PillarKind, modes: int = DEFAULT_MODES, mesh_size: fl
                 diag = json.loads(str(z["diagnostics"]))
                 diag["cached"] = True
                 return ModalCompliance(kind, int(modes), float(mesh_size), z["r_top"],
-                                       z["pillar"], z["halfspace"], diag)
+                                       z["pillar"], z["halfspace"], diag,
+                                       z["base_moments"])
         except (OSError, ValueError, KeyError):
             pass  # a damaged file: recompute and replace it
     result = compute_modal_compliance(kind, modes, mesh_size, progress)
@@ -523,7 +558,7 @@ def modal_compliance(kind: PillarKind, modes: int = DEFAULT_MODES, mesh_size: fl
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
         np.savez(tmp, r_top=result.r_top, pillar=result.pillar, halfspace=result.halfspace,
-                 diagnostics=json.dumps(result.diagnostics))
+                 base_moments=result.base_moments, diagnostics=json.dumps(result.diagnostics))
         os.replace(tmp, path)
     return result
 

@@ -112,7 +112,7 @@ def modes_study(ratios=(10.0, 0.1), meshes=(4.0, 2.0, 1.0), P=21) -> list:
             full, t = _timed(modal_compliance, kind, 12, mesh)
             for n in (0, 1, 2, 4, 8, 12):
                 m = ModalCompliance(kind, n, mesh, full.r_top, full.pillar[:n + 1],
-                                    full.halfspace[:n + 1], {})
+                                    full.halfspace[:n + 1], {}, full.base_moments)
                 r = solve_dense(scene, P, pillars="elastic", compliance=m)
                 rows.append({"E_p/E_l": ratio, "mesh_size": mesh, "top_points": len(full.r_top),
                              "modes": n, "F_T": r.total_force_N,
