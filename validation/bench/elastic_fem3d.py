@@ -84,10 +84,13 @@ def scene_of(phi: str):
 
 # --- the cases ------------------------------------------------------------------------------
 
-def plan_cases(quick: bool = False) -> list[dict]:
+def plan_cases(quick: bool = False, scenes=None) -> list[dict]:
     """The cases in run order: the compliance build per pillar kind, then per scene the BEMs
-    (Hooke and elastic side by side per resolution) and fem-3d coarse to fine."""
-    levels = QUICK if quick else FULL
+    (Hooke and elastic side by side per resolution) and fem-3d coarse to fine; ``scenes``
+    (a subset of SCENES' keys, in that order) replaces the default scenes."""
+    levels = dict(QUICK if quick else FULL)
+    if scenes is not None:
+        levels["scenes"] = tuple(scenes)
     cases, kinds = [], set()
     for phi in levels["scenes"]:  # one build per pillar kind (both scenes share theirs)
         scene = scene_of(phi)
@@ -489,12 +492,12 @@ def write_outputs(out: Path, doc: dict) -> tuple[Path, Path]:
     return md, js
 
 
-def run(out: Path, quick: bool = False, runner=run_case, log=print) -> dict:
+def run(out: Path, quick: bool = False, runner=run_case, log=print, scenes=None) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     load0 = list(os.getloadavg())
     rows = []
-    for spec in plan_cases(quick):
+    for spec in plan_cases(quick, scenes):
         row = runner(spec, out)
         rows.append(row)
         log(_progress(row), flush=True)
@@ -502,7 +505,8 @@ def run(out: Path, quick: bool = False, runner=run_case, log=print) -> dict:
     import platform
     doc = {"benchmark": "elastic-pillar BEM against fem-3d (issue 17, item 5)",
            "command": "python -m validation.bench.elastic_fem3d --out " + str(out)
-                      + (" --quick" if quick else ""),
+                      + (" --quick" if quick else "")
+                      + (f" --scenes {','.join(scenes)}" if scenes else ""),
            "quick": quick, "machine": f"{os.cpu_count()} cores, {platform.machine()}, shared "
                                       "with other jobs (timings contended)",
            "load_average_start": load0, "load_average_end": list(os.getloadavg()),
@@ -540,6 +544,9 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path)
     ap.add_argument("--quick", action="store_true",
                     help="Phi = 0.2 only, coarse levels (fem-3d 4, 2.83, 2; FFT 8, 16; P 11)")
+    ap.add_argument("--scenes", type=lambda t: t.split(","), default=None, metavar="PHI,...",
+                    help=f"scenes to run, a subset of {','.join(SCENES)} (default: all; "
+                         "with --quick: 0.2)")
     ap.add_argument("--case", help=argparse.SUPPRESS)
     ap.add_argument("--case-out", type=Path, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
@@ -550,7 +557,10 @@ def main(argv=None) -> int:
         return 0
     if args.out is None:
         ap.error("--out is required")
-    run(args.out, args.quick)
+    bad = [v for v in args.scenes or () if v not in SCENES]
+    if bad:
+        ap.error(f"--scenes {','.join(bad)}: allowed values are {', '.join(SCENES)}")
+    run(args.out, args.quick, scenes=args.scenes)
     return 0
 
 
