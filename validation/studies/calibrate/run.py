@@ -287,10 +287,10 @@ def lattice_elastic_table(report: dict) -> ErrorTable | None:
         source="lattice: elastic-pillar bem-fft (Richardson) against the elastic-pillar "
                "fem-3d (Richardson)",
         note=f"measured on {len(points)} lattices, E_s = E_l, zeta = "
-             f"{report.get('zeta_um', 0.3)} um; it grows with E_p / E_s and Phi (stiff pillars "
-             "on a soft substrate, where coupling through the top plane is least like coupling "
-             "through the bases); scenes at E_s = E_p, where the study measured it smaller, "
-             "take these values (conservative)")
+             f"{report.get('zeta_um', 0.3)} um; what remains of the pillars' coupling through "
+             "the substrate beyond its second-moment correction (largest for stiff pillars on "
+             "a soft substrate in dense lattices); scenes at E_s = E_p, where the study "
+             "measured it smaller, take these values (conservative)")
 
 
 def with_lattice(tables: list, report: dict) -> list:
