@@ -255,8 +255,9 @@ def test_a_recalibration_keeps_the_hand_entries(tmp_path):
 
 
 def test_the_planner_validation_judges_only_measured_candidates():
-    """validate-plan's lattice reference has Hooke pillars: the hand-entered candidates
-    (fem-3d, the elastic BEMs) stay out of the plans it judges, and nothing else does."""
+    """validate-plan's Hooke-BEM reference (its scenes but the lattice-sigma0 ones): the
+    hand-entered candidates (fem-3d, the elastic BEMs) stay out of the plans it judges there,
+    and nothing else does."""
     from validation.studies.calibrate.validate import measured_only
 
     data = load_data()

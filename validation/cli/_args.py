@@ -62,9 +62,11 @@ def one_line(text: str, limit: int = 400) -> str:
 
 
 def _bounds(lo, hi) -> str:
-    if hi is None:
-        return f">= {lo:g}"
-    return f"[{lo:g}, {hi:g}]"
+    """An integer range, written out in full (``:g`` would print 2^32 as 4.29497e+09)."""
+    def text(v):
+        return str(v) if isinstance(v, int) else f"{v:g}"
+
+    return f">= {text(lo)}" if hi is None else f"[{text(lo)}, {text(hi)}]"
 
 
 def integer(lo: int | None = None, hi: int | None = None):

@@ -4,8 +4,9 @@ The paper's family ([P] Table 1: R = 2 mm, d = 4 um, h = 2 um, E_l = 1.6 MPa, ev
 nu = 0.5) is sampled by a Latin hypercube in log10 Phi over [2.3e-3, 0.82], log10 zeta over
 [0.005, 0.5] um and log10 E_p/E_l over [1e-3, 1e6], with the paper's E_s = E_p; a second,
 smaller sample keeps the substrate at the lens's modulus (E_s = E_l), so that pillars much
-softer than both half-spaces are measured too.  Calibration and validation draw different
-seeds: the validation is out of sample.
+softer than both half-spaces are measured too.  :func:`drawn_scenes` draws the scenes a
+filter accepts (the planner validation's lattices whose fem-3d ladder fits the machine).
+Calibration and validation draw different seeds: the validation is out of sample.
 """
 
 from __future__ import annotations
@@ -14,9 +15,10 @@ import math
 
 import numpy as np
 
-from scenes import load_scene
+from scenes import InputError, load_scene
 
-__all__ = ["PAPER_RANGES", "flat_scenes", "gecit_scenes", "lattice_scenes", "punch_scenes"]
+__all__ = ["PAPER_RANGES", "drawn_scenes", "flat_scenes", "gecit_scenes", "lattice_scenes",
+           "punch_scenes"]
 
 BASE = "paper-fig3-sparse"
 E_LENS = 1.6e6
@@ -42,14 +44,43 @@ def lattice_scenes(n: int, seed: int, substrate: str = "pillars", prefix: str = 
     from scipy.stats import qmc
 
     u = qmc.LatinHypercube(d=3, seed=seed).random(n)
+    return [_unit_scene(row, PAPER_RANGES, substrate, f"{prefix}{i:02d}")
+            for i, row in enumerate(u)]
+
+
+def _unit_scene(row, ranges: dict, substrate: str, tag: str) -> dict:
+    """The scene at a point ``row`` of the unit cube, mapped to log10 of ``ranges`` (Phi,
+    zeta in um, E_p/E_l), each value rounded to four digits."""
     keys = ("phi", "zeta_um", "ratio")
-    out = []
-    for i, row in enumerate(u):
-        lo = np.array([PAPER_RANGES[k][0] for k in keys])
-        hi = np.array([PAPER_RANGES[k][1] for k in keys])
-        phi, zeta, ratio = 10.0 ** (lo + row * (hi - lo))
-        out.append(_scene(float(f"{phi:.4g}"), float(f"{zeta:.4g}"), float(f"{ratio:.4g}"),
-                          substrate, f"{prefix}{i:02d}"))
+    lo = np.array([ranges[k][0] for k in keys])
+    hi = np.array([ranges[k][1] for k in keys])
+    phi, zeta, ratio = 10.0 ** (lo + np.asarray(row) * (hi - lo))
+    return _scene(float(f"{phi:.4g}"), float(f"{zeta:.4g}"), float(f"{ratio:.4g}"),
+                  substrate, tag)
+
+
+def drawn_scenes(n: int, seed: int, keep, ranges=None, substrate: str = "pillars",
+                 prefix: str = "l", max_draws: int = 8192) -> list:
+    """The first ``n`` scenes of the paper's family that ``keep(scene)`` accepts, drawn along
+    a scrambled Halton sequence (``seed``) in log10 of ``ranges`` (default
+    :data:`PAPER_RANGES`): a low-discrepancy sequence, so the first ``n`` accepted spread
+    evenly over the accepted region whatever share of the box it is.  InputError naming ``n``
+    when ``max_draws`` points do not yield ``n``."""
+    from scipy.stats import qmc
+
+    sequence = qmc.Halton(d=3, scramble=True, seed=seed)
+    out, drawn = [], 0
+    while len(out) < n:
+        if drawn >= max_draws:
+            raise InputError(f"{n} scenes: only {len(out)} of {max_draws} drawn (seed {seed}) "
+                             "are accepted; ask for fewer")
+        for row in sequence.random(256):
+            drawn += 1
+            s = _unit_scene(row, ranges or PAPER_RANGES, substrate, f"{prefix}{len(out):02d}")
+            if keep(s["scene"]):
+                out.append(s)
+                if len(out) == n:
+                    break
     return out
 
 
