@@ -336,6 +336,43 @@ def test_lattice_study_supplies_the_elastic_bem_error_in_lattices():
     assert kept == [bound]
 
 
+def test_lattice_study_supplies_fem3d_discretisation_in_lattices():
+    """fem-3d's levels in a lattice report become its discretisation tables (each level
+    against the report's fem-3d Richardson estimate), one per mesh_size, in place of the
+    hand bounds of those sizes; a size the report lacks keeps its bound."""
+    from validation.studies.calibrate import with_lattice
+
+    def err(phi, ratio, h):  # second order in the mesh size, larger for dense lattices
+        return (0.002 + 0.01 * phi) * (h / 1.41) ** 2 * (1.0 + 0.1 * math.log10(ratio))
+
+    report = _lattice_report({(phi, ratio): -0.5 for phi in (0.1, 0.3) for ratio in (0.1, 10.0)})
+    for row in report["rows"]:
+        phi, ratio = row["surface_fraction"], row["ratio"]
+        row["fem_levels"] = [{"mesh_size": h, "converged": True,
+                              "F_T": 1.0 + err(phi, ratio, h), "sigma0": 1.0 - err(phi, ratio, h)}
+                             for h in (2.83, 2.0, 1.41)]
+        for q in ("F_T", "sigma0"):
+            row["quantities"][q]["fem_band"] = 0.001
+    # an estimate without an asymptotic range (band beyond 2 %) is no reference: left out
+    report["rows"][0]["quantities"]["F_T"]["fem_band"] = 0.05
+    hand = [ErrorTable("discretisation", ["fem-3d"], ["multi"], [], [[]],
+                       {"F_T": [0.015], "sigma0": [0.01]}, option={"mesh_size": h},
+                       source="hand: a bound") for h in (2.83, 2.0, 1.41, 1.0)]
+    tables = with_lattice(hand, report)
+    fem = [t for t in tables if "fem-3d" in t.models and t.kind == "discretisation"]
+    assert sorted(t.option["mesh_size"] for t in fem if t.source.startswith("lattice")) \
+        == [1.41, 2.0, 2.83]
+    assert [t.option["mesh_size"] for t in fem if t.source.startswith("hand")] == [1.0]
+    x = features(load_scene("paper-fig3-sparse", ["pillars.surface_fraction=0.3",
+                                                   "pillars.E_Pa=1.6e7", "substrate.E_Pa=1.6e6"]))
+    for t in fem:
+        if t.source.startswith("lattice"):
+            h = t.option["mesh_size"]
+            value, outside = t.predict(x, "sigma0")
+            assert value == pytest.approx(err(0.3, 10.0, h), rel=1e-9) and not outside
+            assert t.errors["F_T"][0] is None and t.errors["sigma0"][0] is not None
+
+
 @pytest.mark.parametrize("name, sets, expect", [
     ("hertz", [], {"hertz"}),
     # a rigid pillar: bem-fft N=24 is -0.37 % from fem-axisym mesh 0.5 in F_T, cheaper than it

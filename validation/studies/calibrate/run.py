@@ -293,22 +293,70 @@ def lattice_elastic_table(report: dict) -> ErrorTable | None:
              "measured it smaller, take these values (conservative)")
 
 
+FEM3D_BAND_MAX = 0.02
+
+
+def lattice_fem3d_tables(report: dict) -> list:
+    """fem-3d's discretisation error in a lattice, one table per mesh_size of the lattice
+    study's ladder: each level against the study's Richardson estimate of fem-3d over that
+    ladder, on its Phi x E_p/E_l grid (E_s = E_l), signed; empty when the report has no
+    fem-3d levels.  A quantity whose estimate's band exceeds :data:`FEM3D_BAND_MAX` of it is
+    left out at that point (no asymptotic range there: the estimate is no reference)."""
+    from ..lattice import LENS, LatticePoint
+
+    levels = {}
+    for row in report["rows"]:
+        if not row.get("converged") or row.get("substrate", LENS) != LENS:
+            continue
+        x = features(LatticePoint(row["surface_fraction"], row["ratio"]).scene())
+        for level in row.get("fem_levels") or ():
+            if not level.get("converged", True):
+                continue
+            points, errors = levels.setdefault(level["mesh_size"],
+                                               ([], {q: [] for q in QKEYS}))
+            points.append([x["phi"], x["log_ep"]])
+            for q in QKEYS:
+                est = (row.get("quantities") or {}).get(q) or {}
+                ref, band = est.get("fem"), est.get("fem_band")
+                v = level.get(q)
+                ok = ref is not None and v is not None and ref != 0 and math.isfinite(ref) \
+                    and math.isfinite(v) and band is not None \
+                    and abs(band) <= FEM3D_BAND_MAX * abs(ref)
+                errors[q].append((v - ref) / ref if ok else None)
+    ladder = ", ".join(f"{m:g}" for m in sorted(levels, reverse=True))
+    return [ErrorTable(
+        "discretisation", ["fem-3d"], ["multi"], ["phi", "log_ep"], points, errors,
+        option={"mesh_size": mesh_size},
+        source=f"lattice: fem-3d at mesh_size {mesh_size:g} against its Richardson estimate "
+               f"over mesh_size {ladder}",
+        note=f"measured on {len(points)} lattices, E_s = E_l, zeta = "
+             f"{report.get('zeta_um', 0.3)} um; other substrates and indentations take these "
+             "values")
+        for mesh_size, (points, errors) in sorted(levels.items()) if len(points) >= 3]
+
+
 def with_lattice(tables: list, report: dict) -> list:
     """``tables`` with the lattice study's tables for multi-pillar scenes: the Hooke table
-    (the Gecit grid's Hooke table keeps the single-pillar regime only) and, when the report
+    (the Gecit grid's Hooke table keeps the single-pillar regime only), when the report
     has the elastic column, the elastic BEM's coupling table in place of any other
-    multi-pillar coupling table (a hand bound)."""
+    multi-pillar coupling table (a hand bound), and fem-3d's discretisation per mesh_size in
+    place of its hand bounds."""
     from dataclasses import replace
 
     elastic = lattice_elastic_table(report)
     if elastic is not None:
         tables = [t for t in tables
                   if not (t.component == "elastic-coupling" and "multi" in t.regimes)]
+    fem3d = lattice_fem3d_tables(report)
+    measured_sizes = [t.option for t in fem3d]
+    tables = [t for t in tables  # a measured fem-3d table displaces the hand bound
+              if not ("fem-3d" in t.models and t.kind == "discretisation"
+                      and "multi" in t.regimes and t.option in measured_sizes)]
     out = [replace(t, regimes=[r for r in t.regimes if r != "multi"],
                    note="measured on one pillar; multi-pillar scenes use the lattice study's "
                         "table")
            if t.component == "hooke" and "multi" in t.regimes else t for t in tables]
-    new = [lattice_hooke_table(report)] + ([elastic] if elastic is not None else [])
+    new = [lattice_hooke_table(report)] + ([elastic] if elastic is not None else []) + fem3d
     for t in new:
         t.loo = t.leave_one_out()
     return out + new
