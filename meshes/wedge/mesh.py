@@ -38,6 +38,8 @@ class WedgeMesh:
         Tetrahedron / triangle indices of each named group.
     geometry : WedgeGeometry
         What was meshed.
+    optimised : bool
+        Whether gmsh's mesh needed Netgen's optimiser to pass the quality floor.
     """
 
     points: np.ndarray
@@ -47,6 +49,7 @@ class WedgeMesh:
     boundaries: dict
     geometry: object
     _skfem: object = field(default=None, repr=False)
+    optimised: bool = False
 
     def __post_init__(self):
         neg = self.signed_volumes() < 0
@@ -111,7 +114,7 @@ class WedgeMesh:
     def summary(self) -> dict:
         q = self.quality()
         return {"nodes": int(self.points.shape[1]), "elements": self.nelements,
-                "min_quality": float(q.min()),
+                "min_quality": float(q.min()), "optimised": bool(self.optimised),
                 "bodies": {k: int(len(v)) for k, v in self.subdomains.items()
                            if k in ("lens", "pillar", "substrate")}}
 
