@@ -237,11 +237,17 @@ def load_lattice(path) -> dict:
     return report
 
 
+# A lattice study's fem-3d estimate whose GCI band exceeds this share of it is no reference.
+FEM3D_BAND_MAX = 0.02
+
+
 def _lattice_errors(report: dict, column: str) -> tuple[list, dict]:
     """(points, errors): (BEM - FEM) / FEM of the lattice study's Richardson estimates in
     ``column`` (``quantities``: the Hooke BEM; ``elastic_quantities``: the elastic-pillar BEM)
     on its Phi x E_p/E_l grid (E_s = E_l; its E_s = E_p scenes are left out).  A quantity
-    whose estimate is missing or not finite is left out at that point."""
+    whose estimate is missing or not finite, or whose fem-3d estimate's band exceeds
+    :data:`FEM3D_BAND_MAX` of it (no asymptotic range: fem-3d's noise there, not the BEM's
+    error), is left out at that point."""
     from ..lattice import LENS, LatticePoint
 
     points, errors = [], {q: [] for q in QKEYS}
@@ -253,8 +259,10 @@ def _lattice_errors(report: dict, column: str) -> tuple[list, dict]:
         for q in QKEYS:
             v = (row.get(column) or {}).get(q) or {}
             fem, bem = v.get("fem"), v.get("bem")
+            band = ((row.get("quantities") or {}).get(q) or {}).get("fem_band")
             ok = fem is not None and bem is not None and fem != 0 and math.isfinite(fem) \
-                and math.isfinite(bem)
+                and math.isfinite(bem) \
+                and (band is None or abs(band) <= FEM3D_BAND_MAX * abs(fem))
             errors[q].append((bem - fem) / fem if ok else None)
     return points, errors
 
@@ -291,9 +299,6 @@ def lattice_elastic_table(report: dict) -> ErrorTable | None:
              "the substrate beyond its second-moment correction (largest for stiff pillars on "
              "a soft substrate in dense lattices); scenes at E_s = E_p, where the study "
              "measured it smaller, take these values (conservative)")
-
-
-FEM3D_BAND_MAX = 0.02
 
 
 def lattice_fem3d_tables(report: dict) -> list:
