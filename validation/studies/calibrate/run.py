@@ -245,9 +245,10 @@ def _lattice_errors(report: dict, column: str) -> tuple[list, dict]:
     """(points, errors): (BEM - FEM) / FEM of the lattice study's Richardson estimates in
     ``column`` (``quantities``: the Hooke BEM; ``elastic_quantities``: the elastic-pillar BEM)
     on its Phi x E_p/E_l grid (E_s = E_l; its E_s = E_p scenes are left out).  A quantity
-    whose estimate is missing or not finite, or whose fem-3d estimate's band exceeds
-    :data:`FEM3D_BAND_MAX` of it (no asymptotic range: fem-3d's noise there, not the BEM's
-    error), is left out at that point."""
+    whose estimate is missing or not finite, or whose fem-3d estimate's band exceeds both
+    :data:`FEM3D_BAND_MAX` of it and the difference itself (no asymptotic range, and a
+    difference inside fem-3d's noise: no measurement of the BEM's error), is left out at that
+    point."""
     from ..lattice import LENS, LatticePoint
 
     points, errors = [], {q: [] for q in QKEYS}
@@ -261,8 +262,9 @@ def _lattice_errors(report: dict, column: str) -> tuple[list, dict]:
             fem, bem = v.get("fem"), v.get("bem")
             band = ((row.get("quantities") or {}).get(q) or {}).get("fem_band")
             ok = fem is not None and bem is not None and fem != 0 and math.isfinite(fem) \
-                and math.isfinite(bem) \
-                and (band is None or abs(band) <= FEM3D_BAND_MAX * abs(fem))
+                and math.isfinite(bem)
+            if ok and band is not None:  # noise when the band hides the difference as well
+                ok = abs(band) <= max(FEM3D_BAND_MAX * abs(fem), abs(bem - fem))
             errors[q].append((bem - fem) / fem if ok else None)
     return points, errors
 
