@@ -99,15 +99,12 @@ def coupling_moments(scene: Scene, compliance, x, y) -> np.ndarray:
     pillar passes to its substrate per unit force at (x, y) on its top (m, relative to the
     pillar centre, global axes), as (alpha, beta cos 2 theta, beta sin 2 theta) in m^2:
     alpha = a^2 (R_0 - r^2) / 2, beta = a^2 (R_2 - r^2) / 2 (the column's moments r^2
-    subtracted).  Zero without base moments (a rigid substrate)."""
+    subtracted).  Callers check :func:`uses_coupling` first."""
     x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
     out = np.zeros((len(x), 3))
-    R = getattr(compliance, "base_moments", None)
-    if R is None:
-        return out
     a = 0.5 * scene.pillars.diameter_m
     phi = compliance.trace_basis(np.hypot(x, y) / a)
-    excess = np.asarray(R) - compliance.r_top[None, :] ** 2          # (2, n_top)
+    excess = np.asarray(compliance.base_moments) - compliance.r_top[None, :] ** 2  # (2, n_top)
     alpha = 0.5 * a * a * (phi @ excess[0])
     beta = 0.5 * a * a * (phi @ excess[1])
     theta2 = 2.0 * np.arctan2(y, x)

@@ -31,3 +31,13 @@ def cli(capsys):
         return code, captured.out, captured.err
 
     return run
+
+
+@pytest.fixture(scope="module")
+def compliance_cache(tmp_path_factory):
+    """A fresh pillar-compliance cache (PILLAR_XVAL_CACHE) for one test module: its operators
+    are built once there, never read from the user's cache."""
+    mp = pytest.MonkeyPatch()
+    mp.setenv("PILLAR_XVAL_CACHE", str(tmp_path_factory.mktemp("compliance")))
+    yield
+    mp.undo()

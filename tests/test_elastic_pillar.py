@@ -24,12 +24,7 @@ from scenes import InputError, analytic, load_scene
 COARSE = {"mesh_size": 4.0}
 
 
-@pytest.fixture(scope="module", autouse=True)
-def compliance_cache(tmp_path_factory):
-    mp = pytest.MonkeyPatch()
-    mp.setenv("PILLAR_XVAL_CACHE", str(tmp_path_factory.mktemp("compliance")))
-    yield
-    mp.undo()
+pytestmark = pytest.mark.usefixtures("compliance_cache")
 
 
 def _modal(scene, modes=2):

@@ -25,12 +25,7 @@ from scenes import load_scene
 COARSE = {"mesh_size": 4.0}
 
 
-@pytest.fixture(scope="module", autouse=True)
-def compliance_cache(tmp_path_factory):
-    mp = pytest.MonkeyPatch()
-    mp.setenv("PILLAR_XVAL_CACHE", str(tmp_path_factory.mktemp("compliance")))
-    yield
-    mp.undo()
+pytestmark = pytest.mark.usefixtures("compliance_cache")
 
 
 class _Punch:
@@ -197,13 +192,21 @@ def test_fft_coupling_equals_the_formula_on_its_cells():
         expect = K @ q[:, k] * grid.cell_size**2
         np.testing.assert_allclose(with_c - without, expect, rtol=0,
                                    atol=1e-10 * np.abs(expect).max())
-    # apply_few (a few clipped cells) carries the coupling to every pillar as well.
+    # apply_few (a few clipped cells) carries the coupling to every pillar as well.  It runs
+    # only without a local Love part, i.e. with E_p = E_s (same nu): on that scene's term.
+    same = _scene(zeta_um=0.05, E_p=1.6e6)
+    grid = build_grid(same, 6)
+    term = FFTPillarTerm(same, grid, modal_compliance(PillarKind.of_scene(same), 2, **COARSE),
+                         lambda g: near_field_correction(grid, g))
+    assert term.local is None and term.coupling is not None
     idx = np.array([0, grid.n_cells // 2])
     few = term.apply_few(idx, np.array([1.0, -2.0]))
-    if few is not None:
-        e = np.zeros(grid.n_cells)
-        e[idx] = [1.0, -2.0]
-        np.testing.assert_allclose(few, term(e), rtol=0, atol=1e-12 * np.abs(term(e)).max())
+    e = np.zeros(grid.n_cells)
+    e[idx] = [1.0, -2.0]
+    whole = term(e)
+    others = ~np.isin(grid.pillar, grid.pillar[idx])
+    assert others.any() and np.abs(whole[others]).max() > 0.0  # the coupling reaches them
+    np.testing.assert_allclose(few, whole, rtol=0, atol=1e-12 * np.abs(whole).max())
 
 
 def test_no_correction_on_a_rigid_substrate():

@@ -52,14 +52,15 @@ def build_wedge_mesh(geometry: WedgeGeometry, *, progress=None) -> WedgeMesh:
             progress(f"gmsh: meshing {len(volumes)} volumes")
         _mesh(gmsh, geometry, pairs)
         mesh = _collect(gmsh, geometry, groups)
-        if mesh.quality().min() < MIN_QUALITY_3D:
+        worst = float(mesh.quality().min())
+        if worst < MIN_QUALITY_3D:
             # gmsh's own optimiser leaves a sliver now and then (q ~ 0.004-0.0196, far out on
             # the skew mirror plane or at a pillar's edge, on about one scene in four drawn
             # at random); Netgen's optimiser removes them (q >= 0.2 on those scenes) and
             # keeps the surface meshes, so the contact faces still match.  Meshes that pass
             # are left as they were.
             if progress:
-                progress(f"gmsh: a tetrahedron of quality {mesh.quality().min():.3g} < "
+                progress(f"gmsh: a tetrahedron of quality {worst:.3g} < "
                          f"{MIN_QUALITY_3D}: optimising the mesh (Netgen)")
             gmsh.model.mesh.optimize("Netgen")
             mesh = _collect(gmsh, geometry, groups)

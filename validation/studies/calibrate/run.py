@@ -241,6 +241,16 @@ def load_lattice(path) -> dict:
 FEM3D_BAND_MAX = 0.02
 
 
+def _fem_reference_holds(estimate: dict, difference: float = 0.0) -> bool:
+    """Whether a lattice study's fem-3d estimate (``fem``, ``fem_band``) can judge a
+    ``difference`` from it: its band is within :data:`FEM3D_BAND_MAX` of it, or within the
+    difference itself (a difference beyond fem-3d's noise is measured all the same)."""
+    fem, band = estimate.get("fem"), estimate.get("fem_band")
+    if fem is None or fem == 0 or not math.isfinite(fem):
+        return False
+    return band is None or abs(band) <= max(FEM3D_BAND_MAX * abs(fem), abs(difference))
+
+
 def _lattice_errors(report: dict, column: str) -> tuple[list, dict]:
     """(points, errors): (BEM - FEM) / FEM of the lattice study's Richardson estimates in
     ``column`` (``quantities``: the Hooke BEM; ``elastic_quantities``: the elastic-pillar BEM)
@@ -260,11 +270,10 @@ def _lattice_errors(report: dict, column: str) -> tuple[list, dict]:
         for q in QKEYS:
             v = (row.get(column) or {}).get(q) or {}
             fem, bem = v.get("fem"), v.get("bem")
-            band = ((row.get("quantities") or {}).get(q) or {}).get("fem_band")
-            ok = fem is not None and bem is not None and fem != 0 and math.isfinite(fem) \
-                and math.isfinite(bem)
-            if ok and band is not None:  # noise when the band hides the difference as well
-                ok = abs(band) <= max(FEM3D_BAND_MAX * abs(fem), abs(bem - fem))
+            est = {"fem": fem, "fem_band": ((row.get("quantities") or {}).get(q) or {})
+                   .get("fem_band")}
+            ok = fem is not None and bem is not None and math.isfinite(bem) \
+                and _fem_reference_holds(est, bem - fem)
             errors[q].append((bem - fem) / fem if ok else None)
     return points, errors
 
@@ -324,12 +333,9 @@ def lattice_fem3d_tables(report: dict) -> list:
             points.append([x["phi"], x["log_ep"]])
             for q in QKEYS:
                 est = (row.get("quantities") or {}).get(q) or {}
-                ref, band = est.get("fem"), est.get("fem_band")
                 v = level.get(q)
-                ok = ref is not None and v is not None and ref != 0 and math.isfinite(ref) \
-                    and math.isfinite(v) and band is not None \
-                    and abs(band) <= FEM3D_BAND_MAX * abs(ref)
-                errors[q].append((v - ref) / ref if ok else None)
+                ok = v is not None and math.isfinite(v) and _fem_reference_holds(est)
+                errors[q].append((v - est["fem"]) / est["fem"] if ok else None)
     ladder = ", ".join(f"{m:g}" for m in sorted(levels, reverse=True))
     return [ErrorTable(
         "discretisation", ["fem-3d"], ["multi"], ["phi", "log_ep"], points, errors,
