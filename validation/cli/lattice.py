@@ -30,13 +30,13 @@ def _pairs(text: str) -> list[tuple[float, float]]:
 
 
 def add_parser(sub) -> None:
-    from ..studies.lattice import PAPER_SCENES, PHIS, RATIOS
+    from ..studies.lattice import PAPER_SCENES, PHIS, RATIOS, ZETA_UM
 
     p = sub.add_parser(
         "lattice", help="multi-pillar cross-validation: Hooke and elastic-pillar BEMs against "
                         "fem-3d over Phi x E_p/E_l, each difference beside both models' "
                         "uncertainty, the elastic BEM's targets judged",
-        description="The multi-pillar cross-validation: on Table 1 scenes at zeta = 0.3 um "
+        description="The multi-pillar cross-validation: on Table 1 scenes at zeta = 0.3 um (--zeta-um) "
                     "(the Phi x E_p/E_l grid with E_s = E_l, and a few scenes at the paper's "
                     "E_s = E_p), the Hooke-pillar BEM (bem-fft), the elastic-pillar BEM "
                     "(bem-fft, pillars = elastic) and the elastic-pillar FEM (fem-3d) each "
@@ -56,6 +56,10 @@ def add_parser(sub) -> None:
                         "'none' (default: those of "
                         + ",".join(f"{a:g}:{b:g}" for a, b in PAPER_SCENES)
                         + " whose Phi and ratio are in the grid)")
+    p.add_argument("--zeta-um", type=number(0.0, open_lo=True), default=ZETA_UM,
+                   metavar="ZETA",
+                   help=f"the indentation of every scene, micrometres (default {ZETA_UM:g}; "
+                        "the scene's own checks give its allowed range)")
     p.add_argument("--quick", action="store_true",
                    help="two coarse levels per model (minutes, not an hour): a smoke run")
     add_output_arguments(p, "report folder (default out/lattice)")
@@ -67,16 +71,17 @@ def run(args) -> int:
     from ..output.report import clear_outputs
     from ..studies import lattice as study
 
-    points = study.default_points(args.surface_fractions, args.ratios, args.paper_scenes)
+    points = study.default_points(args.surface_fractions, args.ratios, args.paper_scenes,
+                                  args.zeta_um)
     for point in points:
         point.scene()  # refuse a bad Phi or ratio before any solve, naming it
-    levels = ((study.QUICK_FEM_LEVELS, study.QUICK_BEM_LEVELS) if args.quick
-              else (study.FEM_LEVELS, study.BEM_LEVELS))
+    levels = ((study.QUICK_FEM_LEVELS, study.QUICK_BEM_LEVELS, study.QUICK_DENSE_LEVELS)
+              if args.quick else (study.FEM_LEVELS, study.BEM_LEVELS, study.DENSE_LEVELS))
     out = check_out(args.out or Path("out") / "lattice")
     clear_outputs(out, study.OUTPUTS, "lattice")
     with engine_from_args(args, "lattice") as engine:
         report = study.lattice_study(out, engine=engine, points=points, fem_levels=levels[0],
-                                     bem_levels=levels[1])
+                                     bem_levels=levels[1], dense_levels=levels[2])
     names = study.write_report(report, out)
     if args.json:
         print_json(report)

@@ -72,6 +72,13 @@ FEM_LEVELS = (2.83, 2.0, 1.41)
 # cells) where the dense model's edge-cut pattern makes its order wobble.  Both BEMs climb it.
 BEM_LEVELS = (16, 32, 64)
 QUICK_FEM_LEVELS, QUICK_BEM_LEVELS = (4.0, 2.83), (8, 16)
+# The dense elastic-pillar BEM at the planner's rungs (its candidates "bem P=11 elastic" and
+# "bem P=21 elastic", same options): single levels, not a ladder; each is set against fem-3d's
+# estimate, so the planner reads its error in a lattice directly (calibrate).
+DENSE_MODEL = "bem"
+DENSE_LEVELS = (11, 21)
+QUICK_DENSE_LEVELS = (11,)
+DENSE_OPTIONS = {"cells": "covered", "pillars": ELASTIC}
 
 # Substrate conventions: the lens material (the grid) or the pillars' (the paper's Table 1).
 LENS, PILLAR = "E_s = E_l", "E_s = E_p"
@@ -98,6 +105,7 @@ class LatticePoint:
     surface_fraction: float
     ratio: float  # E_p / E_l
     substrate: str = LENS  # the convention: E_s = E_l or E_s = E_p
+    zeta_um: float = ZETA_UM  # the indentation, micrometres
 
     def __post_init__(self):
         if self.substrate not in CONVENTIONS:
@@ -108,50 +116,74 @@ class LatticePoint:
     def label(self) -> str:
         """Short, for progress lines and messages: ``Phi=0.2 Ep/El=10 Es=Ep``."""
         return (f"Phi={self.surface_fraction:g} Ep/El={self.ratio:g} "
-                + self.substrate.replace(" ", "").replace("_", ""))
+                + self.substrate.replace(" ", "").replace("_", "")
+                + ("" if self.zeta_um == ZETA_UM else f" zeta={self.zeta_um:g}um"))
 
     @property
     def title(self) -> str:
         """For tables and figures: ``Phi = 0.2, E_p/E_l = 10, E_s = E_p``."""
-        return f"Phi = {self.surface_fraction:g}, E_p/E_l = {self.ratio:g}, {self.substrate}"
+        return (f"Phi = {self.surface_fraction:g}, E_p/E_l = {self.ratio:g}, {self.substrate}"
+                + ("" if self.zeta_um == ZETA_UM else f", zeta = {self.zeta_um:g} um"))
 
     @property
     def substrate_E_Pa(self) -> float:
         return E_LENS if self.substrate == LENS else E_LENS * self.ratio
 
     def scene(self) -> Scene:
-        """Table 1 (paper-fig3-sparse) with this Phi, E_p and substrate, zeta = 0.3 um."""
+        """Table 1 (paper-fig3-sparse) with this Phi, E_p, substrate and zeta."""
         return load_scene("paper-fig3-sparse", [
             f"pillars.surface_fraction={self.surface_fraction!r}",
             f"pillars.E_Pa={E_LENS * self.ratio!r}", f"substrate.E_Pa={self.substrate_E_Pa!r}",
-            "substrate.nu=0.5", f"load.indentation_um={ZETA_UM!r}"])
+            "substrate.nu=0.5", f"load.indentation_um={self.zeta_um!r}"])
 
 
-def grid(phis=PHIS, ratios=RATIOS, substrate: str = LENS) -> list[LatticePoint]:
-    return [LatticePoint(p, r, substrate) for p in phis for r in ratios]
+def grid(phis=PHIS, ratios=RATIOS, substrate: str = LENS,
+         zeta_um: float = ZETA_UM) -> list[LatticePoint]:
+    return [LatticePoint(p, r, substrate, zeta_um) for p in phis for r in ratios]
 
 
-def paper_points(pairs=None, phis=PHIS, ratios=RATIOS) -> list[LatticePoint]:
+def paper_points(pairs=None, phis=PHIS, ratios=RATIOS,
+                 zeta_um: float = ZETA_UM) -> list[LatticePoint]:
     """The E_s = E_p scenes: ``pairs`` of (Phi, E_p/E_l), by default those of
     :data:`PAPER_SCENES` whose Phi and ratio are in ``phis`` and ``ratios``."""
     if pairs is None:
         pairs = [(p, r) for p, r in PAPER_SCENES if p in phis and r in ratios]
-    return [LatticePoint(p, r, PILLAR) for p, r in pairs]
+    return [LatticePoint(p, r, PILLAR, zeta_um) for p, r in pairs]
 
 
-def default_points(phis=PHIS, ratios=RATIOS, pairs=None) -> list[LatticePoint]:
+def default_points(phis=PHIS, ratios=RATIOS, pairs=None,
+                   zeta_um: float = ZETA_UM) -> list[LatticePoint]:
     """The study's scenes: the E_s = E_l grid, then the E_s = E_p scenes."""
-    return grid(phis, ratios) + paper_points(pairs, phis, ratios)
+    return grid(phis, ratios, LENS, zeta_um) + paper_points(pairs, phis, ratios, zeta_um)
 
 
-def cases(point: LatticePoint, fem_levels=FEM_LEVELS, bem_levels=BEM_LEVELS) -> list[Case]:
-    """fem-3d's levels, the Hooke BEM's, then the elastic BEM's (same cells per diameter)."""
+def cases(point: LatticePoint, fem_levels=FEM_LEVELS, bem_levels=BEM_LEVELS,
+          dense_levels=DENSE_LEVELS) -> list[Case]:
+    """fem-3d's levels, the Hooke BEM's, the elastic BEM's (same cells per diameter), then
+    the dense elastic BEM's."""
     scene = point.scene()
     out = [Case(FEM_MODEL, scene, {"mesh_size": float(s)}, tag=f"{point.label} fem")
            for s in fem_levels]
     for kind in (HOOKE, ELASTIC):
         out += [Case(BEM_MODEL, scene, {"cells_per_diameter": int(n), **BEM_OPTIONS[kind]},
                      tag=f"{point.label} {kind}") for n in bem_levels]
+    out += [Case(DENSE_MODEL, scene, {"elements_per_diameter": int(n), **DENSE_OPTIONS},
+                 tag=f"{point.label} dense {ELASTIC}") for n in dense_levels]
+    return out
+
+
+def _dense_levels(outcomes) -> list[dict]:
+    """The dense elastic BEM's levels: each one's quantities, or the error that stopped it
+    (a failed level is reported, not judged)."""
+    out = []
+    for o in outcomes:
+        level = {"elements_per_diameter": o.case.options["elements_per_diameter"]}
+        if o.ok:
+            level.update(converged=bool(o.result.converged),
+                         wall_time_s=o.result.wall_time_s, **quantity_values(o.result))
+        else:
+            level.update(converged=False, error=str(o.error))
+        out.append(level)
     return out
 
 
@@ -352,7 +384,8 @@ def targets_met(rows: list[dict]) -> dict:
             "text": f"{n} of {len(rows)} scenes meet every target of the elastic BEM"}
 
 
-def compare_point(point: LatticePoint, fem_outcomes, bem_outcomes, elastic_outcomes=()) -> dict:
+def compare_point(point: LatticePoint, fem_outcomes, bem_outcomes, elastic_outcomes=(),
+                  dense_outcomes=()) -> dict:
     """One scene of the study: the three ladders, each BEM's differences beside the bands, the
     rings, the profile and the elastic BEM's targets."""
     fem = _ladder(fem_outcomes, "mesh_size", 1.0)
@@ -361,7 +394,8 @@ def compare_point(point: LatticePoint, fem_outcomes, bem_outcomes, elastic_outco
     row = {"label": point.label, "title": point.title,
            "surface_fraction": point.surface_fraction, "ratio": point.ratio,
            "substrate": point.substrate, "substrate_E_Pa": point.substrate_E_Pa,
-           "fem_error": fem["error"], "bem_error": bems[HOOKE]["error"],
+           "zeta_um": point.zeta_um, "fem_error": fem["error"],
+           "bem_error": bems[HOOKE]["error"],
            "elastic_error": bems[ELASTIC]["error"], "quantities": {},
            "elastic_quantities": {}}
     failed = {name: ladder for name, ladder in
@@ -383,6 +417,8 @@ def compare_point(point: LatticePoint, fem_outcomes, bem_outcomes, elastic_outco
         row["elastic_quantities"] = _differences(fem, good[ELASTIC])
         row["elastic_rings"] = _rings(fem, good[ELASTIC])
         row["elastic_levels"] = good[ELASTIC]["levels"]
+    if dense_outcomes:
+        row["elastic_dense_levels"] = _dense_levels(dense_outcomes)
     if good:
         radius = point.scene().pillars.diameter_m / 2.0
         row["ring_forces"] = _ring_estimates(fem, good)
@@ -398,16 +434,20 @@ def compare_point(point: LatticePoint, fem_outcomes, bem_outcomes, elastic_outco
 
 
 def lattice_study(folder, *, engine: Engine | None = None, points=None, fem_levels=FEM_LEVELS,
-                  bem_levels=BEM_LEVELS) -> dict:
+                  bem_levels=BEM_LEVELS, dense_levels=DENSE_LEVELS) -> dict:
     """Run (or resume) the study into ``folder``/cases; returns the JSON-ready report.
     ``points`` default to :func:`default_points` (the E_s = E_l grid and the E_s = E_p
-    scenes)."""
+    scenes); they share one indentation."""
     from pathlib import Path
 
     points = list(points or default_points())
+    zetas = {p.zeta_um for p in points}
+    if len(zetas) != 1:
+        raise InputError(f"lattice study: the scenes have indentations {sorted(zetas)} um; "
+                         "one study runs at one zeta")
     engine = engine or Engine("serial")
-    all_cases = [c for p in points for c in cases(p, fem_levels, bem_levels)]
-    # Cheap cases first: the Hooke BEM, then the elastic BEM (2-3x the Hooke time, and one
+    all_cases = [c for p in points for c in cases(p, fem_levels, bem_levels, dense_levels)]
+    # Cheap cases first: the Hooke BEM, then the elastic BEMs (2-3x the Hooke time, and one
     # pillar compliance per kind, cached), then the FEM from coarse to fine: a long run
     # shows its BEM columns early and an interruption loses at most one FEM solve.
     order = sorted(range(len(all_cases)),
@@ -419,15 +459,16 @@ def lattice_study(folder, *, engine: Engine | None = None, points=None, fem_leve
     for i, o in zip(order, ran):
         outcomes[i] = o
     rows, k = [], 0
-    nf, nb = len(fem_levels), len(bem_levels)
+    nf, nb, nd = len(fem_levels), len(bem_levels), len(dense_levels)
     for p in points:
         fem_o = outcomes[k:k + nf]
         hooke_o = outcomes[k + nf:k + nf + nb]
         elastic_o = outcomes[k + nf + nb:k + nf + 2 * nb]
-        k += nf + 2 * nb
-        rows.append(compare_point(p, fem_o, hooke_o, elastic_o))
+        dense_o = outcomes[k + nf + 2 * nb:k + nf + 2 * nb + nd]
+        k += nf + 2 * nb + nd
+        rows.append(compare_point(p, fem_o, hooke_o, elastic_o, dense_o))
     conventions = [c for c in CONVENTIONS if any(p.substrate == c for p in points)]
-    return {"zeta_um": ZETA_UM, "E_lens_Pa": E_LENS,
+    return {"zeta_um": zetas.pop(), "E_lens_Pa": E_LENS,
             "substrate": conventions[0] if len(conventions) == 1
             else "per scene: " + ", ".join(conventions),
             "substrates": conventions,
@@ -436,6 +477,8 @@ def lattice_study(folder, *, engine: Engine | None = None, points=None, fem_leve
                     "cells_per_diameter": list(bem_levels)},
             "elastic": {"model": BEM_MODEL, "pillars": ELASTIC,
                         "cells_per_diameter": list(bem_levels)},
+            "dense_elastic": {"model": DENSE_MODEL, **DENSE_OPTIONS,
+                              "elements_per_diameter": list(dense_levels)},
             "targets": {**TARGETS, "rule": TARGET_RULE,
                         "profile_points_over_radius": list(PROFILE_POINTS)},
             "targets_met": targets_met(rows),
