@@ -50,7 +50,8 @@ def coarse_compliance(monkeypatch, tmp_path_factory):
 
 def test_one_point_of_the_study_on_the_real_models(tmp_path, coarse_compliance):
     point = study.LatticePoint(0.03, 1.0)
-    levels = {"fem_levels": study.QUICK_FEM_LEVELS, "bem_levels": study.QUICK_BEM_LEVELS}
+    levels = {"fem_levels": study.QUICK_FEM_LEVELS, "bem_levels": study.QUICK_BEM_LEVELS,
+              "dense_levels": study.QUICK_DENSE_LEVELS}
     with Engine("serial", quiet=True) as engine:
         report = study.lattice_study(tmp_path, engine=engine, points=[point], **levels)
         row = report["rows"][0]
@@ -69,6 +70,10 @@ def test_one_point_of_the_study_on_the_real_models(tmp_path, coarse_compliance):
         assert e["fem"] == f_t["fem"] and e["bem"] == pytest.approx(e["fem"],
                                                                   rel=RTOL_MODEL_FORCE)
         assert {r["ring"] for r in row["ring_forces"]} == {0, 1} and row["profile"]
+        # the dense elastic BEM (P = 11, the planner's rung) close to the FEM too
+        (dense,) = row["elastic_dense_levels"]
+        assert dense["converged"] and dense["F_T"] == pytest.approx(f_t["fem"],
+                                                                   rel=RTOL_MODEL_FORCE)
         assert row["targets"]["F_T"]["met"] is not None
         names = study.write_report(report, tmp_path)
         assert all((tmp_path / n).exists() for n in names)
@@ -83,6 +88,9 @@ def test_one_point_of_the_study_on_the_real_models(tmp_path, coarse_compliance):
     (["--ratios", "1e-12"], "pillars.E_Pa"),
     (["--paper-scenes", "0.2"], "PHI:RATIO"),
     (["--paper-scenes", "0.95:10"], "surface_fraction"),
+    (["--zeta-um", "0"], "--zeta-um"),
+    (["--zeta-um", "nan"], "--zeta-um"),
+    (["--zeta-um", "1e6"], "indentation"),
 ])
 def test_bad_points_are_refused_before_any_solve(cli, tmp_path, argv, words):
     code, out, err = cli("lattice", *argv, "--out", tmp_path / "o", "--executor", "serial")
@@ -99,7 +107,8 @@ C_FEM, C_BEM = 1e-4, 1e-2
 HOOKE_OFF = 0.10
 ELASTIC_OFF = {0.1: 0.004, 0.2: 0.02}  # by Phi: within every target, then F_T's 1 % missed
 FORCES = {(0, 0): 4.0, (1, 0): 1.0, (0, 1): 1.0, (2, 1): 0.25}  # ring 0, 1, 1, 2 (shares)
-FAKE_LEVELS = {"fem_levels": (2.0, 1.41, 1.0), "bem_levels": (8, 16, 32)}
+FAKE_LEVELS = {"fem_levels": (2.0, 1.41, 1.0), "bem_levels": (8, 16, 32),
+               "dense_levels": (11, 21)}
 
 
 def _fake_result(model, scene, factor, disc):
@@ -127,6 +136,13 @@ def fake_fft(scene, cells_per_diameter=16, pillars="hooke"):
                         {"cells_per_diameter": cells_per_diameter, "pillars": pillars})
 
 
+def fake_dense(scene, elements_per_diameter=11, cells="covered", pillars="hooke"):
+    off = (HOOKE_OFF if pillars == "hooke"
+           else ELASTIC_OFF[scene.pillars.surface_fraction])
+    return _fake_result("bem", scene, (1.0 + off) * (1.0 + C_BEM / elements_per_diameter**2),
+                        {"elements_per_diameter": elements_per_diameter, "pillars": pillars})
+
+
 @pytest.fixture
 def fake_lattice_models(monkeypatch):
     import sys
@@ -135,11 +151,13 @@ def fake_lattice_models(monkeypatch):
     from fakes import register
 
     mod = types.ModuleType("xval_lattice_fakes")
-    mod.fake_fem3d, mod.fake_fft = fake_fem3d, fake_fft
+    mod.fake_fem3d, mod.fake_fft, mod.fake_dense = fake_fem3d, fake_fft, fake_dense
     monkeypatch.setitem(sys.modules, "xval_lattice_fakes", mod)
     register(monkeypatch, "fem-3d", "xval_lattice_fakes:fake_fem3d", ("mesh_size",))
     register(monkeypatch, "bem-fft", "xval_lattice_fakes:fake_fft",
              ("cells_per_diameter", "pillars"))
+    register(monkeypatch, "bem", "xval_lattice_fakes:fake_dense",
+             ("elements_per_diameter", "cells", "pillars"))
 
 
 @pytest.fixture
@@ -166,6 +184,16 @@ def test_the_scenes_say_their_substrate_convention():
     assert [p.substrate for p in points[:16]] == [study.LENS] * 16
     assert len([p for p in points if p.substrate == study.PILLAR]) >= 4
     assert study.default_points([0.03], study.RATIOS) == study.grid([0.03])
+
+
+def test_a_study_at_another_indentation_says_so_and_keeps_one_zeta():
+    point = study.LatticePoint(0.2, 10.0, zeta_um=0.05)
+    assert point.scene().indentation_m == pytest.approx(0.05e-6)
+    assert "zeta=0.05um" in point.label and point.title.endswith("zeta = 0.05 um")
+    assert "zeta" not in study.LatticePoint(0.2, 10.0).label
+    assert all(p.zeta_um == 0.05 for p in study.default_points(zeta_um=0.05))
+    with pytest.raises(InputError, match="one zeta"):
+        study.lattice_study("unused", points=[point, study.LatticePoint(0.2, 10.0)])
 
 
 def test_both_bems_climb_the_same_ladder_and_hooke_keeps_its_keys():
@@ -238,6 +266,14 @@ def test_the_elastic_column_and_its_targets_on_fake_models(fake_report):
             assert elastic["fem"] == hooke["fem"] and elastic["bem_how"] == "richardson"
         assert [r["ring"] for r in row["ring_forces"]] == [0, 1, 2]
         assert {r["ring"] for r in row["elastic_rings"]} == {0, 1, 2}
+        # the dense elastic BEM at the planner's rungs: each level as its model returned it
+        scale = row["substrate_E_Pa"] / 1.6e6
+        assert [lv["elements_per_diameter"] for lv in row["elastic_dense_levels"]] == [11, 21]
+        for lv in row["elastic_dense_levels"]:
+            n = lv["elements_per_diameter"]
+            assert lv["converged"] and lv["F_T"] == pytest.approx(
+                1e-6 * scale * (1 + off) * (1 + C_BEM / n**2), rel=1e-12)
+        assert row["zeta_um"] == study.ZETA_UM
         assert [p["r_over_radius"] for p in row["profile"]] == list(study.PROFILE_POINTS)
         t = row["targets"]
         for key in ("F_T", "sigma0"):

@@ -381,6 +381,69 @@ def test_lattice_study_supplies_fem3d_discretisation_in_lattices():
             assert t.errors["F_T"][0] is None and t.errors["sigma0"][0] is not None
 
 
+def test_lattice_studies_supply_each_elastic_rung_error_on_a_zeta_axis(tmp_path):
+    """Two lattice reports at different indentations merge into one (each row keeps its
+    zeta); each elastic-BEM rung (bem-fft's elastic ladder, the dense elastic levels) gets its
+    own table of its error against fem-3d over Phi x E_p/E_l x lens sag (zeta), the coupling
+    table no longer applies to a model whose rungs have tables, and the planner reads a
+    rung's table before the same rung's Hooke table."""
+    from validation.studies.calibrate import load_lattice, with_lattice
+
+    def err(phi, ratio, zeta, n):  # first order in the cell size, larger at small zeta
+        return (0.004 + 0.02 * phi) * (16.0 / n) * (0.3 / zeta) ** 0.5 \
+            * (1.0 + 0.1 * math.log10(ratio))
+
+    paths = []
+    for zeta in (0.3, 0.05):
+        report = _lattice_report({(phi, r): -0.5 for phi in (0.1, 0.3) for r in (0.1, 10.0)})
+        report["zeta_um"] = zeta
+        for row in report["rows"]:
+            phi, ratio = row["surface_fraction"], row["ratio"]
+            row["elastic_quantities"] = {q: {"fem": 1.0, "bem": 1.001} for q in ("F_T", "sigma0")}
+            row["elastic_levels"] = [{"cells_per_diameter": n, "converged": True,
+                                      "F_T": 1.0 + err(phi, ratio, zeta, n),
+                                      "sigma0": 1.0 - err(phi, ratio, zeta, n)}
+                                     for n in (16, 32)]
+            row["elastic_dense_levels"] = [{"elements_per_diameter": 11, "converged": True,
+                                            "F_T": 1.0 + err(phi, ratio, zeta, 11),
+                                            "sigma0": 1.0 + err(phi, ratio, zeta, 11)}]
+        path = tmp_path / f"lattice-{zeta}.json"
+        path.write_text(json.dumps(report))
+        paths.append(path)
+    merged = load_lattice(paths)
+    assert sorted({row["zeta_um"] for row in merged["rows"]}) == [0.05, 0.3]
+    assert len(merged["rows"]) == 8
+    bound = ErrorTable("model", ["bem", "bem-fft"], ["multi"], [], [[]], {"sigma0": [0.03]},
+                       component="elastic-coupling", option={"pillars": "elastic"},
+                       source="hand: a bound")
+    hooke11 = ErrorTable("discretisation", ["bem"], ["multi"], [], [[]],
+                         {"F_T": [0.02], "sigma0": [0.02]},
+                         option={"elements_per_diameter": 11}, source="calibrate")
+    tables = with_lattice([bound, hooke11], merged)
+    assert not [t for t in tables if t.component == "elastic-coupling"]
+    rungs = {(t.models[0], tuple(sorted(t.option.items()))): t for t in tables
+             if t.option.get("pillars") == "elastic" and t.kind == "discretisation"}
+    assert set(rungs) == {("bem-fft", (("cells_per_diameter", 16), ("pillars", "elastic"))),
+                          ("bem-fft", (("cells_per_diameter", 32), ("pillars", "elastic"))),
+                          ("bem", (("elements_per_diameter", 11), ("pillars", "elastic")))}
+    dense = rungs[("bem", (("elements_per_diameter", 11), ("pillars", "elastic")))]
+    assert dense.features == ["phi", "log_ep", "log_sag"]
+    sets = ["pillars.surface_fraction=0.3", "pillars.E_Pa=1.6e7", "substrate.E_Pa=1.6e6"]
+    for zeta in (0.3, 0.05):  # on a node: the measured error itself
+        x = features(load_scene("paper-fig3-sparse", sets + [f"load.indentation_um={zeta}"]))
+        value, outside = dense.predict(x, "sigma0")
+        assert value == pytest.approx(err(0.3, 10.0, zeta, 11), rel=1e-9) and not outside
+    x = features(load_scene("paper-fig3-sparse", sets + ["load.indentation_um=0.1"]))
+    value, _ = dense.predict(x, "F_T")
+    assert err(0.3, 10.0, 0.3, 11) < value < err(0.3, 10.0, 0.05, 11)
+    data = PlannerData([], tables, {})
+    found = data.tables_for("bem", {"cells": "covered", "elements_per_diameter": 11,
+                                    "pillars": "elastic"}, "multi", "discretisation")
+    assert found[0] is dense and hooke11 in found
+    assert data.tables_for("bem", {"elements_per_diameter": 11}, "multi",
+                           "discretisation") == [hooke11]
+
+
 @pytest.mark.parametrize("name, sets, expect", [
     ("hertz", [], {"hertz"}),
     # a rigid pillar: bem-fft N=24 is -0.37 % from fem-axisym mesh 0.5 in F_T, cheaper than it

@@ -9,6 +9,13 @@ from pathlib import Path
 from ._args import add_engine_arguments, check_out, engine_from_args, print_json
 
 
+def _paths(text: str) -> list:
+    paths = [Path(v.strip()) for v in text.split(",") if v.strip()]
+    if not paths:
+        raise ValueError(text)
+    return paths
+
+
 def add_parser(sub) -> None:
     p = sub.add_parser(
         "calibrate", help="measure the planner's error and cost models (convergence ladders, "
@@ -22,9 +29,11 @@ def add_parser(sub) -> None:
                         "(default out/calibrate)")
     p.add_argument("--install", action="store_true",
                    help="copy error_models.json and cost_models.json into validation/planner/data")
-    p.add_argument("--lattice", type=Path, default=None, metavar="LATTICE_JSON",
-                   help="lattice.json of `pillar-xval lattice`: the Hooke pillar's error and "
-                        "the elastic-pillar BEM's in lattices, measured against fem-3d "
+    p.add_argument("--lattice", type=_paths, default=None, metavar="LATTICE_JSON[,...]",
+                   help="lattice.json of `pillar-xval lattice` (several, comma-separated: "
+                        "studies at different --zeta-um, which give the tables a zeta axis): "
+                        "the Hooke pillar's error and the elastic-pillar BEMs' in lattices, "
+                        "and fem-3d's discretisation, measured against fem-3d "
                         "(without it the Gecit grid's single-pillar error and a hand bound "
                         "stand in)")
     p.add_argument("--lattice-only", action="store_true",
@@ -93,7 +102,8 @@ def _lattice_only(args, lattice) -> int:
     if lattice is None:
         raise InputError("--lattice-only: needs --lattice LATTICE_JSON")
     installed = data_dir() / "error_models.json"
-    doc = relattice(json.loads(installed.read_text()), lattice, str(args.lattice))
+    doc = relattice(json.loads(installed.read_text()), lattice,
+                    ",".join(map(str, args.lattice)))
     args.out.mkdir(parents=True, exist_ok=True)
     write_document(args.out / "error_models.json", doc)
     done = [str(args.out / "error_models.json")]
@@ -102,6 +112,7 @@ def _lattice_only(args, lattice) -> int:
     if args.json:
         print_json({"written": done, "lattice_rows": len(lattice["rows"])})
     else:
-        print(f"lattice tables (Hooke, elastic BEM) from {args.lattice} ({len(lattice['rows'])} lattices): "
+        print(f"lattice tables (Hooke, elastic BEMs, fem-3d) from "
+              f"{','.join(map(str, args.lattice))} ({len(lattice['rows'])} lattices): "
               + ", ".join(done))
     return 0

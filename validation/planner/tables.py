@@ -369,7 +369,10 @@ class PlannerData:
     policy: dict = field(default_factory=lambda: dict(DEFAULT_POLICY))
 
     def tables_for(self, model: str, option: dict, regime: str, kind: str) -> list:
-        return [t for t in self.tables if t.kind == kind and t.applies(model, option, regime)]
+        """The tables of ``kind`` that apply, the most specific first (the most option
+        keys: a table of the elastic-pillar rung before the same rung's Hooke table)."""
+        found = [t for t in self.tables if t.kind == kind and t.applies(model, option, regime)]
+        return sorted(found, key=lambda t: -len(t.option))
 
 
 def data_dir() -> Path:

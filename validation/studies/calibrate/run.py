@@ -45,7 +45,8 @@ from ...planner.features import features, regime
 from ...planner.tables import DATA_FORMAT, DEFAULT_POLICY, CostFit, ErrorTable
 from ..tradeoff import reference_values
 
-__all__ = ["CALIBRATION_SEED", "CANDIDATES", "calibrate", "lattice_elastic_table",
+__all__ = ["CALIBRATION_SEED", "CANDIDATES", "calibrate", "lattice_elastic_rung_tables",
+           "lattice_elastic_table",
            "lattice_hooke_table", "load_lattice",
            "relattice", "with_lattice", "write_data", "write_document"]
 
@@ -221,20 +222,55 @@ def _gecit_table(rows: list, scenes: list) -> ErrorTable:
 
 
 
-def load_lattice(path) -> dict:
-    """A ``pillar-xval lattice`` report (its ``lattice.json``); InputError naming the file
-    when it is missing or not such a report."""
+def load_lattice(paths) -> dict:
+    """One report of ``pillar-xval lattice`` (its ``lattice.json``), or several merged (a
+    path, or a list of them: studies at different indentations): every row keeps its own
+    ``zeta_um``, the report's ``zeta_um`` lists them.  InputError naming the file when it is
+    missing or not such a report."""
     from scenes import InputError
 
-    path = Path(path)
-    try:
-        report = json.loads(path.read_text())
-    except (OSError, ValueError) as exc:
-        raise InputError(f"--lattice {path}: not a readable lattice.json ({exc})") from None
-    if not isinstance(report, dict) or not isinstance(report.get("rows"), list):
-        raise InputError(f"--lattice {path}: not a report of `pillar-xval lattice` "
-                         "(no 'rows')")
-    return report
+    paths = [paths] if isinstance(paths, (str, Path)) else list(paths)
+    if not paths:
+        raise InputError("--lattice: expected one or more lattice.json files")
+    rows, zetas = [], []
+    for path in map(Path, paths):
+        try:
+            report = json.loads(path.read_text())
+        except (OSError, ValueError) as exc:
+            raise InputError(f"--lattice {path}: not a readable lattice.json ({exc})") from None
+        if not isinstance(report, dict) or not isinstance(report.get("rows"), list):
+            raise InputError(f"--lattice {path}: not a report of `pillar-xval lattice` "
+                             "(no 'rows')")
+        zeta = report.get("zeta_um", LATTICE_ZETA_UM)
+        zetas.append(zeta)
+        rows += [{**row, "zeta_um": row.get("zeta_um", zeta)} for row in report["rows"]]
+    if len(paths) == 1:
+        return {**report, "rows": rows}
+    return {"zeta_um": sorted(set(zetas)), "files": [str(p) for p in paths], "rows": rows}
+
+
+# A lattice study run before rows carried their indentation was at this one.
+LATTICE_ZETA_UM = 0.3
+
+
+def _lattice_features(report: dict) -> list:
+    """The lattice tables' features: Phi and E_p/E_l, and the lens sag over zeta when the
+    report's rows span more than one indentation."""
+    zetas = {row.get("zeta_um", LATTICE_ZETA_UM) for row in report["rows"]}
+    return ["phi", "log_ep"] + (["log_sag"] if len(zetas) > 1 else [])
+
+
+def _lattice_point(row: dict, names: list) -> list:
+    from ..lattice import LatticePoint
+
+    x = features(LatticePoint(row["surface_fraction"], row["ratio"],
+                              zeta_um=row.get("zeta_um", LATTICE_ZETA_UM)).scene())
+    return [x[n] for n in names]
+
+
+def _zeta_text(report: dict) -> str:
+    zetas = sorted({row.get("zeta_um", LATTICE_ZETA_UM) for row in report["rows"]})
+    return "zeta = " + ", ".join(f"{z:g}" for z in zetas) + " um"
 
 
 # A lattice study's fem-3d estimate whose GCI band exceeds this share of it is no reference.
@@ -259,14 +295,14 @@ def _lattice_errors(report: dict, column: str) -> tuple[list, dict]:
     :data:`FEM3D_BAND_MAX` of it and the difference itself (no asymptotic range, and a
     difference inside fem-3d's noise: no measurement of the BEM's error), is left out at that
     point."""
-    from ..lattice import LENS, LatticePoint
+    from ..lattice import LENS
 
+    names = _lattice_features(report)
     points, errors = [], {q: [] for q in QKEYS}
     for row in report["rows"]:
         if not row.get("converged") or row.get("substrate", LENS) != LENS:
             continue
-        x = features(LatticePoint(row["surface_fraction"], row["ratio"]).scene())
-        points.append([x["phi"], x["log_ep"]])
+        points.append(_lattice_point(row, names))
         for q in QKEYS:
             v = (row.get(column) or {}).get(q) or {}
             fem, bem = v.get("fem"), v.get("bem")
@@ -284,13 +320,13 @@ def lattice_hooke_table(report: dict) -> ErrorTable:
     points, errors = _lattice_errors(report, "quantities")
     return ErrorTable(
         "model", [m for m in HOOKE_MODELS if "multi" in MODELS[m].scopes], ["multi"],
-        ["phi", "log_ep"], points, errors,
+        _lattice_features(report), points, errors,
         component="hooke",
         source="lattice: Hooke-pillar bem-fft (Richardson) against the elastic-pillar fem-3d "
                "(Richardson)",
-        note=f"measured on {len(points)} lattices, E_s = E_l, zeta = "
-             f"{report.get('zeta_um', 0.3)} um; other substrates and indentations take these "
-             "values (the Gecit grid measures the substrate's share on one pillar)")
+        note=f"measured on {len(points)} lattices, E_s = E_l, {_zeta_text(report)}; other "
+             "substrates take these values (the Gecit grid measures the substrate's share on "
+             "one pillar)")
 
 
 def lattice_elastic_table(report: dict) -> ErrorTable | None:
@@ -301,12 +337,11 @@ def lattice_elastic_table(report: dict) -> ErrorTable | None:
         return None
     points, errors = _lattice_errors(report, "elastic_quantities")
     return ErrorTable(
-        "model", ["bem", "bem-fft"], ["multi"], ["phi", "log_ep"], points, errors,
+        "model", ["bem", "bem-fft"], ["multi"], _lattice_features(report), points, errors,
         component="elastic-coupling", option={"pillars": "elastic"},
         source="lattice: elastic-pillar bem-fft (Richardson) against the elastic-pillar "
                "fem-3d (Richardson)",
-        note=f"measured on {len(points)} lattices, E_s = E_l, zeta = "
-             f"{report.get('zeta_um', 0.3)} um; what remains of the pillars' coupling through "
+        note=f"measured on {len(points)} lattices, E_s = E_l, {_zeta_text(report)}; what remains of the pillars' coupling through "
              "the substrate beyond its second-moment correction (largest for stiff pillars on "
              "a soft substrate in dense lattices); scenes at E_s = E_p, where the study "
              "measured it smaller, take these values (conservative)")
@@ -318,19 +353,20 @@ def lattice_fem3d_tables(report: dict) -> list:
     ladder, on its Phi x E_p/E_l grid (E_s = E_l), signed; empty when the report has no
     fem-3d levels.  A quantity whose estimate's band exceeds :data:`FEM3D_BAND_MAX` of it is
     left out at that point (no asymptotic range there: the estimate is no reference)."""
-    from ..lattice import LENS, LatticePoint
+    from ..lattice import LENS
 
+    names = _lattice_features(report)
     levels = {}
     for row in report["rows"]:
         if not row.get("converged") or row.get("substrate", LENS) != LENS:
             continue
-        x = features(LatticePoint(row["surface_fraction"], row["ratio"]).scene())
+        x = _lattice_point(row, names)
         for level in row.get("fem_levels") or ():
             if not level.get("converged", True):
                 continue
             points, errors = levels.setdefault(level["mesh_size"],
                                                ([], {q: [] for q in QKEYS}))
-            points.append([x["phi"], x["log_ep"]])
+            points.append(x)
             for q in QKEYS:
                 est = (row.get("quantities") or {}).get(q) or {}
                 v = level.get(q)
@@ -338,28 +374,77 @@ def lattice_fem3d_tables(report: dict) -> list:
                 errors[q].append((v - est["fem"]) / est["fem"] if ok else None)
     ladder = ", ".join(f"{m:g}" for m in sorted(levels, reverse=True))
     return [ErrorTable(
-        "discretisation", ["fem-3d"], ["multi"], ["phi", "log_ep"], points, errors,
+        "discretisation", ["fem-3d"], ["multi"], names, points, errors,
         option={"mesh_size": mesh_size},
         source=f"lattice: fem-3d at mesh_size {mesh_size:g} against its Richardson estimate "
                f"over mesh_size {ladder}",
-        note=f"measured on {len(points)} lattices, E_s = E_l, zeta = "
-             f"{report.get('zeta_um', 0.3)} um; other substrates and indentations take these "
-             "values")
+        note=f"measured on {len(points)} lattices, E_s = E_l, {_zeta_text(report)}; other "
+             "substrates take these values")
         for mesh_size, (points, errors) in sorted(levels.items()) if len(points) >= 3]
+
+
+def lattice_elastic_rung_tables(report: dict) -> list:
+    """The elastic-pillar BEMs' error in a lattice at each of the planner's rungs, measured
+    directly: each level of the study's elastic bem-fft ladder (``elastic_levels``) and each
+    dense elastic level (``elastic_dense_levels``) against fem-3d's Richardson estimate, on
+    its Phi x E_p/E_l (x zeta) grid, E_s = E_l, signed.  One table per rung, of kind
+    ``discretisation`` with the rung's option and ``pillars = elastic``: the error it holds is
+    the whole error against the reference of the same physics (the elastic pillar), so its
+    discretisation and what remains of its coupling through the substrate together, and no
+    coupling table is added on top (:func:`with_lattice`).  A point is left out where
+    fem-3d's estimate cannot judge the difference (:func:`_fem_reference_holds`)."""
+    from ..lattice import LENS
+
+    names = _lattice_features(report)
+    ladders = {("bem-fft", "cells_per_diameter"): "elastic_levels",
+               ("bem", "elements_per_diameter"): "elastic_dense_levels"}
+    rungs = {}
+    for row in report["rows"]:
+        if not row.get("converged") or row.get("substrate", LENS) != LENS:
+            continue
+        x = _lattice_point(row, names)
+        for (model, option), column in ladders.items():
+            for level in row.get(column) or ():
+                points, errors = rungs.setdefault((model, option, level[option]),
+                                                  ([], {q: [] for q in QKEYS}))
+                points.append(x)
+                for q in QKEYS:
+                    est = (row.get("quantities") or {}).get(q) or {}
+                    v, fem = level.get(q), est.get("fem")
+                    ok = level.get("converged", False) and v is not None \
+                        and math.isfinite(v) and fem is not None \
+                        and _fem_reference_holds(est, v - fem)
+                    errors[q].append((v - fem) / fem if ok else None)
+    return [ErrorTable(
+        "discretisation", [model], ["multi"], names, points, errors,
+        option={option: value, "pillars": "elastic"},
+        source=f"lattice: elastic-pillar {model} at {option} {value} against the "
+               "elastic-pillar fem-3d (Richardson)",
+        note=f"measured on {len(points)} lattices, E_s = E_l, {_zeta_text(report)}; the "
+             "whole error against fem-3d (discretisation and the pillars' coupling "
+             "together); other substrates take these values")
+        for (model, option, value), (points, errors) in sorted(rungs.items())
+        if len(points) >= 3]
 
 
 def with_lattice(tables: list, report: dict) -> list:
     """``tables`` with the lattice study's tables for multi-pillar scenes: the Hooke table
-    (the Gecit grid's Hooke table keeps the single-pillar regime only), when the report
-    has the elastic column, the elastic BEM's coupling table in place of any other
-    multi-pillar coupling table (a hand bound), and fem-3d's discretisation per mesh_size in
-    place of its hand bounds."""
+    (the Gecit grid's Hooke table keeps the single-pillar regime only); the elastic BEMs'
+    error at each of their rungs (:func:`lattice_elastic_rung_tables`); for an elastic BEM
+    whose rungs the report does not hold, the elastic BEM's coupling table in place of any
+    other multi-pillar coupling table (a hand bound); and fem-3d's discretisation per
+    mesh_size in place of its hand bounds."""
     from dataclasses import replace
 
+    rungs = lattice_elastic_rung_tables(report)
     elastic = lattice_elastic_table(report)
     if elastic is not None:
         tables = [t for t in tables
                   if not (t.component == "elastic-coupling" and "multi" in t.regimes)]
+        # A model whose rungs have their own tables carries its coupling in them.
+        with_rungs = {m for t in rungs for m in t.models}
+        elastic.models = [m for m in elastic.models if m not in with_rungs]
+        elastic = elastic if elastic.models else None
     fem3d = lattice_fem3d_tables(report)
     measured_sizes = [t.option for t in fem3d]
     tables = [t for t in tables  # a measured fem-3d table displaces the hand bound
@@ -369,7 +454,8 @@ def with_lattice(tables: list, report: dict) -> list:
                    note="measured on one pillar; multi-pillar scenes use the lattice study's "
                         "table")
            if t.component == "hooke" and "multi" in t.regimes else t for t in tables]
-    new = [lattice_hooke_table(report)] + ([elastic] if elastic is not None else []) + fem3d
+    new = ([lattice_hooke_table(report)] + ([elastic] if elastic is not None else []) + fem3d
+           + rungs)
     for t in new:
         t.loo = t.leave_one_out()
     return out + new
