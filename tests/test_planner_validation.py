@@ -290,3 +290,41 @@ def test_dry_run_prints_the_estimate_and_runs_nothing(cli, tmp_path):
     assert not (tmp_path / "o").exists()
     code, out, _ = cli("validate-plan", "--dry-run", "--scenes", "3", "--lattice-scenes", "1")
     assert code == 0 and out.startswith("estimated:") and len(out.strip().splitlines()) == 1
+
+
+def test_a_rung_within_tolerance_by_cancellation_is_not_settled():
+    """A candidate counts for the settled cost only when every finer rung of its model (same
+    options but the ladder's) that ran is within tolerance too; families are kept apart by
+    their other options, and a closed form is settled when within."""
+    def t(model, within, **options):
+        return {"label": f"{model} {options}", "model": model, "options": options,
+                "within": within, "time_s": 0.01}
+
+    tried = [t("bem-fft", True, cells_per_diameter=12),    # Hooke error cancelled here
+             t("bem-fft", False, cells_per_diameter=16),
+             t("bem-fft", True, cells_per_diameter=64),
+             t("bem-fft", True, cells_per_diameter=16, pillars="elastic"),
+             t("bem-fft", True, cells_per_diameter=32, pillars="elastic"),
+             t("spring", True)]
+    validate._mark_settled(tried)
+    assert [x.get("settled") for x in tried] == [False, None, True, True, True, True]
+
+
+def test_a_reference_without_an_asymptotic_range_judges_nothing():
+    """A reference quantity whose band exceeds 2 % of it cannot judge a 1 % tolerance: it is
+    left out, the scene is judged on the others, and the summary says which and why."""
+    ref = {"F_T": {"value": 1.0, "band": 0.043}, "sigma0": {"value": 2.0, "band": 0.01},
+           "a": None}
+    assert validate.judged_quantities(ref, ["F_T", "sigma0", "a"]) == ["sigma0"]
+    result = ContactResult("x", {}, {}, 1.5, 2.02, 1.0, 1.0, 1, [], True, 1, 0.0)
+    assert validate._errors(result, ref, ["F_T", "sigma0"]) == pytest.approx({"sigma0": 0.01})
+    assert validate._errors(result, ref, ["F_T"]) is None
+    row = {"name": "L01", "family": "f", "phi": 0.4, "zeta_um": 0.05, "ratio": 96.0,
+           "regime": "hertz-like", "reference_kind": "lattice", "planned": "bem", "accurate": True,
+           "cheap": True, "cheap_strict": True, "predicted": {"sigma0": 0.005},
+           "actual": {"sigma0": 0.01},
+           "time_s": 0.1, "unjudged": {"F_T": "its band is 4.3 % of it, beyond 2 %"}}
+    doc = {"rows": [row], "reference_text": {}, "misses": [],
+           "totals": validate.report_totals([row], 0.01, ["F_T", "sigma0"])}
+    text = validate.summary_text(doc)
+    assert "quantities not judged (1" in text and "L01 F_T: no reference, its band is 4.3 %" in text
