@@ -189,8 +189,13 @@ class PrunedConvolution:
         self._buffer = xp.zeros(ny * mx, dtype=xp.float64)
         self._work = None
         if _pocketfft is not None and isinstance(be, NumpyDevice):
+            # The real spectrum twice over, as the (re, im) pairs of the complex spectrum:
+            # one float product of equal arrays (half the time of numpy's complex-by-real
+            # product, which widens the real factor; the same values).
+            pairs = np.repeat(np.asarray(spectrum, dtype=np.float64)[..., None], 2, axis=-1)
             self._work = (np.empty((my, mx // 2 + 1), dtype=np.complex128),
-                          np.empty((ny, mx), dtype=np.float64))
+                          np.empty((ny, mx), dtype=np.float64),
+                          pairs.reshape(my, 2 * (mx // 2 + 1)))
 
     def __call__(self, q):
         if self._work is not None:
@@ -211,13 +216,14 @@ class PrunedConvolution:
         pocketfft calls, with the default norm) into the kept arrays."""
         ny = self.shape[0]
         my, mx = self.fft_shape
-        spec, out = self._work
+        spec, out, pairs = self._work
         workers = self.backend.workers
         self._buffer[self.padded_index] = q
         _pocketfft.r2c(self._buffer.reshape(ny, mx), (1,), True, 0, spec[:ny], workers)
         spec[ny:] = 0.0
         _pocketfft.c2c(spec, (0,), True, 0, spec, workers)
-        spec *= self.spectrum
+        product = spec.view(np.float64).reshape(pairs.shape)
+        np.multiply(product, pairs, out=product)
         _pocketfft.c2c(spec, (0,), False, 2, spec, workers)
         _pocketfft.c2r(spec[:ny], (1,), mx, False, 2, out, workers)
         return out.reshape(-1).take(self.padded_index)
