@@ -45,10 +45,15 @@ FFT_WORKERS = 2  # this machine has two cores; scipy.fft threads the 2D transfor
 NEAR_FIELD_CELLS = 3
 # Offsets (in cells) within which the kernel table takes Love's exact form.
 EXACT_CELLS = int(FAR_FIELD_RATIO) + 1
-# CompliancePlan.apply_few takes at most FEW_COST_RATIO log2(M) M / G clipped cells (M padded
-# FFT points, G grid cells): one scaled copy of the G-cell kernel table per cell against an
-# application's FFT pair (measured: one copy ~ 1/40-1/55 of the pair on 555^2-1000^2 grids).
+# CompliancePlan.apply_few takes the half-space part from the kernel table for at most
+# FEW_COST_RATIO log2(M) M / G clipped cells (M padded FFT points, G grid cells): one scaled
+# copy of the G-cell kernel table per cell against an application's FFT pair (measured: one
+# copy ~ 1/40-1/55 of the pair on 555^2-1000^2 grids); for more, one convolution.
 FEW_COST_RATIO = 0.25
+# apply_few takes the near-field correction's rows of the given cells when they are at most
+# 1/SPARSE_ROWS_FRACTION of all cells (a row slice of the sparse matrix), else its whole
+# product.
+SPARSE_ROWS_FRACTION = 16
 
 
 def kernel_block(shape, cell_size: float, compliance: float, xp=np):
@@ -347,20 +352,46 @@ class CompliancePlan:
         return u
 
     def apply_few(self, index, values):
-        """A d for d = ``values`` on the cells ``index`` and zero elsewhere, from the kernel
-        table directly (one scaled copy of the table per cell, in four quadrant slices): the
-        constrained CG's gap update after a step that clips a few pressures (an elastic
-        pillar term on those cells' pillars only).  None where one application is cheaper
-        (more than ``few_max`` cells, or an elastic pillar term with a box convolution); then
-        the caller applies the operator."""
+        """A d for d = ``values`` on the cells ``index`` and zero elsewhere: the constrained
+        CG's gap update after a step that clips pressures, exact.  The half-space part from
+        the kernel table directly (one scaled copy of the table per cell, in four quadrant
+        slices) for at most ``few_max`` cells, else by one convolution of d; the near-field
+        correction and the pillar springs from the given cells only (not the whole
+        application's sparse product and segment sums: 10-15 ms of an application's ~70 at
+        N = 58); an elastic pillar term on those cells' pillars only where it can, else whole."""
         m = int(index.shape[0])
+        be = self.backend
+        xp = be.xp
+        on_numpy = isinstance(be, NumpyDevice)
+        n = self._convolution_index.shape[0]
+        spread = []  # d on every cell, built once if a part needs it
+
+        def whole():
+            if not spread:
+                spread.append(be.put(xp.zeros(n, dtype=xp.float64), index, values))
+            return spread[0]
+
         if m > self.few_max:
-            return None
-        pillar_part = None
+            u = self.half_space(whole())
+        else:
+            u = self._table_sum(index, values)
+            self.direct_updates += 1
+        if self.correction is not None:
+            if on_numpy and m <= n // SPARSE_ROWS_FRACTION:  # symmetric: columns are rows
+                u += self.correction[index].T @ values
+            else:
+                u += self.correction @ whole()
+        if self.has_spring:
+            forces = be.segment_sum(xp.take(self.pillar, index), values, self.n_pillars)
+            u += xp.take(self.spring * forces, self.pillar)
         if self.pillar_term is not None:
             pillar_part = self.pillar_term.apply_few(index, values)
-            if pillar_part is None:
-                return None
+            u += self.pillar_term(whole()) if pillar_part is None else pillar_part
+        return u
+
+    def _table_sum(self, index, values):
+        """K d on the candidate cells for d = ``values`` on the cells ``index``, from the
+        kernel table (one scaled copy per cell)."""
         be = self.backend
         xp = be.xp
         on_numpy = isinstance(be, NumpyDevice)
@@ -388,18 +419,6 @@ class CompliancePlan:
                     acc[rows, cols] += part
         u = xp.take(xp.reshape(acc, (-1,)), self._convolution_index)
         acc[...] = 0.0
-        if self.correction is not None:
-            if on_numpy:  # symmetric: its columns are its rows
-                u += self.correction[index].T @ values
-            else:
-                n = self._convolution_index.shape[0]
-                u += self.correction @ be.put(xp.zeros(n, dtype=xp.float64), index, values)
-        if self.has_spring:
-            forces = be.segment_sum(xp.take(self.pillar, index), values, self.n_pillars)
-            u += self.spring * xp.take(forces, self.pillar)
-        if pillar_part is not None:
-            u += pillar_part
-        self.direct_updates += 1
         return u
 
     def dense_matrix(self, x, y) -> np.ndarray:

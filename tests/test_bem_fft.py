@@ -158,6 +158,39 @@ def test_numpy_convolution_into_kept_arrays_is_the_generic_path():
             conv._work = kept
 
 
+@pytest.mark.parametrize("many", [False, True])
+def test_clipping_update_equals_an_application(many):
+    """apply_few, the constrained CG's gap update after a clipping step, is A d for d on the
+    given cells: from the kernel table for at most few_max cells, else one convolution, with
+    the near-field correction and the pillar springs taken from those cells only (their
+    row slice, or the whole product for many cells)."""
+    from bem_solver._fft_operator import SPARSE_ROWS_FRACTION
+
+    scene, grid, plan = _small_plan("paper-fig3-sparse", ["pillars.E_Pa=1.6e4"], 8)
+    assert plan.has_spring and plan.correction is not None
+    n = grid.n_cells
+    rng = np.random.default_rng(11)
+    m = n // 2 if many else plan.few_max
+    assert (m > plan.few_max) == many and (m > n // SPARSE_ROWS_FRACTION) == many
+    index = np.sort(rng.choice(n, m, replace=False))
+    values = rng.standard_normal(m)
+    d = np.zeros(n)
+    d[index] = values
+    before = (plan.applications, plan.direct_updates)
+    update = plan.apply_few(index, values)
+    full = plan(d)
+    assert np.max(np.abs(update - full)) <= RTOL_ROUNDOFF * np.max(np.abs(full))
+    # One convolution for many cells (counted as an application), the table for few.
+    assert (plan.applications - before[0], plan.direct_updates - before[1]) == \
+        ((2, 0) if many else (1, 1))
+    few = np.arange(0, n, n // 5)[:5]
+    assert len(few) <= min(plan.few_max, n // SPARSE_ROWS_FRACTION)
+    d = np.zeros(n)
+    d[few] = 1.0
+    assert np.max(np.abs(plan.apply_few(few, np.ones(len(few))) - plan(d))) \
+        <= RTOL_ROUNDOFF * np.max(np.abs(plan(d)))
+
+
 def test_operator_symmetric_positive_definite():
     _, grid, plan = _small_plan("single-pillar", [], 8)
     mat = plan.dense_matrix(grid.x, grid.y)
