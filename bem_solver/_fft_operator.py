@@ -8,8 +8,9 @@ The displacement (m) of cell i under smeared cell pressures q (Pa) is
 with K = (gamma / pi) D, D Love's integral of 1/|x - x'| over a square cell (see
 :mod:`bem_solver._love`), gamma = gamma_l + gamma_s, and c_s = 4 h / (pi d^2 E_p) the spring
 compliance of a pillar (m/N).  The convolution is linear (free surface, not periodic): the grid
-is zero-padded to at least 2 n - 1 points per axis, so no image of the kernel wraps onto the
-grid.  K is even in both axes, so its spectrum is real and is stored as one real array.
+is zero-padded to at least 2 n - 2 points per axis, so no wrapped image of the kernel differs
+from the true coefficient (K is even: :func:`padded_length`).  K is even in both axes, so its
+spectrum is real and is stored as one real array.
 
 Everything here is written against an array namespace and a device backend
 (:mod:`bem_solver._xp`): the kernel table, its spectrum, the near-field correction (a sparse
