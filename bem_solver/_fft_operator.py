@@ -8,8 +8,9 @@ The displacement (m) of cell i under smeared cell pressures q (Pa) is
 with K = (gamma / pi) D, D Love's integral of 1/|x - x'| over a square cell (see
 :mod:`bem_solver._love`), gamma = gamma_l + gamma_s, and c_s = 4 h / (pi d^2 E_p) the spring
 compliance of a pillar (m/N).  The convolution is linear (free surface, not periodic): the grid
-is zero-padded to at least 2 n - 1 points per axis, so no image of the kernel wraps onto the
-grid.  K is even in both axes, so its spectrum is real and is stored as one real array.
+is zero-padded to at least 2 n - 2 points per axis, so no wrapped image of the kernel differs
+from the true coefficient (K is even: :func:`padded_length`).  K is even in both axes, so its
+spectrum is real and is stored as one real array.
 
 Everything here is written against an array namespace and a device backend
 (:mod:`bem_solver._xp`): the kernel table, its spectrum, the near-field correction (a sparse
@@ -32,6 +33,11 @@ import numpy as np
 from ._love import FAR_FIELD_RATIO, love_far, love_rectangle, love_square_everywhere
 from ._xp import NumpyDevice
 
+try:  # scipy.fft's own transforms, which write into given arrays (scipy.fft has no out=)
+    from scipy.fft._pocketfft import pypocketfft as _pocketfft
+except ImportError:  # another scipy layout: the public scipy.fft path (fresh arrays per call)
+    _pocketfft = None
+
 FFT_WORKERS = 2  # this machine has two cores; scipy.fft threads the 2D transforms
 # Half-width (in cells) of the stencil around a partly covered cell within which its grid
 # coefficients are replaced by the equivalent-square ones.  Beyond it the two differ by a
@@ -40,10 +46,15 @@ FFT_WORKERS = 2  # this machine has two cores; scipy.fft threads the 2D transfor
 NEAR_FIELD_CELLS = 3
 # Offsets (in cells) within which the kernel table takes Love's exact form.
 EXACT_CELLS = int(FAR_FIELD_RATIO) + 1
-# CompliancePlan.apply_few takes at most FEW_COST_RATIO log2(M) M / G clipped cells (M padded
-# FFT points, G grid cells): one scaled copy of the G-cell kernel table per cell against an
-# application's FFT pair (measured: one copy ~ 1/40-1/55 of the pair on 555^2-1000^2 grids).
+# CompliancePlan.apply_few takes the half-space part from the kernel table for at most
+# FEW_COST_RATIO log2(M) M / G clipped cells (M padded FFT points, G grid cells): one scaled
+# copy of the G-cell kernel table per cell against an application's FFT pair (measured: one
+# copy ~ 1/40-1/55 of the pair on 555^2-1000^2 grids); for more, one convolution.
 FEW_COST_RATIO = 0.25
+# apply_few takes the near-field correction's rows of the given cells when they are at most
+# 1/SPARSE_ROWS_FRACTION of all cells (a row slice of the sparse matrix), else its whole
+# product.
+SPARSE_ROWS_FRACTION = 16
 
 
 def kernel_block(shape, cell_size: float, compliance: float, xp=np):
@@ -147,6 +158,15 @@ def smooth_length(n: int) -> int:
     return best
 
 
+def padded_length(n: int, next_fast_len) -> int:
+    """FFT length for the linear convolution of n-point sequences with an *even* kernel:
+    2 n - 2 points suffice (not the 2 n - 1 of a general kernel).  On a ring of M points the
+    offsets d and d - M of the table K(min(k, M - k)) coincide only at k = n - 1 when
+    M = 2 n - 2, where both hold K((n - 1) L) as K is even: no wrapped image differs from the
+    true coefficient.  (1297 cells per side: 2592 = 2^5 3^4 points instead of 2700.)"""
+    return next_fast_len(max(2 * int(n) - 2, 1))
+
+
 class PrunedConvolution:
     """Linear convolution of a field on the candidate cells with a kernel given by its
     real spectrum on an (my, mx) grid that holds the (ny, nx) box (zero padding or a
@@ -155,7 +175,10 @@ class PrunedConvolution:
     Only the first ny rows of the input are non-zero and only the first ny rows of the
     output are needed: the row transforms run on ny rows, the column transforms zero-pad to
     my (a pruned 2D FFT, 0.6-0.7 of rfft2 + irfft2 on the (my, mx) grid).  The scatter
-    buffer is kept between calls; outside the candidate cells it stays zero.
+    buffer is kept between calls; outside the candidate cells it stays zero.  With numpy, the
+    same four scipy.fft transforms write into arrays kept between calls (the same
+    floating-point operations as the generic path: identical results, no page faults of
+    fresh 10-60 MB arrays per call).
     """
 
     def __init__(self, shape, fft_shape, flat_index, spectrum, backend):
@@ -165,13 +188,24 @@ class PrunedConvolution:
         self.backend = be
         self.shape = (ny, nx)
         self.fft_shape = tuple(fft_shape)
-        mx = self.fft_shape[1]
+        my, mx = self.fft_shape
         flat = be.asarray(flat_index, dtype=xp.int64)
         self.padded_index = (flat // nx) * mx + flat % nx
         self.spectrum = spectrum
         self._buffer = xp.zeros(ny * mx, dtype=xp.float64)
+        self._work = None
+        if _pocketfft is not None and isinstance(be, NumpyDevice):
+            # The real spectrum twice over, as the (re, im) pairs of the complex spectrum:
+            # one float product of equal arrays (half the time of numpy's complex-by-real
+            # product, which widens the real factor; the same values).
+            pairs = np.repeat(np.asarray(spectrum, dtype=np.float64)[..., None], 2, axis=-1)
+            self._work = (np.empty((my, mx // 2 + 1), dtype=np.complex128),
+                          np.empty((ny, mx), dtype=np.float64),
+                          pairs.reshape(my, 2 * (mx // 2 + 1)))
 
     def __call__(self, q):
+        if self._work is not None:
+            return self._numpy_call(q)
         be = self.backend
         xp = be.xp
         ny = self.shape[0]
@@ -182,6 +216,23 @@ class PrunedConvolution:
         rows = be.ifft(spec, axis=0)[:ny, :]
         out = be.irfft(rows, n=mx, axis=1)
         return xp.take(xp.reshape(out, (-1,)), self.padded_index)
+
+    def _numpy_call(self, q):
+        """The generic path's transforms (scipy.fft's rfft, fft, ifft, irfft are these
+        pocketfft calls, with the default norm) into the kept arrays."""
+        ny = self.shape[0]
+        my, mx = self.fft_shape
+        spec, out, pairs = self._work
+        workers = self.backend.workers
+        self._buffer[self.padded_index] = q
+        _pocketfft.r2c(self._buffer.reshape(ny, mx), (1,), True, 0, spec[:ny], workers)
+        spec[ny:] = 0.0
+        _pocketfft.c2c(spec, (0,), True, 0, spec, workers)
+        product = spec.view(np.float64).reshape(pairs.shape)
+        np.multiply(product, pairs, out=product)
+        _pocketfft.c2c(spec, (0,), False, 2, spec, workers)
+        _pocketfft.c2r(spec[:ny], (1,), mx, False, 2, out, workers)
+        return out.reshape(-1).take(self.padded_index)
 
 
 class CompliancePlan:
@@ -221,8 +272,9 @@ class CompliancePlan:
         self.cell_size = float(cell_size)
         self.compliance = float(compliance)
         self.workers = workers
-        # Linear convolution of n-point sequences needs >= 2n - 1 points.
-        self.fft_shape = (be.next_fast_len(2 * ny - 1), be.next_fast_len(2 * nx - 1))
+        # Linear convolution of n-point sequences with an even kernel: >= 2n - 2 points.
+        self.fft_shape = (padded_length(ny, be.next_fast_len),
+                          padded_length(nx, be.next_fast_len))
         my, mx = self.fft_shape
         block = kernel_block(shape, cell_size, compliance, xp)
         padded = xp.zeros(self.fft_shape, dtype=xp.float64)
@@ -295,26 +347,52 @@ class CompliancePlan:
         if self.correction is not None:
             u += self.correction @ q
         if self.has_spring:
-            u += self.spring * self.backend.xp.take(self.pillar_sums(q), self.pillar)
+            u += self.backend.xp.take(self.spring * self.pillar_sums(q), self.pillar)
         if self.pillar_term is not None:
             u += self.pillar_term(q)
         return u
 
     def apply_few(self, index, values):
-        """A d for d = ``values`` on the cells ``index`` and zero elsewhere, from the kernel
-        table directly (one scaled copy of the table per cell, in four quadrant slices): the
-        constrained CG's gap update after a step that clips a few pressures (an elastic
-        pillar term on those cells' pillars only).  None where one application is cheaper
-        (more than ``few_max`` cells, or an elastic pillar term with a box convolution); then
-        the caller applies the operator."""
+        """A d for d = ``values`` on the cells ``index`` and zero elsewhere: the constrained
+        CG's gap update after a step that clips pressures, exact.  The half-space part from
+        the kernel table directly (one scaled copy of the table per cell, in four quadrant
+        slices) for at most ``few_max`` cells, else by one convolution of d; the near-field
+        correction and the pillar springs from the given cells only (not the whole
+        application's sparse product and segment sums: 10-15 ms of an application's ~70 at
+        N = 58); an elastic pillar term on those cells' pillars only where it can, else whole."""
         m = int(index.shape[0])
+        be = self.backend
+        xp = be.xp
+        on_numpy = isinstance(be, NumpyDevice)
+        n = self._convolution_index.shape[0]
+        spread = []  # d on every cell, built once if a part needs it
+
+        def whole():
+            if not spread:
+                spread.append(be.put(xp.zeros(n, dtype=xp.float64), index, values))
+            return spread[0]
+
         if m > self.few_max:
-            return None
-        pillar_part = None
+            u = self.half_space(whole())
+        else:
+            u = self._table_sum(index, values)
+            self.direct_updates += 1
+        if self.correction is not None:
+            if on_numpy and m <= n // SPARSE_ROWS_FRACTION:  # symmetric: columns are rows
+                u += self.correction[index].T @ values
+            else:
+                u += self.correction @ whole()
+        if self.has_spring:
+            forces = be.segment_sum(xp.take(self.pillar, index), values, self.n_pillars)
+            u += xp.take(self.spring * forces, self.pillar)
         if self.pillar_term is not None:
             pillar_part = self.pillar_term.apply_few(index, values)
-            if pillar_part is None:
-                return None
+            u += self.pillar_term(whole()) if pillar_part is None else pillar_part
+        return u
+
+    def _table_sum(self, index, values):
+        """K d on the candidate cells for d = ``values`` on the cells ``index``, from the
+        kernel table (one scaled copy per cell)."""
         be = self.backend
         xp = be.xp
         on_numpy = isinstance(be, NumpyDevice)
@@ -342,18 +420,6 @@ class CompliancePlan:
                     acc[rows, cols] += part
         u = xp.take(xp.reshape(acc, (-1,)), self._convolution_index)
         acc[...] = 0.0
-        if self.correction is not None:
-            if on_numpy:  # symmetric: its columns are its rows
-                u += self.correction[index].T @ values
-            else:
-                n = self._convolution_index.shape[0]
-                u += self.correction @ be.put(xp.zeros(n, dtype=xp.float64), index, values)
-        if self.has_spring:
-            forces = be.segment_sum(xp.take(self.pillar, index), values, self.n_pillars)
-            u += self.spring * xp.take(forces, self.pillar)
-        if pillar_part is not None:
-            u += pillar_part
-        self.direct_updates += 1
         return u
 
     def dense_matrix(self, x, y) -> np.ndarray:
@@ -441,24 +507,24 @@ class CirculantPreconditioner:
         be = self.backend
         xp = be.xp
         # Restrictions to F as products with its indicator (a third of where(free, x, 0)'s
-        # time on numpy; the vectors are finite).
+        # time on numpy; the vectors are finite), S folded into it, in place where the
+        # vector is this call's own (products by 0 or 1 are exact: the same values).
         mask = xp.astype(free, xp.float64)
+        restrict = mask if self.scale is None else mask * self.scale
         rf = r * mask
         if self.pillars:
             count = be.segment_sum(self.pillar, mask, self.n_pillars)
             per_cell = 1.0 / xp.maximum(count, 1.0)
             sums = be.segment_sum(self.pillar, rf, self.n_pillars)
-            rf = (rf - xp.take(sums * per_cell, self.pillar)) * mask
-        if self.scale is not None:
-            rf = rf * self.scale
+            rf -= xp.take(sums * per_cell, self.pillar)
+        rf *= restrict
         z = self._inverse(rf)
-        if self.scale is not None:
-            z = z * self.scale
-        z = z * mask
+        z *= restrict
         if not self.pillars:
             return z
         z_sums = be.segment_sum(self.pillar, z, self.n_pillars)
         mode = self.plan.pillar_mode_compliance(count) + self._disk * count * xp.sqrt(count)
         coarse = sums / xp.where(count > 0.0, mode, 1.0)
         z += xp.take(coarse - z_sums * per_cell, self.pillar)
-        return z * mask
+        z *= mask
+        return z

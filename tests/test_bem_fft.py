@@ -110,6 +110,87 @@ def test_fft_convolution_equals_direct_sum(case):
     assert np.max(np.abs(plan(q) - full)) <= RTOL_ROUNDOFF * np.max(np.abs(full))
 
 
+@pytest.mark.parametrize("shape", [(7, 7), (7, 5), (13, 9), (2, 3), (1, 4)])
+def test_even_kernel_padding_equals_direct_sum(shape):
+    """The padded grid holds 2 n - 2 points per axis (before rounding up to a fast length),
+    one fewer than a general kernel needs: with K even, the wrapped offsets coincide only
+    where both are K((n - 1) L).  Every cell of the box is loaded, so the extreme offsets
+    n - 1 enter; with 7 cells the ring has 12 points (2 n - 1 = 13 would round up to 15)."""
+    from bem_solver._fft_operator import kernel_block, padded_length
+
+    ny, nx = shape
+    L, gamma = 1e-6, 2e-6
+    plan = CompliancePlan(shape, np.arange(ny * nx), L, gamma)
+    assert plan.fft_shape == (padded_length(ny, scipy_fast), padded_length(nx, scipy_fast))
+    if shape[0] == 7:
+        assert plan.fft_shape[0] == 12
+    table = kernel_block(shape, L, gamma)
+    iy, ix = np.divmod(np.arange(ny * nx), nx)
+    direct_matrix = table[np.abs(iy[:, None] - iy[None, :]), np.abs(ix[:, None] - ix[None, :])]
+    q = np.random.default_rng(3).random(ny * nx)
+    direct = direct_matrix @ q
+    assert np.max(np.abs(plan.half_space(q) - direct)) <= RTOL_ROUNDOFF * np.max(direct)
+
+
+def scipy_fast(n):
+    import scipy.fft
+
+    return scipy.fft.next_fast_len(n, real=True)
+
+
+def test_numpy_convolution_into_kept_arrays_is_the_generic_path():
+    """The numpy path writes scipy.fft's own transforms into arrays kept between calls: the
+    same floating-point operations as the generic (array-namespace) path, so the same bits,
+    for the operator's zero-padded grid and for the preconditioner's periodic box."""
+    from bem_solver._fft_operator import CirculantPreconditioner
+
+    _, grid, plan = _small_plan("paper-fig3-dense", ["load.indentation_um=0.02"], 6)
+    pre = CirculantPreconditioner(plan)
+    q = np.random.default_rng(5).random(grid.n_cells)
+    for conv in (plan._convolution, pre._inverse):
+        assert conv._work is not None
+        fast = conv(q).copy()
+        again = conv(2.0 * q).copy()  # the kept arrays hold nothing over from a call
+        conv._work, kept = None, conv._work
+        try:
+            assert np.array_equal(conv(q), fast) and np.array_equal(conv(2.0 * q), again)
+        finally:
+            conv._work = kept
+
+
+@pytest.mark.parametrize("many", [False, True])
+def test_clipping_update_equals_an_application(many):
+    """apply_few, the constrained CG's gap update after a clipping step, is A d for d on the
+    given cells: from the kernel table for at most few_max cells, else one convolution, with
+    the near-field correction and the pillar springs taken from those cells only (their
+    row slice, or the whole product for many cells)."""
+    from bem_solver._fft_operator import SPARSE_ROWS_FRACTION
+
+    scene, grid, plan = _small_plan("paper-fig3-sparse", ["pillars.E_Pa=1.6e4"], 8)
+    assert plan.has_spring and plan.correction is not None
+    n = grid.n_cells
+    rng = np.random.default_rng(11)
+    m = n // 2 if many else plan.few_max
+    assert (m > plan.few_max) == many and (m > n // SPARSE_ROWS_FRACTION) == many
+    index = np.sort(rng.choice(n, m, replace=False))
+    values = rng.standard_normal(m)
+    d = np.zeros(n)
+    d[index] = values
+    before = (plan.applications, plan.direct_updates)
+    update = plan.apply_few(index, values)
+    full = plan(d)
+    assert np.max(np.abs(update - full)) <= RTOL_ROUNDOFF * np.max(np.abs(full))
+    # One convolution for many cells (counted as an application), the table for few.
+    assert (plan.applications - before[0], plan.direct_updates - before[1]) == \
+        ((2, 0) if many else (1, 1))
+    few = np.arange(0, n, n // 5)[:5]
+    assert len(few) <= min(plan.few_max, n // SPARSE_ROWS_FRACTION)
+    d = np.zeros(n)
+    d[few] = 1.0
+    assert np.max(np.abs(plan.apply_few(few, np.ones(len(few))) - plan(d))) \
+        <= RTOL_ROUNDOFF * np.max(np.abs(plan(d)))
+
+
 def test_operator_symmetric_positive_definite():
     _, grid, plan = _small_plan("single-pillar", [], 8)
     mat = plan.dense_matrix(grid.x, grid.y)

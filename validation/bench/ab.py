@@ -8,9 +8,12 @@ alternate between the two (ABBA order), so that the load of a shared machine wei
 alike.  Per case and side: the median and the spread of the solve's wall time and CPU time
 (``time.process_time``, both threads), the iterations, and the answers F_T, sigma0 and a with
 their largest relative difference between the sides; for the FFT, the operator applications
-and the fine level's solve time per iteration over the bare FFT pair on its padded grid
-(:func:`validation.bench.fft.fft_floor`, timed right after the solve).  With ``--warm`` each interpreter
-solves twice and the second solve is timed.  Prints the table and writes it with the runs
+and the fine level's solve time per iteration over the bare FFT pair (scipy.fft rfft2 + irfft2,
+2 workers, as :func:`validation.bench.fft.fft_floor`, timed right after the solve): wall over
+wall on the model's own padded grid, wall over wall on the 2 n - 1 zero-padded grid (the
+same yardstick for two sides that pad differently), and the fine CG's CPU time over the
+pair's (both threads; steadier than wall times on a loaded machine).  With ``--warm`` each
+interpreter solves twice and the second solve is timed.  Prints the table and writes it with the runs
 and the load averages to ``DIR/bench_ab.md`` and ``DIR/bench_ab.json``.
 
 Cases: ``dense`` (the dense BEM at its default P = 11 on paper-fig3-dense, zeta = 0.5 um),
@@ -29,6 +32,11 @@ import sys
 from pathlib import Path
 
 SCENE = ("paper-fig3-dense", ["load.indentation_um=0.5"])
+# The fine level's solve per iteration over the bare FFT pair: wall over wall on the model's
+# own padded grid; wall over wall on the 2 n - 1 padded grid (one yardstick for both sides
+# when their padding differs); CPU over CPU (both threads: steadier on a loaded machine).
+PER_ITERATION = ("per_iteration_over_fft_pair", "per_iteration_over_2n1_pair",
+                 "cpu_per_iteration_over_cpu_pair")
 ROOT = Path(__file__).resolve().parents[2]
 
 WORKER = r"""
@@ -43,6 +51,15 @@ else:
 if case["model"] != "dense" and case["pillars"] == "elastic":
     from bem_solver._elastic_pillar import scene_compliance
     scene_compliance(scene)  # the cached compliance, read outside the timing
+if case["model"] != "dense":  # the fine level's CG is the last one a solve runs
+    import bem_solver._fft as fft_module
+    cg_of_module, fine = fft_module.constrained_cg, {}
+    def timed_cg(*a, **k):
+        t, c = time.perf_counter(), time.process_time()
+        res = cg_of_module(*a, **k)
+        fine.update(wall=time.perf_counter() - t, cpu=time.process_time() - c)
+        return res
+    fft_module.constrained_cg = timed_cg
 args = () if case["model"] == "dense" else (case["cells"],)
 kw = {} if case["model"] == "dense" else {"pillars": case["pillars"], **case["options"]}
 for _ in range(2 if warm else 1):
@@ -52,11 +69,30 @@ for _ in range(2 if warm else 1):
 out = {"wall_s": wall, "cpu_s": cpu, "iterations": r.iterations, "converged": r.converged,
        "F_T": r.total_force_N, "sigma0": r.centre_pressure_Pa, "a": r.contact_radius_m}
 if case["model"] != "dense":  # the fine level's time per iteration over the bare FFT pair
-    from validation.bench.fft import fft_floor
+    import statistics
+    import numpy as np
+    import scipy.fft as sfft
+    def pair(shape, repeats=7):  # validation.bench.fft.fft_floor, wall and CPU (both threads)
+        a = np.random.default_rng(0).random(tuple(shape))
+        sfft.irfft2(sfft.rfft2(a, workers=2), s=a.shape, workers=2)
+        walls, cpus = [], []
+        for _ in range(repeats):
+            t, c = time.perf_counter(), time.process_time()
+            sfft.irfft2(sfft.rfft2(a, workers=2), s=a.shape, workers=2)
+            walls.append(time.perf_counter() - t)
+            cpus.append(time.process_time() - c)
+        return statistics.median(walls), statistics.median(cpus)
     d = r.diagnostics
+    iters = max(r.iterations, 1)
+    own, own_cpu = pair(d["fft_shape"])
+    # The same yardstick on both sides: the pair on the 2 n - 1 zero-padded grid.
+    common = [sfft.next_fast_len(2 * k - 1, real=True) for k in d["grid_shape"]]
+    ref = own if list(common) == list(d["fft_shape"]) else pair(common)[0]
     out["applications"] = d["operator_applications"]
-    out["per_iteration_over_fft_pair"] = (d["timings_s"]["solve"] / max(r.iterations, 1)
-                                          / fft_floor(d["fft_shape"]))
+    out["fft_shape"] = d["fft_shape"]
+    out["per_iteration_over_fft_pair"] = d["timings_s"]["solve"] / iters / own
+    out["per_iteration_over_2n1_pair"] = d["timings_s"]["solve"] / iters / ref
+    out["cpu_per_iteration_over_cpu_pair"] = fine["cpu"] / iters / own_cpu
 print(json.dumps(out))
 """
 
@@ -96,8 +132,8 @@ def summarise(case, runs) -> list[dict]:
                      "iterations": rs[-1]["iterations"], "converged": rs[-1]["converged"],
                      "F_T": rs[-1]["F_T"], "sigma0": rs[-1]["sigma0"], "a": rs[-1]["a"],
                      "applications": rs[-1].get("applications"),
-                     "per_iteration_over_fft_pair": statistics.median(
-                         [r.get("per_iteration_over_fft_pair", float("nan")) for r in rs])})
+                     **{key: statistics.median([r.get(key, float("nan")) for r in rs])
+                        for key in PER_ITERATION}})
     base, this = rows
     this["speed-up"] = base["wall_median_s"] / this["wall_median_s"]
     this["max_rel_diff"] = max(_rel(base[q], this[q]) for q in ("F_T", "sigma0", "a"))
@@ -106,15 +142,15 @@ def summarise(case, runs) -> list[dict]:
 
 def table(rows) -> str:
     head = ("| case | side | wall median s (min-max) | CPU median s | iterations "
-            "(applications) | iteration / FFT pair | F_T N | sigma0 Pa | a m | speed-up | "
-            "max rel diff |")
+            "(applications) | iteration / FFT pair (own grid; 2n-1 grid; CPU) | F_T N | "
+            "sigma0 Pa | a m | speed-up | max rel diff |")
     lines = [head, "|" + "---|" * 11]
     for r in rows:
         apps = "" if r["applications"] is None else f" ({r['applications']})"
         lines.append(
             f"| {r['case']} | {r['side']} | {r['wall_median_s']:.3f} ({r['wall_min_s']:.3f}-"
             f"{r['wall_max_s']:.3f}) | {r['cpu_median_s']:.3f} | {r['iterations']}{apps} | "
-            f"{r['per_iteration_over_fft_pair']:.2f} | "
+            + "; ".join(f"{r[key]:.2f}" for key in PER_ITERATION) + " | "
             f"{r['F_T']:.10g} | {r['sigma0']:.10g} | {r['a']:.10g} | "
             f"{r.get('speed-up', float('nan')):.2f} | {r.get('max_rel_diff', float('nan')):.2e} |")
     return "\n".join(lines)

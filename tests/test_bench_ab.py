@@ -1,0 +1,40 @@
+"""The before/after benchmark's table (validation.bench.ab) from recorded runs, without
+solving."""
+
+from __future__ import annotations
+
+import pytest
+
+from validation.bench import ab
+
+
+def _run(wall, per_iteration, force):
+    return {"wall_s": wall, "cpu_s": 2 * wall, "iterations": 10, "converged": True,
+            "F_T": force, "sigma0": 1.0, "a": 2.0, "applications": 15,
+            "per_iteration_over_fft_pair": per_iteration,
+            "per_iteration_over_2n1_pair": 0.9 * per_iteration,
+            "cpu_per_iteration_over_cpu_pair": 1.1 * per_iteration}
+
+
+def test_summary_has_medians_of_the_three_ratios_and_the_answer_difference():
+    case = ab.parse_case("fft:58")
+    runs = {"baseline": [_run(4.0, 2.0, 1.0), _run(5.0, 1.0, 1.0), _run(6.0, 3.0, 1.0)],
+            "this": [_run(2.0, 1.5, 1.0 + 1e-9), _run(3.0, 1.2, 1.0 + 1e-9),
+                     _run(1.0, 1.3, 1.0 + 1e-9)]}
+    base, this = ab.summarise(case, runs)
+    assert base["wall_median_s"] == 5.0 and this["wall_median_s"] == 2.0
+    assert this["speed-up"] == pytest.approx(2.5)
+    assert base["per_iteration_over_fft_pair"] == 2.0
+    assert this["per_iteration_over_fft_pair"] == 1.3
+    assert this["per_iteration_over_2n1_pair"] == pytest.approx(0.9 * 1.3)
+    assert this["cpu_per_iteration_over_cpu_pair"] == pytest.approx(1.1 * 1.3)
+    assert this["max_rel_diff"] == pytest.approx(1e-9, rel=1e-6)
+    text = ab.table([base, this])
+    assert "| fft:58 | this | 2.000 (1.000-3.000) |" in text
+    assert "| 1.30; 1.17; 1.43 |" in text and "| 2.50 |" in text
+
+
+def test_cases_parse_and_refuse():
+    assert ab.parse_case("elastic-fft:32@1e-10")["options"] == {"tol": 1e-10}
+    with pytest.raises(Exception):
+        ab.parse_case("fft")
