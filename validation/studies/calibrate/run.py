@@ -688,11 +688,16 @@ def keep_hand_entries(errors: dict, costs: dict, folder: Path | None = None) -> 
     errors["candidates"] = list(errors["candidates"]) + [
         c for c in old_errors.get("candidates", ())
         if is_hand(c) and c["label"] not in labels]
-    def measured(t):  # the calibration measured this table itself (e.g. from the lattice)
-        return any(m.get("component") == t.get("component") and m.get("option") ==
-                   t.get("option") and set(m.get("regimes", ())) & set(t.get("regimes", ()))
-                   and set(m.get("models", ())) & set(t.get("models", ()))
-                   for m in errors["tables"])
+    def measured(t):  # the calibration measured this table itself (e.g. from the lattice),
+        # or a more specific one that holds it: an elastic rung's whole error against fem-3d
+        # holds the coupling a hand bound stood for
+        def covers(m):
+            same = m.get("component") == t.get("component") and m.get("option") == t.get("option")
+            specific = m.get("source", "").startswith("lattice") and t.get("option") and \
+                t["option"].items() < m.get("option", {}).items()
+            return (same or specific) and set(m.get("regimes", ())) & set(t.get("regimes", ())) \
+                and set(m.get("models", ())) & set(t.get("models", ()))
+        return any(covers(m) for m in errors["tables"])
 
     errors["tables"] = list(errors["tables"]) + [
         t for t in old_errors.get("tables", ()) if is_hand(t)
