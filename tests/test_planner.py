@@ -298,6 +298,8 @@ def test_lattice_study_supplies_the_hooke_error_in_lattices(tmp_path):
     mine = [t for t in doc["tables"] if t["source"].startswith("lattice")]
     assert len(mine) == 1 and mine[0]["errors"]["sigma0"] == lattice.errors["sigma0"]
     assert main(["calibrate", "--lattice-only", "--out", str(tmp_path / "cal")]) == 2
+    assert main(["calibrate", "--lattice", ",", "--lattice-only",
+                 "--out", str(tmp_path / "cal")]) == 2
     bad = tmp_path / "lattice.json"
     bad.write_text("{}")
     with pytest.raises(InputError, match="lattice.json|rows"):

@@ -10,9 +10,12 @@ from ._args import add_engine_arguments, check_out, engine_from_args, print_json
 
 
 def _paths(text: str) -> list:
+    import argparse
+
     paths = [Path(v.strip()) for v in text.split(",") if v.strip()]
     if not paths:
-        raise ValueError(text)
+        raise argparse.ArgumentTypeError(f"{text!r}: expected one or more lattice.json "
+                                         "files, comma-separated")
     return paths
 
 
