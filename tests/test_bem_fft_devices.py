@@ -96,6 +96,11 @@ class StrictDevice:
         return xps.asarray(np.bincount(self.to_numpy(index), weights=self.to_numpy(weights),
                                        minlength=n))
 
+    def segments(self, index, n):
+        # a backend primitive, as segment_sum: numpy's, so both paths sum in the same order
+        numpy_sums = NumpyDevice().segments(self.to_numpy(index), n)
+        return lambda weights: xps.asarray(numpy_sums(self.to_numpy(weights)))
+
     def put(self, target, index, values):
         out = np.array(self.to_numpy(target))
         out[self.to_numpy(index)] = self.to_numpy(values)

@@ -88,3 +88,25 @@ def test_non_convergence_is_reported_not_raised():
                          max_iterations=2)
     assert not sol.converged and "no convergence" in sol.message
     assert sol.iterations == 2 and len(sol.history) == 3
+
+
+@pytest.mark.parametrize("kind", ["runs", "scattered", "empty"])
+def test_segments_sum_like_bincount(kind):
+    """The backend's reusable segment sums: the same sums as a bincount per label (to
+    round-off: runs are summed first) whether the labels come in runs (a grid's pillar cells)
+    or scattered, and zeros for no cells at all."""
+    from contact._xp import NUMPY, RUNS_PAY
+
+    rng = np.random.default_rng(7)
+    n = 40
+    if kind == "runs":
+        index = np.repeat(rng.integers(0, n, 300), rng.integers(RUNS_PAY, 30, 300))
+    elif kind == "scattered":
+        index = rng.integers(0, n, 5000)
+    else:
+        index = np.zeros(0, dtype=np.int64)
+    weights = rng.standard_normal(index.size)
+    expect = np.bincount(index, weights=weights, minlength=n)
+    got = NUMPY.segments(index, n)(weights)
+    assert got.shape == (n,)
+    np.testing.assert_allclose(got, expect, rtol=1e-12, atol=1e-12 * np.abs(weights).sum())
