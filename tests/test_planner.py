@@ -539,3 +539,16 @@ def test_planner_validation(tmp_path):
         r["name"] for r in doc["rows"] if validate.miss_reasons(r, t["tolerance"])}
     validate.write_outputs(doc, tmp_path)
     json.loads((tmp_path / "planner_validation.json").read_text())
+
+
+def test_a_lattice_error_below_what_fem3d_resolves_is_floored():
+    """An error measured against fem-3d's estimate is kept no smaller than the estimate's
+    band (capped at the planner's relevance threshold): a chance zero would otherwise pull
+    the log10 interpolation down by decades next to it; errors above the floor are kept."""
+    from validation.planner.tables import LOO_RELEVANT
+    from validation.studies.calibrate.run import _resolved
+
+    assert _resolved(0.0, {"fem": 2.0, "fem_band": 4e-4}) == pytest.approx(2e-4)
+    assert _resolved(-1e-6, {"fem": 2.0, "fem_band": 0.02}) == pytest.approx(-LOO_RELEVANT)
+    assert _resolved(0.015, {"fem": 2.0, "fem_band": 0.02}) == 0.015
+    assert _resolved(-3e-5, {"fem": 2.0, "fem_band": None}) == -3e-5
