@@ -367,12 +367,13 @@ class CompliancePlan:
         xp = be.xp
         on_numpy = isinstance(be, NumpyDevice)
         n = self._convolution_index.shape[0]
-        spread = []  # d on every cell, built once if a part needs it
+        spread = None  # d on every cell, built once if a part needs it
 
         def whole():
-            if not spread:
-                spread.append(be.put(xp.zeros(n, dtype=xp.float64), index, values))
-            return spread[0]
+            nonlocal spread
+            if spread is None:
+                spread = be.put(xp.zeros(n, dtype=xp.float64), index, values)
+            return spread
 
         if m > self.few_max:
             u = self.half_space(whole())
@@ -501,7 +502,6 @@ class CirculantPreconditioner:
             self.scale = xp.sqrt(self_hf / xp.maximum(plan.diagonal, 1e-3 * self_hf))
         self.pillars = plan.has_pillar_terms
         self.pillar = plan.pillar
-        self.n_pillars = plan.n_pillars
         gamma, L = plan.compliance, plan.cell_size
         self._disk = 16.0 * gamma * L / (3.0 * math.pi * math.sqrt(math.pi))
 

@@ -74,10 +74,12 @@ def diagonal_preconditioner(diagonal, spring=0.0, pillar=None, n_pillars=0, back
     if spring <= 0.0 or pillar is None:
         return lambda r, free: xp.where(free, r * inv_d, 0.0)
 
+    per_pillar = be.segments(pillar, n_pillars)
+
     def apply(r, free):
         z = xp.where(free, r * inv_d, 0.0)
-        weight = be.segment_sum(pillar, xp.where(free, inv_d, 0.0), n_pillars)
-        sums = be.segment_sum(pillar, z, n_pillars)
+        weight = per_pillar(xp.where(free, inv_d, 0.0))
+        sums = per_pillar(z)
         coef = sums / (1.0 / spring + weight)
         return xp.where(free, z - xp.take(coef, pillar) * inv_d, 0.0)
 

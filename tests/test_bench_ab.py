@@ -36,5 +36,7 @@ def test_summary_has_medians_of_the_three_ratios_and_the_answer_difference():
 
 def test_cases_parse_and_refuse():
     assert ab.parse_case("elastic-fft:32@1e-10")["options"] == {"tol": 1e-10}
-    with pytest.raises(Exception):
+    import argparse
+
+    with pytest.raises(argparse.ArgumentTypeError, match="dense, fft:N or elastic-fft:N"):
         ab.parse_case("fft")

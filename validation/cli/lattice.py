@@ -36,8 +36,8 @@ def add_parser(sub) -> None:
         "lattice", help="multi-pillar cross-validation: Hooke and elastic-pillar BEMs against "
                         "fem-3d over Phi x E_p/E_l, each difference beside both models' "
                         "uncertainty, the elastic BEM's targets judged",
-        description="The multi-pillar cross-validation: on Table 1 scenes at zeta = 0.3 um (--zeta-um) "
-                    "(the Phi x E_p/E_l grid with E_s = E_l, and a few scenes at the paper's "
+        description="The multi-pillar cross-validation: on Table 1 scenes at zeta = 0.3 um "
+                    "(--zeta-um; the Phi x E_p/E_l grid with E_s = E_l, and a few scenes at the paper's "
                     "E_s = E_p), the Hooke-pillar BEM (bem-fft), the elastic-pillar BEM "
                     "(bem-fft, pillars = elastic) and the elastic-pillar FEM (fem-3d) each "
                     "climb three refinement levels; F_T, sigma0, a and A are compared as "

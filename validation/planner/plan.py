@@ -16,12 +16,14 @@ predicted within tolerance for every requested quantity.
 A candidate's ``physics`` drops the model-error components it does not carry
 (:data:`REMOVED_BY`): the elastic-pillar candidates (the BEMs with ``pillars = elastic``,
 fem-3d) carry no Hooke error (the Hooke pillar's sigma0 in a lattice: 3-60 %, measured by
-the lattice study against fem-3d); the elastic BEM carries its own instead (what remains of
-its pillars' coupling through the substrate: measured on lattices by the lattice study's
-elastic column, a hand bound on one pillar) and fem-3d its discretisation alone.  The hand
-entries of the data (fem-3d, the one-pillar bound) are written from the validation studies
-until a recalibration measures them (each table's ``note`` gives its sources).  The elastic BEM's time includes the pillar
-compliance's one-off build unless it is cached (:data:`.costs.SETUPS`).
+the lattice study against fem-3d).  On lattices each elastic BEM rung carries its whole
+error against fem-3d, measured by the lattice studies (one discretisation table per rung,
+read before the same rung's Hooke table: :meth:`.tables.PlannerData.tables_for`); on one
+pillar it carries the Hooke BEM's discretisation at that rung plus a hand bound on its
+coupling; fem-3d carries its discretisation alone.  The hand entries of the data (the
+elastic BEMs' and fem-3d's candidacy and costs, the one-pillar bound) give their sources in
+their ``note``.  The elastic BEM's time includes the pillar compliance's one-off build
+unless it is cached (:data:`.costs.SETUPS`).
 
 When the model error that every available candidate carries exceeds the tolerance, none is
 within tolerance: the plan says so and takes the cheapest candidate within tolerance of

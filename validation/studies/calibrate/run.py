@@ -222,6 +222,10 @@ def _gecit_table(rows: list, scenes: list) -> ErrorTable:
 
 
 
+# A lattice study run before rows carried their indentation was at this one.
+LATTICE_ZETA_UM = 0.3
+
+
 def load_lattice(paths) -> dict:
     """One report of ``pillar-xval lattice`` (its ``lattice.json``), or several merged (a
     path, or a list of them: studies at different indentations): every row keeps its own
@@ -247,10 +251,6 @@ def load_lattice(paths) -> dict:
     if len(paths) == 1:
         return {**report, "rows": rows}
     return {"zeta_um": sorted(set(zetas)), "files": [str(p) for p in paths], "rows": rows}
-
-
-# A lattice study run before rows carried their indentation was at this one.
-LATTICE_ZETA_UM = 0.3
 
 
 def _lattice_features(report: dict) -> list:
@@ -356,18 +356,20 @@ def lattice_elastic_table(report: dict) -> ErrorTable | None:
         component="elastic-coupling", option={"pillars": "elastic"},
         source="lattice: elastic-pillar bem-fft (Richardson) against the elastic-pillar "
                "fem-3d (Richardson)",
-        note=f"measured on {len(points)} lattices, E_s = E_l, {_zeta_text(report)}; what remains of the pillars' coupling through "
-             "the substrate beyond its second-moment correction (largest for stiff pillars on "
+        note=f"measured on {len(points)} lattices, E_s = E_l, {_zeta_text(report)}; what "
+             "remains of the pillars' coupling through the substrate beyond its second-moment correction (largest for stiff pillars on "
              "a soft substrate in dense lattices); scenes at E_s = E_p, where the study "
              "measured it smaller, take these values (conservative)")
 
 
-def lattice_fem3d_tables(report: dict) -> list:
-    """fem-3d's discretisation error in a lattice, one table per mesh_size of the lattice
-    study's ladder: each level against the study's Richardson estimate of fem-3d over that
-    ladder, on its Phi x E_p/E_l grid (E_s = E_l), signed; empty when the report has no
-    fem-3d levels.  A quantity whose estimate's band exceeds :data:`FEM3D_BAND_MAX` of it is
-    left out at that point (no asymptotic range there: the estimate is no reference)."""
+def _level_errors(report: dict, column: str, option: str, judge_difference: bool) -> dict:
+    """{option value: (points, errors)}: each level in the rows' ``column`` (its ``option``
+    names it) against the row's fem-3d Richardson estimate, signed and floored at what that
+    estimate resolves (:func:`_resolved`), on the lattice grid (E_s = E_l rows).  A level
+    that did not converge, or whose estimate cannot judge it (:func:`_fem_reference_holds`;
+    ``judge_difference``: a difference beyond the band counts all the same, as for another
+    model; not for fem-3d's own levels, whose differences from the estimate are the
+    extrapolation itself), holds None at that point."""
     from ..lattice import LENS
 
     names = _lattice_features(report)
@@ -376,20 +378,27 @@ def lattice_fem3d_tables(report: dict) -> list:
         if not row.get("converged") or row.get("substrate", LENS) != LENS:
             continue
         x = _lattice_point(row, names)
-        for level in row.get("fem_levels") or ():
-            if not level.get("converged", True):
-                continue
-            points, errors = levels.setdefault(level["mesh_size"],
-                                               ([], {q: [] for q in QKEYS}))
+        for level in row.get(column) or ():
+            points, errors = levels.setdefault(level[option], ([], {q: [] for q in QKEYS}))
             points.append(x)
             for q in QKEYS:
                 est = (row.get("quantities") or {}).get(q) or {}
-                v = level.get(q)
-                ok = v is not None and math.isfinite(v) and _fem_reference_holds(est)
-                errors[q].append(_resolved((v - est["fem"]) / est["fem"], est) if ok else None)
+                v, fem = level.get(q), est.get("fem")
+                ok = level.get("converged", False) and v is not None and math.isfinite(v) \
+                    and fem is not None \
+                    and _fem_reference_holds(est, v - fem if judge_difference else 0.0)
+                errors[q].append(_resolved((v - fem) / fem, est) if ok else None)
+    return levels
+
+
+def lattice_fem3d_tables(report: dict) -> list:
+    """fem-3d's discretisation error in a lattice, one table per mesh_size of the lattice
+    study's ladder: each level against the study's Richardson estimate of fem-3d over that
+    ladder (:func:`_level_errors`); empty when the report has no fem-3d levels."""
+    levels = _level_errors(report, "fem_levels", "mesh_size", judge_difference=False)
     ladder = ", ".join(f"{m:g}" for m in sorted(levels, reverse=True))
     return [ErrorTable(
-        "discretisation", ["fem-3d"], ["multi"], names, points, errors,
+        "discretisation", ["fem-3d"], ["multi"], _lattice_features(report), points, errors,
         option={"mesh_size": mesh_size},
         source=f"lattice: fem-3d at mesh_size {mesh_size:g} against its Richardson estimate "
                f"over mesh_size {ladder}",
@@ -398,48 +407,32 @@ def lattice_fem3d_tables(report: dict) -> list:
         for mesh_size, (points, errors) in sorted(levels.items()) if len(points) >= 3]
 
 
+# The elastic-pillar BEMs' rungs in a lattice report: (model, option) -> the rows' column.
+ELASTIC_RUNGS = {("bem-fft", "cells_per_diameter"): "elastic_levels",
+                 ("bem", "elements_per_diameter"): "elastic_dense_levels"}
+
+
 def lattice_elastic_rung_tables(report: dict) -> list:
     """The elastic-pillar BEMs' error in a lattice at each of the planner's rungs, measured
-    directly: each level of the study's elastic bem-fft ladder (``elastic_levels``) and each
-    dense elastic level (``elastic_dense_levels``) against fem-3d's Richardson estimate, on
-    its Phi x E_p/E_l (x zeta) grid, E_s = E_l, signed.  One table per rung, of kind
+    directly: each level of the study's elastic bem-fft ladder and each dense elastic level
+    against fem-3d's Richardson estimate (:func:`_level_errors`).  One table per rung, of kind
     ``discretisation`` with the rung's option and ``pillars = elastic``: the error it holds is
     the whole error against the reference of the same physics (the elastic pillar), so its
     discretisation and what remains of its coupling through the substrate together, and no
-    coupling table is added on top (:func:`with_lattice`).  A point is left out where
-    fem-3d's estimate cannot judge the difference (:func:`_fem_reference_holds`)."""
-    from ..lattice import LENS
-
-    names = _lattice_features(report)
-    ladders = {("bem-fft", "cells_per_diameter"): "elastic_levels",
-               ("bem", "elements_per_diameter"): "elastic_dense_levels"}
-    rungs = {}
-    for row in report["rows"]:
-        if not row.get("converged") or row.get("substrate", LENS) != LENS:
-            continue
-        x = _lattice_point(row, names)
-        for (model, option), column in ladders.items():
-            for level in row.get(column) or ():
-                points, errors = rungs.setdefault((model, option, level[option]),
-                                                  ([], {q: [] for q in QKEYS}))
-                points.append(x)
-                for q in QKEYS:
-                    est = (row.get("quantities") or {}).get(q) or {}
-                    v, fem = level.get(q), est.get("fem")
-                    ok = level.get("converged", False) and v is not None \
-                        and math.isfinite(v) and fem is not None \
-                        and _fem_reference_holds(est, v - fem)
-                    errors[q].append(_resolved((v - fem) / fem, est) if ok else None)
-    return [ErrorTable(
-        "discretisation", [model], ["multi"], names, points, errors,
-        option={option: value, "pillars": "elastic"},
-        source=f"lattice: elastic-pillar {model} at {option} {value} against the "
-               "elastic-pillar fem-3d (Richardson)",
-        note=f"measured on {len(points)} lattices, E_s = E_l, {_zeta_text(report)}; the "
-             "whole error against fem-3d (discretisation and the pillars' coupling "
-             "together); other substrates take these values")
-        for (model, option, value), (points, errors) in sorted(rungs.items())
-        if len(points) >= 3]
+    coupling table is added on top (:func:`with_lattice`)."""
+    out = []
+    for (model, option), column in ELASTIC_RUNGS.items():
+        levels = _level_errors(report, column, option, judge_difference=True)
+        out += [ErrorTable(
+            "discretisation", [model], ["multi"], _lattice_features(report), points, errors,
+            option={option: value, "pillars": "elastic"},
+            source=f"lattice: elastic-pillar {model} at {option} {value} against the "
+                   "elastic-pillar fem-3d (Richardson)",
+            note=f"measured on {len(points)} lattices, E_s = E_l, {_zeta_text(report)}; the "
+                 "whole error against fem-3d (discretisation and the pillars' coupling "
+                 "together); other substrates take these values")
+            for value, (points, errors) in sorted(levels.items()) if len(points) >= 3]
+    return out
 
 
 def with_lattice(tables: list, report: dict) -> list:

@@ -75,8 +75,8 @@ from ..lattice import FEM_LEVELS
 from ..tradeoff import reference_values
 
 __all__ = ["VALIDATION_SEED", "check_options", "estimate", "estimate_text", "fem3d_fits",
-           "judged_quantities", "measured_only", "miss_reasons", "prepare", "report_totals", "scene_counts",
-           "sigma0_lattices", "summary_text", "validate_planner", "validation_scenes",
+           "judged_quantities", "measured_only", "miss_reasons", "prepare", "report_totals",
+           "scene_counts", "sigma0_lattices", "summary_text", "validate_planner", "validation_scenes",
            "write_outputs"]
 
 VALIDATION_SEED = 20251126
@@ -234,8 +234,8 @@ def judged_quantities(ref: dict, quantities) -> list:
     zero, and its band is within :data:`REFERENCE_BAND_MAX` of it (a reference without an
     asymptotic range, e.g. fem-3d's F_T at a small indentation, whose levels still move by
     percents, cannot tell a 1 % error from its own)."""
-    return [q for q in quantities if ref.get(q) is not None and ref[q]["value"]
-            and abs(ref[q]["band"]) <= REFERENCE_BAND_MAX * abs(ref[q]["value"])]
+    return [q for q in quantities
+            if ref.get(q) is not None and _band(ref[q]) <= REFERENCE_BAND_MAX]
 
 
 def _errors(result, ref: dict, quantities) -> dict | None:
@@ -454,18 +454,16 @@ def _judge(entry, p, ref_outcomes, cand_outcomes, tolerance) -> dict:
     row.update(actual=planned["errors"], time_s=planned["time_s"],
                accurate=bool(planned["within"]))
     ok = [t for t in tried if t.get("within")]
-    if ok:
-        cheapest = min(ok, key=lambda t: t["time_s"])
-        row.update(cheapest=cheapest["label"], cheapest_time_s=cheapest["time_s"])
-        row["cheap_strict"] = planned["time_s"] <= TIME_FACTOR * cheapest["time_s"]
-        row["cheap"] = row["cheap_strict"] or planned["time_s"] <= TIME_FLOOR
-    settled = [t for t in ok if t.get("settled")]
-    if settled:
-        cheapest = min(settled, key=lambda t: t["time_s"])
-        row.update(cheapest_settled=cheapest["label"],
-                   cheapest_settled_time_s=cheapest["time_s"])
-        row["cheap_settled"] = planned["time_s"] <= TIME_FACTOR * cheapest["time_s"] \
-            or planned["time_s"] <= TIME_FLOOR
+    for suffix, pool in (("", ok), ("_settled", [t for t in ok if t.get("settled")])):
+        if not pool:
+            continue
+        cheapest = min(pool, key=lambda t: t["time_s"])
+        strict = planned["time_s"] <= TIME_FACTOR * cheapest["time_s"]
+        row.update({f"cheapest{suffix}": cheapest["label"],
+                    f"cheapest{suffix}_time_s": cheapest["time_s"],
+                    f"cheap{suffix}": strict or planned["time_s"] <= TIME_FLOOR})
+        if not suffix:
+            row["cheap_strict"] = strict
     return row
 
 
