@@ -39,10 +39,12 @@ study-gecit: $(STAMP)
 # x E_p/E_l in {0.1, 10} at the paper's E_s = E_p; the elastic BEM judged against its targets
 # (about 1.5 hours on 2 cores: the E_s = E_p scenes' fem-3d adds 15-25 minutes, the elastic
 # column about 5 plus 20-60 s per pillar kind on a fresh cache; resumes).  Then the E_s = E_l grid
-# again at zeta = 0.05 um (about 15 minutes): the planner's lattice tables get a zeta axis.
+# again at zeta = 0.05 and 0.015 um (about 15 and 10 minutes): the planner's lattice tables get a
+# zeta axis.
 study-lattice: $(STAMP)
 	$(VENV)/bin/pillar-xval lattice --out $(OUT)/lattice
 	$(VENV)/bin/pillar-xval lattice --zeta-um 0.05 --paper-scenes none --out $(OUT)/lattice-zeta0.05
+	$(VENV)/bin/pillar-xval lattice --zeta-um 0.015 --paper-scenes none --out $(OUT)/lattice-zeta0.015
 
 # The paper's Figs. 3-8 (PNG + CSV each), figures.md and timing.json in $(OUT)/figures; about
 # 900 scenes and 400 bisection solves, a few minutes on 2 cores (resumes after an interruption).
@@ -104,7 +106,8 @@ bench-figures: $(STAMP)
 # study) and installed as the package's data (validation/planner/data/*.json).
 calibrate: study-lattice
 	$(VENV)/bin/pillar-xval calibrate --out $(OUT)/calibrate \
-		--lattice $(OUT)/lattice/lattice.json,$(OUT)/lattice-zeta0.05/lattice.json --install
+		--lattice $(OUT)/lattice/lattice.json,$(OUT)/lattice-zeta0.05/lattice.json,$(OUT)/lattice-zeta0.015/lattice.json \
+		--install
 
 # The planner validated on 60 seeded scenes it never saw, 15 of them lattices with sigma0
 # requested judged against fem-3d with every candidate (--scenes, --lattice-scenes, --seed;

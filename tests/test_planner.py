@@ -172,6 +172,27 @@ def test_discretisation_table_interpolates_in_log():
     assert t.leave_one_out() == {}  # two measured points: no leave-one-out
 
 
+def test_grid_leave_one_out_measures_interpolation_not_the_step_between_nodes():
+    """On a tensor grid a node is predicted along the grid lines through it: an error that
+    falls a decade per step along both axes (log-linear: the multilinear interpolation is
+    exact) has no misfit where a node has neighbours on both sides, though each step between
+    nodes is a decade; a peak shows its second differences (|-1 - (-2 - 2) / 2| = 1 decade
+    along u and along v: (1 + 1) / 4); a corner is predicted from the others as off the
+    grid."""
+    u = [0.0, 1.0, 2.0]
+    pts = [[a, b] for a in u for b in u]
+    straight = [10.0 ** (-1.0 - a - b) for a, b in pts]
+    t = ErrorTable("discretisation", ["m"], ["single"], ["u", "v"], pts, {"F_T": straight})
+    loo = dict(zip(map(tuple, pts), t.leave_one_out()["F_T"]))
+    assert loo[(1.0, 1.0)] == pytest.approx(0.0, abs=1e-12)
+    assert loo[(0.0, 1.0)] == pytest.approx(0.0, abs=1e-12)  # interior along v only
+    assert loo[(0.0, 0.0)] > 0.5  # a corner: extrapolated from the others
+    bent = [1e-1 if (a, b) == (1.0, 1.0) else 1e-2 for a, b in pts]
+    t = ErrorTable("discretisation", ["m"], ["single"], ["u", "v"], pts, {"F_T": bent})
+    loo = dict(zip(map(tuple, pts), t.leave_one_out()["F_T"]))
+    assert loo[(1.0, 1.0)] == pytest.approx(2 * 1.0 / 4)  # one decade along u and along v
+
+
 def _synthetic(hooke=0.0, fast_err=0.05, slow_err=0.002, spring_err=0.003):
     cands = [{"model": "fast", "options": {"n": 1}, "label": "fast", "regimes": ["single"]},
              {"model": "slow", "options": {"n": 2}, "label": "slow", "regimes": ["single"]},

@@ -22,9 +22,9 @@ Interpolation is piecewise linear on the Delaunay triangulation of the points (f
 scaled to [0, 1] by their measured range), and the nearest point outside it: a prediction
 outside the measured range is marked ``extrapolated``.  ``loo`` holds each point's
 leave-one-out misfit (|log10 predicted / measured| for discretisation tables, |predicted -
-measured| for model tables); interpolated at a scene's features it is the local margin the
-planner adds to a prediction, so rough regions of a table carry wide margins and smooth
-ones narrow.
+measured| for model tables; on a tensor grid, along its grid lines); interpolated at a
+scene's features it is the local margin the planner adds to a prediction, so rough
+regions of a table carry wide margins and smooth ones narrow.
 """
 
 from __future__ import annotations
@@ -140,7 +140,13 @@ class ErrorTable:
         """Each measured point's leave-one-out misfit (the point predicted from the others):
         |log10 ratio| in discretisation tables, where the measured error is at least
         :data:`LOO_RELEVANT` (None below); |difference| in model tables.  Lists aligned with
-        ``errors``; a quantity measured on fewer than three points has none."""
+        ``errors``; a quantity measured on fewer than three points has none.
+
+        On a tensor grid (:func:`_grid_interpolate`) a node is predicted along the grid
+        lines through it (:func:`_grid_misfit`): the misfit of the multilinear
+        interpolation the planner does, not the step to the nearest node that the grid
+        left with a hole would give.  Elsewhere (and at a grid's corners) the others'
+        interpolant predicts the point."""
         out = {}
         pts, lo, hi, span = self._scaled
         for quantity, raw in self.errors.items():
@@ -150,15 +156,45 @@ class ErrorTable:
                 continue
             vals = np.log10(np.maximum(np.abs(v), ERROR_FLOOR)) if self.log_scale else v
             scaled = (pts - lo) / span
+            on_grid = _grid_interpolate(scaled[idx], vals[idx], scaled[idx[0]]) is not None
             miss = [None] * len(raw)
             for i in idx:
                 if self.log_scale and vals[i] < np.log10(LOO_RELEVANT):
                     continue
                 others = idx[idx != i]
-                pred, _ = _interpolate(scaled[others], vals[others], scaled[i])
-                miss[i] = float(abs(pred - vals[i]))
+                grid = _grid_misfit(scaled[idx], vals[idx], int(np.searchsorted(idx, i))) \
+                    if on_grid else None
+                if grid is None:
+                    pred, _ = _interpolate(scaled[others], vals[others], scaled[i])
+                    grid = float(abs(pred - vals[i]))
+                miss[i] = grid
             out[quantity] = miss
         return out
+
+
+def _grid_misfit(points: np.ndarray, values: np.ndarray, i: int) -> float | None:
+    """Leave-one-out misfit of grid node ``i``: for each axis along which the node has
+    measured neighbours on both sides, e_k = |linear interpolation between them - value|;
+    returned as sum_k e_k / 4, the size of the multilinear interpolation's error in a cell
+    of the grid that these second differences imply (interpolating over 2 h misses by
+    ~h^2 f''_k / 2, a cell's centre by sum_k h^2 f''_k / 8).  None where the node has two
+    neighbours along no axis (a corner: the caller predicts it from the others)."""
+    axes = [np.unique(np.round(points[:, k], 12)) for k in range(points.shape[1])]
+    node = np.round(points[i], 12)
+    where = {tuple(p): j for j, p in enumerate(np.round(points, 12))}
+    misfits = []
+    for k, a in enumerate(axes):
+        j = int(np.searchsorted(a, node[k]))
+        if not 0 < j < len(a) - 1:
+            continue
+        below, above = node.copy(), node.copy()
+        below[k], above[k] = a[j - 1], a[j + 1]
+        jb, ja = where.get(tuple(below)), where.get(tuple(above))
+        if jb is None or ja is None:
+            continue
+        f = (node[k] - a[j - 1]) / (a[j + 1] - a[j - 1])
+        misfits.append(abs((1.0 - f) * values[jb] + f * values[ja] - values[i]))
+    return float(sum(misfits) / 4.0) if misfits else None
 
 
 def _interpolate(points: np.ndarray, values: np.ndarray, q: np.ndarray) -> tuple[float, bool]:

@@ -472,10 +472,14 @@ def with_lattice(tables: list, report: dict) -> list:
 def relattice(errors: dict, report: dict, source: str = "") -> dict:
     """An ``error_models.json`` document with its lattice Hooke table replaced by one from
     ``report`` (``calibrate --lattice F --lattice-only``: a rerun lattice study updates the
-    planner without re-running the other calibration studies)."""
+    planner without re-running the other calibration studies).  Every table's margins are
+    recomputed from its own points (:meth:`ErrorTable.leave_one_out`, a function of the
+    table alone), so they follow the current rule."""
     tables = [ErrorTable(**t) for t in errors["tables"]]
     tables = [t for t in tables if not t.source.startswith("lattice")]
     tables = with_lattice(tables, report)
+    for t in tables:
+        t.loo = t.leave_one_out()
     prov = dict(errors["provenance"])
     prov["scenes"] = {**prov.get("scenes", {}), "lattice_study": len(report["rows"])}
     prov["lattice_study"] = {"file": source, "rows": len(report["rows"]),
