@@ -38,12 +38,14 @@ study-gecit: $(STAMP)
 # Phi in {0.03, 0.1, 0.2, 0.4} x E_p/E_l in {0.1, 1, 10, 1e6} with E_s = E_l, and Phi in {0.2, 0.4}
 # x E_p/E_l in {0.1, 10} at the paper's E_s = E_p; the elastic BEM judged against its targets
 # (about 1.5 hours on 2 cores: the E_s = E_p scenes' fem-3d adds 15-25 minutes, the elastic
-# column about 5 plus 20-60 s per pillar kind on a fresh cache; resumes).  Then the E_s = E_l grid
-# again at zeta = 0.05 and 0.015 um (about 15 and 10 minutes): the planner's lattice tables get a
-# zeta axis.
+# column about 5 plus 20-60 s per pillar kind on a fresh cache; resumes).  Then at zeta = 0.05 um
+# the grid with E_p/E_l = 100 added, at E_s = E_l and at E_s = E_p (36 scenes, about 15 minutes),
+# and the E_s = E_l grid at zeta = 0.015 um (about 10 minutes): the planner's lattice tables get a
+# zeta axis and a substrate axis.
 study-lattice: $(STAMP)
 	$(VENV)/bin/pillar-xval lattice --out $(OUT)/lattice
-	$(VENV)/bin/pillar-xval lattice --zeta-um 0.05 --paper-scenes none --out $(OUT)/lattice-zeta0.05
+	$(VENV)/bin/pillar-xval lattice --zeta-um 0.05 --ratios 0.1,1,10,100,1e6 --paper-scenes grid \
+		--out $(OUT)/lattice-zeta0.05
 	$(VENV)/bin/pillar-xval lattice --zeta-um 0.015 --paper-scenes none --out $(OUT)/lattice-zeta0.015
 
 # The paper's Figs. 3-8 (PNG + CSV each), figures.md and timing.json in $(OUT)/figures; about

@@ -16,7 +16,8 @@ def _run(solver, pillars, n, wall, force, it=20, rep=0):
     if solver != "contactmechanics":
         run.update({"warm_start_iterations": 7, "fft_shape": [45, 45],
                     "timings_s": {"solve": 0.5 * wall}, "time_per_iteration_s": 0.5 * wall / it,
-                    "time_per_application_s": 0.5 * wall / (it + 5), "fft_pair_s": 0.01})
+                    "time_per_application_s": 0.5 * wall / (it + 5), "fft_pair_s": 0.01,
+                    "fft_pair_kept_s": 0.005})
     return run
 
 
@@ -40,7 +41,10 @@ def test_table_has_medians_ratios_and_force_differences(tmp_path):
     assert row["ratio_cm_over_ours"] == pytest.approx(5.0)
     assert row["force_rel_diff"] == pytest.approx(-1e-8, rel=1e-6)
     assert row["iteration_over_fft_pair"] == pytest.approx(0.5 * 1.5 / 20 / 0.01)
+    assert row["iteration_over_kept_pair"] == pytest.approx(0.5 * 1.5 / 20 / 0.005)
+    assert row["applications_per_iteration"] == pytest.approx(25 / 20)
     assert rows[("rigid", 58)]["errors"] == ["contactmechanics: timed out after 1 s"]
     assert "| rigid | 4.00e+02 (d/32) | 20 + 7 |" in table and "5.0x" in table
+    assert "| 10.0 / 5.0 (45x45) | 3.75 / 7.50 |" in table
     doc = json.loads((tmp_path / "bench_fft.json").read_text())
     assert doc["table"] == table == (tmp_path / "bench_fft.md").read_text().rstrip("\n")

@@ -98,6 +98,15 @@ def test_bad_points_are_refused_before_any_solve(cli, tmp_path, argv, words):
     assert not (tmp_path / "o" / "cases").exists()
 
 
+def test_paper_scenes_grid_is_every_grid_point_but_the_shared_one():
+    from validation.cli.lattice import GRID, _pairs, paper_pairs
+
+    assert _pairs("grid") == GRID and _pairs("none") == [] and _pairs("0.2:10") == [(0.2, 10)]
+    assert paper_pairs(GRID, [0.1, 0.2], [0.1, 1.0, 10.0]) == [
+        (0.1, 0.1), (0.1, 10.0), (0.2, 0.1), (0.2, 10.0)]
+    assert paper_pairs(None, [0.1], [1.0]) is None
+
+
 # --- the elastic-pillar BEM's column, the E_s = E_p scenes and the targets -----------------
 # Fake models with exact second-order errors, so three levels give exact Richardson estimates
 # and narrow bands: fem-3d f (1 + C h^2) with h = mesh_size, bem-fft f (1 + C / N^2); the
@@ -320,12 +329,22 @@ def test_the_report_files_round_trip(fake_report, tmp_path):
     assert "1 of 2 scenes meet every target" in summary and "E_s = E_p" in summary
 
 
-def test_the_calibration_reads_only_the_grid_of_a_lattice_report(fake_report):
-    """The planner's Hooke table is measured at E_s = E_l: the E_s = E_p rows stay out."""
+def test_the_calibration_places_each_substrate_convention_on_its_own_axis(fake_report):
+    """The lattice tables gain an es_share axis (log E_s/E_l over log E_p/E_l) when a report
+    holds E_s = E_p rows: the E_s = E_l row sits at 0, the E_s = E_p row at 1, and a row at
+    E_p = E_l (the same scene under both conventions) at both ends; without E_s = E_p rows
+    there is no such axis."""
     from validation.studies.calibrate import lattice_hooke_table
+    from validation.studies.calibrate.run import _lattice_features, _lattice_rows
 
     table = lattice_hooke_table(fake_report)
-    assert len(table.points) == 1
+    assert table.features == ["phi", "log_ep", "es_share"]
+    assert table.points == [pytest.approx([0.1, 1.0, 0.0]), pytest.approx([0.2, 1.0, 1.0])]
+    row = {**fake_report["rows"][0], "ratio": 1.0}
+    both = {"rows": [row, fake_report["rows"][1]]}
+    (_, xs), _ = list(_lattice_rows(both, _lattice_features(both)))
+    assert [x[-1] for x in xs] == [0.0, 1.0] and xs[0][:2] == pytest.approx([0.1, 0.0])
+    assert _lattice_features({"rows": [fake_report["rows"][0]]}) == ["phi", "log_ep"]
 
 
 def test_csv_values_are_plain_numbers():

@@ -193,6 +193,21 @@ def test_grid_leave_one_out_measures_interpolation_not_the_step_between_nodes():
     assert loo[(1.0, 1.0)] == pytest.approx(2 * 1.0 / 4)  # one decade along u and along v
 
 
+def test_a_grid_cell_with_every_corner_missing_reads_its_grid_lines():
+    """Where a grid was measured at fewer points in one part (one substrate convention at
+    one indentation), a cell whose weighted corners are all missing takes for each the
+    nearest measured node on its grid lines, not the one nearest point of the whole table."""
+    pts = [[u, v] for v in (0.0, 1.0) for u in (0.0, 1.0, 2.0, 3.0)] + [[3.0, 2.0]]
+    vals = [u + 10 * v for u, v in pts[:-1]] + [100.0]
+    t = ErrorTable("model", ["m"], ["single"], ["u", "v"], pts, {"F_T": vals}, component="c")
+    value, _ = t.predict({"u": 0.5, "v": 2.0}, "F_T")
+    # corners (0, 2) and (1, 2): the nodes below them, (0, 1) = 10 and (1, 1) = 11, are
+    # nearer along v (half the range) than (3, 2) along u
+    assert value == pytest.approx(10.5)
+    value, outside = t.predict({"u": 0.5, "v": 0.5}, "F_T")
+    assert value == pytest.approx(5.5) and not outside
+
+
 def _synthetic(hooke=0.0, fast_err=0.05, slow_err=0.002, spring_err=0.003):
     cands = [{"model": "fast", "options": {"n": 1}, "label": "fast", "regimes": ["single"]},
              {"model": "slow", "options": {"n": 2}, "label": "slow", "regimes": ["single"]},

@@ -71,8 +71,9 @@ def test_families_name_the_model_and_its_pillar_physics(small_map):
 
 def test_hooke_error_is_the_planners_part_for_a_hooke_model():
     """The contoured number is the `hooke` part `plan` adds to a Hooke BEM's sigma0 error:
-    Table 1's soft pillars in a lattice carry more than 50 %, so the point is inside the
-    50 % contour."""
+    on Table 1's pillars (E_p = E_s = E_l) in a lattice the lattice study measures the Hooke
+    BEM's sigma0 31-36 % below fem-3d's (Phi = 0.4 to 0.2, zeta = 0.3 um; fem-3d 46-56 %
+    above it), so the points sit inside the 20 % contour."""
     base = load_scene(BASE)
     scene = regimes.grid_scene(base, 0.2, 0.5)
     p = plan(scene, 0.05, ("F_T", "sigma0"))
@@ -83,10 +84,10 @@ def test_hooke_error_is_the_planners_part_for_a_hooke_model():
     assert len(parts) == 1
     value = hooke_error(scene)
     assert value == parts.pop()
-    assert value > 0.5
+    assert value > 0.2
     doc = regimes.regime_map(base, 0.05, ("F_T",), points=3)
     at = next(r for r in doc["points"] if r["phi"] == 0.9 and r["zeta_over_h"] == 0.9)
-    assert at["hooke_sigma0_error"] == hooke_error(regimes.grid_scene(base, 0.9, 0.9)) > 0.5
+    assert at["hooke_sigma0_error"] == hooke_error(regimes.grid_scene(base, 0.9, 0.9)) > 0.2
     # stiff pillars carry less
     stiff = load_scene(BASE, ["pillars.E_Pa=1e12"])
     assert hooke_error(regimes.grid_scene(stiff, 0.2, 0.5)) < value

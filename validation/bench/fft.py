@@ -16,8 +16,10 @@ differs by its smaller discretisation error).
 
 For each case: grid cells; our CG iterations on the finest grid (and on the coarser
 warm-start levels); our time per fine iteration against the floor, the bare FFT pair
-(scipy.fft rfft2 + irfft2, 2 workers) on our padded grid timed in the same process right after
-the solve; our wall time and ContactMechanics', their ratio, ContactMechanics' iterations and
+(scipy.fft rfft2 + irfft2, 2 workers) on our padded grid timed in the same process before and
+after the solve, as scipy.fft's own calls (fresh output arrays, page faults included) and as
+the same transforms into kept arrays (the transforms' work alone, as the solver runs them);
+convolutions per fine iteration; our wall time and ContactMechanics', their ratio, ContactMechanics' iterations and
 the relative difference of F_T.  Each solve runs in a fresh interpreter (its peak resident
 memory is its own); the repeats are interleaved (ours, peer, default model at every level, then
 again) and every column is the median over the repeats.  Prints the table and writes it with
@@ -53,7 +55,9 @@ WORKERS = 2
 
 def fft_floor(shape, workers=WORKERS, repeats=FLOOR_REPEATS) -> float:
     """Median wall time (s) of the bare FFT pair, rfft2 then irfft2 with scipy.fft on a float64
-    array of ``shape``: what one convolution on that padded grid cannot go below."""
+    array of ``shape``: what one convolution on that padded grid cannot go below.  scipy.fft
+    returns fresh arrays: on grids of 1e6 points each call page-faults some 30-60 MB in,
+    which this time includes (see :func:`fft_floor_kept`)."""
     import numpy as np
     import scipy.fft as sfft
 
@@ -67,24 +71,58 @@ def fft_floor(shape, workers=WORKERS, repeats=FLOOR_REPEATS) -> float:
     return statistics.median(times)
 
 
+def fft_floor_kept(shape, workers=WORKERS, repeats=FLOOR_REPEATS) -> float | None:
+    """The same pair as :func:`fft_floor` (the same pocketfft transforms scipy.fft runs, its
+    default norm) written into arrays kept between calls: the transforms' own work, without
+    the page faults of fresh arrays, as the solver runs them.  None where scipy's layout
+    lacks the kernels."""
+    import numpy as np
+
+    try:
+        from scipy.fft._pocketfft import pypocketfft as pocketfft
+    except ImportError:
+        return None
+    ny, nx = (int(v) for v in shape)
+    a = np.random.default_rng(0).random((ny, nx))
+    spec = np.empty((ny, nx // 2 + 1), dtype=np.complex128)
+    out = np.empty((ny, nx))
+
+    def pair():
+        pocketfft.r2c(a, (0, 1), True, 0, spec, workers)
+        pocketfft.c2r(spec, (0, 1), nx, False, 2, out, workers)
+
+    pair()  # warm-up
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        pair()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
 def _ours(scene_name, overrides, n, tol, edge_correction=True):
     from scenes import load_scene
 
     from bem_solver._fft import solve_fft
 
+    from scipy.fft import next_fast_len
+
     from bem_solver._fft_grid import build_grid
-    from bem_solver._fft_operator import smooth_length
+    from bem_solver._fft_operator import padded_length
 
     scene = load_scene(scene_name, list(overrides))
-    # The floor is timed before and after the solve (the machine's load moves).
+    # The floors are timed before and after the solve (the machine's load moves).
     ny, nx = build_grid(scene, n).shape
-    padded = (smooth_length(2 * ny - 1), smooth_length(2 * nx - 1))
-    before = fft_floor(padded)
+    padded = (padded_length(ny, lambda m: next_fast_len(m, real=True)),
+              padded_length(nx, lambda m: next_fast_len(m, real=True)))
+    before = (fft_floor(padded), fft_floor_kept(padded))
     start = time.perf_counter()
     res = solve_fft(scene, n, tol=tol, edge_correction=edge_correction, workers=WORKERS)
     wall = time.perf_counter() - start
     d = res.diagnostics
-    floor = statistics.median([before, fft_floor(d["fft_shape"])])
+    after = (fft_floor(d["fft_shape"]), fft_floor_kept(d["fft_shape"]))
+    floor = statistics.median([before[0], after[0]])
+    kept = None if before[1] is None else statistics.median([before[1], after[1]])
     name = "bem-fft" if edge_correction else "bem-fft-grid"
     solve = d["timings_s"]["solve"]
     return {"solver": name, "cells_per_diameter": n, "wall_time_s": wall,
@@ -98,7 +136,7 @@ def _ours(scene_name, overrides, n, tol, edge_correction=True):
             "preconditioner": d["preconditioner"],
             "time_per_iteration_s": solve / max(res.iterations, 1),
             "time_per_application_s": solve / max(d["operator_applications"], 1),
-            "fft_pair_s": floor}
+            "fft_pair_s": floor, "fft_pair_kept_s": kept}
 
 
 def _contactmechanics(scene_name, overrides, n, tol):
@@ -228,12 +266,15 @@ def main(argv=None) -> int:
     ap.add_argument("--levels", type=int, nargs="*", default=[],
                     help="cells per diameter of an optional scaling study of our default "
                          f"model alone (e.g. {' '.join(map(str, SCALING_LEVELS))})")
+    ap.add_argument("--no-peer", action="store_true",
+                    help="leave ContactMechanics out (our columns and the floors only: a "
+                         "minute instead of half an hour)")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.worker:
         print(json.dumps(_worker(json.loads(args.worker))))
         return 0
-    reason = contactmechanics_available()
+    reason = "left out (--no-peer)" if args.no_peer else contactmechanics_available()
     solvers = ["bem-fft-grid"] + ([] if reason else ["contactmechanics"]) + ["bem-fft"]
     runs = []
     for rep in range(args.repeats):
@@ -330,12 +371,26 @@ def _our_columns(runs: list, prefix: str) -> dict:
         "time_per_iteration_s": _med(runs, "time_per_iteration_s"),
         "time_per_application_s": _med(runs, "time_per_application_s"),
         "fft_pair_s": _med(runs, "fft_pair_s"),
-        # Each run's time per iteration over the floor timed in the same process.
+        # Each run's time per iteration over the floors timed in the same process.
         "iteration_over_fft_pair": statistics.median(
             r["time_per_iteration_s"] / r["fft_pair_s"] for r in runs),
+        # Convolutions per fine iteration: one for the step, and one more for a step that
+        # clips more pressures than the kernel table updates directly.
+        "applications_per_iteration": statistics.median(
+            r["operator_applications"] / max(r["iterations"], 1) for r in runs),
+        **_kept_columns(runs),
         "rss_MB": _med(runs, "peak_rss_MB"), "total_force_N": first["total_force_N"],
         "converged": all(r["converged"] for r in runs),
         "wall_times_s": [r["wall_time_s"] for r in runs]}.items()}
+
+
+def _kept_columns(runs: list) -> dict:
+    kept = [r for r in runs if r.get("fft_pair_kept_s")]
+    if not kept:
+        return {}
+    return {"fft_pair_kept_s": _med(kept, "fft_pair_kept_s"),
+            "iteration_over_kept_pair": statistics.median(
+                r["time_per_iteration_s"] / r["fft_pair_kept_s"] for r in kept)}
 
 
 def format_table(rows: list, meta: dict) -> str:
@@ -347,10 +402,10 @@ def format_table(rows: list, meta: dict) -> str:
              f"{meta['tolerance']:g} zeta; medians of {meta['repeats']} interleaved runs; "
              f"load average {meta['load_average']}",
              "",
-             "| pillars | cells | it ours (fine + coarse) | ms/it | FFT pair ms (padded) | "
-             "it / pair | ours s | CM it | CM s | CM / ours | F_T ours vs CM | default model s "
-             "(it) |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| pillars | cells | it ours (fine + coarse) | ms/it | conv/it | FFT pair ms, "
+             "fresh / kept (padded) | it / pair, fresh / kept | ours s | CM it | CM s | "
+             "CM / ours | F_T ours vs CM | default model s (it) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
 
     def f(row, key, fmt, missing="-"):
         v = row.get(key)
@@ -362,11 +417,15 @@ def format_table(rows: list, meta: dict) -> str:
                          + "; ".join(r["errors"]) + " |")
             continue
         shape = "x".join(str(v) for v in r["fft_shape"])
+        kept = "-" if r.get("fft_pair_kept_s") is None else f"{1e3 * r['fft_pair_kept_s']:.1f}"
         lines.append(
             f"| {r['pillars']} | {r['grid_cells']:.2e} (d/{r['cells_per_diameter']}) | "
             f"{r['iterations']:g} + {r['warm_start_iterations']:g} | "
-            f"{1e3 * r['time_per_iteration_s']:.1f} | {1e3 * r['fft_pair_s']:.1f} ({shape}) | "
-            f"{r['iteration_over_fft_pair']:.2f} | {r['wall_time_s']:.2f} | "
+            f"{1e3 * r['time_per_iteration_s']:.1f} | "
+            f"{f(r, 'applications_per_iteration', '.2f')} | "
+            f"{1e3 * r['fft_pair_s']:.1f} / {kept} ({shape}) | "
+            f"{r['iteration_over_fft_pair']:.2f} / {f(r, 'iteration_over_kept_pair', '.2f')} | "
+            f"{r['wall_time_s']:.2f} | "
             f"{f(r, 'cm_iterations', 'g')} | {f(r, 'cm_s', '.2f')} | "
             f"{f(r, 'ratio_cm_over_ours', '.1f')}{'x' if 'ratio_cm_over_ours' in r else ''} | "
             f"{f(r, 'force_rel_diff', '.1e')} | {f(r, 'default_wall_time_s', '.2f')} "
@@ -379,8 +438,13 @@ def format_table(rows: list, meta: dict) -> str:
     lines += ["", "it ours: CG iterations on the finest grid + on the coarser warm-start levels "
               "(each a quarter of the next one's cells); ms/it: the finest level's solve time "
               "over its iterations (operator applications, preconditioner and CG vector work); "
+              "conv/it: convolutions per fine iteration (one for the step, one more after a "
+              "step that clips more pressures than the kernel table updates directly); "
               "FFT pair: rfft2 + irfft2 (scipy.fft, 2 workers) on our padded grid, timed in the "
-              "same process before and after the solve (median of 2 x 7); ours s: the whole solve_fft call (grid, kernel table, "
+              "same process before and after the solve (median of 2 x 7), fresh: scipy.fft's "
+              "own calls, which page-fault their fresh output arrays in, kept: the same "
+              "transforms into arrays kept between calls, as the solver runs them; ours s: the "
+              "whole solve_fft call (grid, kernel table, "
               "warm-start levels, solve); CM s: from its substrate's construction on (the "
               "grid built before); CM / ours: median of the "
               "per-repeat ratios; default model: edge cells as equivalent squares (a different "

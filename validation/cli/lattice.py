@@ -15,10 +15,24 @@ def _numbers(text: str) -> list[float]:
     return [parse(v.strip()) for v in text.split(",") if v.strip()]
 
 
+# --paper-scenes grid: every point of the Phi x E_p/E_l grid but E_p = E_l (the same scene).
+GRID = "grid"
+
+
+def paper_pairs(given, phis, ratios):
+    """The E_s = E_p scenes that --paper-scenes names: its pairs, every grid point but
+    E_p/E_l = 1 for ``grid``, or None (the study's default)."""
+    if given == GRID:
+        return [(phi, r) for phi in phis for r in ratios if r != 1.0]
+    return given
+
+
 def _pairs(text: str) -> list[tuple[float, float]]:
-    """``PHI:RATIO,...`` (or ``none``) for --paper-scenes."""
+    """``PHI:RATIO,...`` (or ``none``, or ``grid``) for --paper-scenes."""
     if text.strip().lower() == "none":
         return []
+    if text.strip().lower() == "grid":
+        return GRID
     phi, ratio = number(0.0, open_lo=True), number(0.0, open_lo=True)
     out = []
     for item in (v.strip() for v in text.split(",") if v.strip()):
@@ -52,8 +66,9 @@ def add_parser(sub) -> None:
     p.add_argument("--ratios", type=_numbers, default=list(RATIOS), metavar="R,...",
                    help=f"E_p/E_l values (default {','.join(f'{v:g}' for v in RATIOS)})")
     p.add_argument("--paper-scenes", type=_pairs, default=None, metavar="PHI:R,...",
-                   help="scenes at the paper's convention E_s = E_p, as Phi:E_p/E_l pairs, or "
-                        "'none' (default: those of "
+                   help="scenes at the paper's convention E_s = E_p, as Phi:E_p/E_l pairs, "
+                        "'grid' (every grid point but E_p/E_l = 1, which is the same scene) "
+                        "or 'none' (default: those of "
                         + ",".join(f"{a:g}:{b:g}" for a, b in PAPER_SCENES)
                         + " whose Phi and ratio are in the grid)")
     p.add_argument("--zeta-um", type=number(0.0, open_lo=True), default=ZETA_UM,
@@ -71,8 +86,8 @@ def run(args) -> int:
     from ..output.report import clear_outputs
     from ..studies import lattice as study
 
-    points = study.default_points(args.surface_fractions, args.ratios, args.paper_scenes,
-                                  args.zeta_um)
+    pairs = paper_pairs(args.paper_scenes, args.surface_fractions, args.ratios)
+    points = study.default_points(args.surface_fractions, args.ratios, pairs, args.zeta_um)
     for point in points:
         point.scene()  # refuse a bad Phi or ratio before any solve, naming it
     levels = ((study.QUICK_FEM_LEVELS, study.QUICK_BEM_LEVELS, study.QUICK_DENSE_LEVELS)

@@ -24,6 +24,9 @@ scene with the same values):
 ``log_sag``    log10(d^2 / (8 R zeta)): lens curvature across a pillar top over zeta
 ``log_ep``     log10(E_p / E_l), rigid pillars 12
 ``log_es``     log10(E_s / E_l), rigid substrate 12
+``es_share``   log10(E_s / E_l) / log10(E_p / E_l): where the substrate sits between the
+               lattice study's two conventions, 0 at E_s = E_l and 1 at the paper's
+               E_s = E_p (0 where E_p = E_l, when the two coincide)
 ``aspect``     h / d
 ``log_zeta_r`` log10(zeta / R)
 =============  ==========================================================================
@@ -104,7 +107,9 @@ def features(scene: Scene, reg: dict | None = None) -> dict:
         "log_ep": _log_ratio(p.material.E_Pa, E_l),
         "aspect": p.height_m / p.diameter_m,
     })
+    out["es_share"] = out["log_es"] / out["log_ep"] if abs(out["log_ep"]) > 1e-9 else 0.0
     return out
 
 
-FEATURES = ("w", "log_phi_s", "phi", "log_sag", "log_ep", "log_es", "aspect", "log_zeta_r")
+FEATURES = ("w", "log_phi_s", "phi", "log_sag", "log_ep", "log_es", "es_share", "aspect",
+            "log_zeta_r")

@@ -259,9 +259,9 @@ GRID_FILL = 0.6
 def _grid_interpolate(points, values, q):
     """Multilinear interpolation when the points lie on a tensor grid (a Gecit-like study):
     a triangulation of an anisotropic grid makes long thin simplices that mix far rows.  The
-    cell's missing corners are left out and the weights renormalised (all missing: the
-    nearest measured point); outside the grid the query is clamped to it.  None when the
-    points are no grid."""
+    cell's missing corners are left out and the weights renormalised (all missing: each
+    takes the nearest measured node on its grid lines, :func:`_along_grid_lines`); outside
+    the grid the query is clamped to it.  None when the points are no grid."""
     axes = [np.unique(np.round(points[:, k], 12)) for k in range(points.shape[1])]
     cells = math.prod(len(a) for a in axes)
     if any(len(a) < 2 for a in axes) or cells > 10 * len(points) or \
@@ -281,15 +281,43 @@ def _grid_interpolate(points, values, q):
         lower.append(i)
         frac.append((x - a[i]) / (a[i + 1] - a[i]))
     total = weight = 0.0
+    missing = []
     for corner in np.ndindex(*(2,) * len(axes)):
-        v = table[tuple(i + c for i, c in zip(lower, corner))]
+        at = tuple(i + c for i, c in zip(lower, corner))
         w = math.prod(f if c else 1.0 - f for f, c in zip(frac, corner))
-        if np.isfinite(v) and w > 0:
-            total += w * v
+        if np.isfinite(table[at]) and w > 0:
+            total += w * table[at]
             weight += w
-    if weight <= 1e-12:  # every corner missing: the nearest measured node
-        return float(values[np.argmin(np.sum((points - q[None, :]) ** 2, axis=1))]), True
+        elif w > 0:
+            missing.append((at, w))
+    if weight <= 1e-12:
+        # Every corner that counts is missing (a part of the grid measured at fewer points,
+        # such as one substrate convention at one indentation): each takes the nearest
+        # measured node along one grid line through it; none at all: the nearest point.
+        for at, w in missing:
+            v = _along_grid_lines(table, axes, at)
+            if v is not None:
+                total += w * v
+                weight += w
+        if weight <= 1e-12:
+            return float(values[np.argmin(np.sum((points - q[None, :]) ** 2, axis=1))]), True
+        return total / weight, True
     return total / weight, outside
+
+
+def _along_grid_lines(table: np.ndarray, axes: list, at: tuple) -> float | None:
+    """The measured node nearest to the grid node ``at`` on the grid lines through it (one
+    index changed; distance in the unit-box scaling), or None when those lines hold none."""
+    best, value = math.inf, None
+    for k, a in enumerate(axes):
+        for j in range(len(a)):
+            if j == at[k]:
+                continue
+            node = at[:k] + (j,) + at[k + 1:]
+            d = abs(a[j] - a[at[k]])
+            if np.isfinite(table[node]) and d < best:
+                best, value = d, float(table[node])
+    return value
 
 
 @dataclass

@@ -254,18 +254,52 @@ def load_lattice(paths) -> dict:
 
 
 def _lattice_features(report: dict) -> list:
-    """The lattice tables' features: Phi and E_p/E_l, and the lens sag over zeta when the
-    report's rows span more than one indentation."""
+    """The lattice tables' features: Phi and E_p/E_l; the lens sag over zeta when the
+    report's rows span more than one indentation; and the substrate's place between the two
+    conventions (``es_share``: 0 at E_s = E_l, 1 at E_s = E_p) when it holds E_s = E_p rows."""
     zetas = {row.get("zeta_um", LATTICE_ZETA_UM) for row in report["rows"]}
-    return ["phi", "log_ep"] + (["log_sag"] if len(zetas) > 1 else [])
+    return ["phi", "log_ep"] + (["log_sag"] if len(zetas) > 1 else []) \
+        + (["es_share"] if _has_paper_rows(report) else [])
 
 
-def _lattice_point(row: dict, names: list) -> list:
-    from ..lattice import LatticePoint
+def _has_paper_rows(report: dict) -> bool:
+    return any(_paper_row(row) for row in report["rows"])
 
-    x = features(LatticePoint(row["surface_fraction"], row["ratio"],
-                              zeta_um=row.get("zeta_um", LATTICE_ZETA_UM)).scene())
-    return [x[n] for n in names]
+
+def _paper_row(row: dict) -> bool:
+    """An E_s = E_p row that is not also an E_s = E_l one (E_p = E_l)."""
+    from ..lattice import LENS
+
+    return row.get("substrate", LENS) != LENS and row.get("ratio") != 1.0
+
+
+def _lattice_rows(report: dict, names: list):
+    """(row, its points) for every converged row the lattice tables use: the E_s = E_l grid,
+    and with an ``es_share`` axis the E_s = E_p rows too; a row at E_p = E_l stands for both
+    conventions (the same scene), so it gives a point at each end of that axis.  Without the
+    axis the E_s = E_p rows are left out (the grid's points would repeat)."""
+    from ..lattice import LENS, LatticePoint
+
+    share = "es_share" in names
+    for row in report["rows"]:
+        paper = _paper_row(row)
+        if not row.get("converged") or (row.get("substrate", LENS) != LENS and not paper) \
+                or (paper and not share):
+            continue
+        x = features(LatticePoint(row["surface_fraction"], row["ratio"], row["substrate"]
+                                  if paper else LENS,
+                                  zeta_um=row.get("zeta_um", LATTICE_ZETA_UM)).scene())
+        point = [x[n] for n in names]
+        if share and row.get("ratio") == 1.0:
+            at = names.index("es_share")
+            yield row, [point[:at] + [v] + point[at + 1:] for v in (0.0, 1.0)]
+        else:
+            yield row, [point]
+
+
+def _substrate_text(report: dict) -> str:
+    return ("E_s = E_l and E_s = E_p (the es_share axis)" if _has_paper_rows(report)
+            else "E_s = E_l")
 
 
 def _zeta_text(report: dict) -> str:
@@ -305,27 +339,23 @@ def _resolved(error: float, estimate: dict) -> float:
 def _lattice_errors(report: dict, column: str) -> tuple[list, dict]:
     """(points, errors): (BEM - FEM) / FEM of the lattice study's Richardson estimates in
     ``column`` (``quantities``: the Hooke BEM; ``elastic_quantities``: the elastic-pillar BEM)
-    on its Phi x E_p/E_l grid (E_s = E_l; its E_s = E_p scenes are left out).  A quantity
-    whose estimate is missing or not finite, or whose fem-3d estimate's band exceeds both
-    :data:`FEM3D_BAND_MAX` of it and the difference itself (no asymptotic range, and a
-    difference inside fem-3d's noise: no measurement of the BEM's error), is left out at that
-    point."""
-    from ..lattice import LENS
-
-    names = _lattice_features(report)
+    on its Phi x E_p/E_l grid (:func:`_lattice_rows`: E_s = E_l, and E_s = E_p where the
+    report has such rows).  A quantity whose estimate is missing or not finite, or whose
+    fem-3d estimate's band exceeds both :data:`FEM3D_BAND_MAX` of it and the difference
+    itself (no asymptotic range, and a difference inside fem-3d's noise: no measurement of
+    the BEM's error), is left out at that point."""
     points, errors = [], {q: [] for q in QKEYS}
-    for row in report["rows"]:
-        if not row.get("converged") or row.get("substrate", LENS) != LENS:
-            continue
-        points.append(_lattice_point(row, names))
-        for q in QKEYS:
-            v = (row.get(column) or {}).get(q) or {}
-            fem, bem = v.get("fem"), v.get("bem")
-            est = {"fem": fem, "fem_band": ((row.get("quantities") or {}).get(q) or {})
-                   .get("fem_band")}
-            ok = fem is not None and bem is not None and math.isfinite(bem) \
-                and _fem_reference_holds(est, bem - fem)
-            errors[q].append((bem - fem) / fem if ok else None)
+    for row, xs in _lattice_rows(report, _lattice_features(report)):
+        for x in xs:
+            points.append(x)
+            for q in QKEYS:
+                v = (row.get(column) or {}).get(q) or {}
+                fem, bem = v.get("fem"), v.get("bem")
+                est = {"fem": fem, "fem_band": ((row.get("quantities") or {}).get(q) or {})
+                       .get("fem_band")}
+                ok = fem is not None and bem is not None and math.isfinite(bem) \
+                    and _fem_reference_holds(est, bem - fem)
+                errors[q].append((bem - fem) / fem if ok else None)
     return points, errors
 
 
@@ -339,9 +369,9 @@ def lattice_hooke_table(report: dict) -> ErrorTable:
         component="hooke",
         source="lattice: Hooke-pillar bem-fft (Richardson) against the elastic-pillar fem-3d "
                "(Richardson)",
-        note=f"measured on {len(points)} lattices, E_s = E_l, {_zeta_text(report)}; other "
-             "substrates take these values (the Gecit grid measures the substrate's share on "
-             "one pillar)")
+        note=f"measured at {len(points)} lattice points, {_substrate_text(report)}, "
+             f"{_zeta_text(report)}; other substrates take these values (the Gecit grid "
+             "measures the substrate's share on one pillar)")
 
 
 def lattice_elastic_table(report: dict) -> ErrorTable | None:
@@ -356,7 +386,8 @@ def lattice_elastic_table(report: dict) -> ErrorTable | None:
         component="elastic-coupling", option={"pillars": "elastic"},
         source="lattice: elastic-pillar bem-fft (Richardson) against the elastic-pillar "
                "fem-3d (Richardson)",
-        note=f"measured on {len(points)} lattices, E_s = E_l, {_zeta_text(report)}; what "
+        note=f"measured at {len(points)} lattice points, {_substrate_text(report)}, "
+             f"{_zeta_text(report)}; what "
              "remains of the pillars' coupling through the substrate beyond its second-moment correction (largest for stiff pillars on "
              "a soft substrate in dense lattices); scenes at E_s = E_p, where the study "
              "measured it smaller, take these values (conservative)")
@@ -365,29 +396,24 @@ def lattice_elastic_table(report: dict) -> ErrorTable | None:
 def _level_errors(report: dict, column: str, option: str, judge_difference: bool) -> dict:
     """{option value: (points, errors)}: each level in the rows' ``column`` (its ``option``
     names it) against the row's fem-3d Richardson estimate, signed and floored at what that
-    estimate resolves (:func:`_resolved`), on the lattice grid (E_s = E_l rows).  A level
+    estimate resolves (:func:`_resolved`), on the lattice rows (:func:`_lattice_rows`).  A level
     that did not converge, or whose estimate cannot judge it (:func:`_fem_reference_holds`;
     ``judge_difference``: a difference beyond the band counts all the same, as for another
     model; not for fem-3d's own levels, whose differences from the estimate are the
     extrapolation itself), holds None at that point."""
-    from ..lattice import LENS
-
-    names = _lattice_features(report)
     levels = {}
-    for row in report["rows"]:
-        if not row.get("converged") or row.get("substrate", LENS) != LENS:
-            continue
-        x = _lattice_point(row, names)
+    for row, xs in _lattice_rows(report, _lattice_features(report)):
         for level in row.get(column) or ():
             points, errors = levels.setdefault(level[option], ([], {q: [] for q in QKEYS}))
-            points.append(x)
-            for q in QKEYS:
-                est = (row.get("quantities") or {}).get(q) or {}
-                v, fem = level.get(q), est.get("fem")
-                ok = level.get("converged", False) and v is not None and math.isfinite(v) \
-                    and fem is not None \
-                    and _fem_reference_holds(est, v - fem if judge_difference else 0.0)
-                errors[q].append(_resolved((v - fem) / fem, est) if ok else None)
+            for x in xs:
+                points.append(x)
+                for q in QKEYS:
+                    est = (row.get("quantities") or {}).get(q) or {}
+                    v, fem = level.get(q), est.get("fem")
+                    ok = level.get("converged", False) and v is not None \
+                        and math.isfinite(v) and fem is not None \
+                        and _fem_reference_holds(est, v - fem if judge_difference else 0.0)
+                    errors[q].append(_resolved((v - fem) / fem, est) if ok else None)
     return levels
 
 
@@ -402,8 +428,8 @@ def lattice_fem3d_tables(report: dict) -> list:
         option={"mesh_size": mesh_size},
         source=f"lattice: fem-3d at mesh_size {mesh_size:g} against its Richardson estimate "
                f"over mesh_size {ladder}",
-        note=f"measured on {len(points)} lattices, E_s = E_l, {_zeta_text(report)}; other "
-             "substrates take these values")
+        note=f"measured at {len(points)} lattice points, {_substrate_text(report)}, "
+             f"{_zeta_text(report)}; other substrates take these values")
         for mesh_size, (points, errors) in sorted(levels.items()) if len(points) >= 3]
 
 
@@ -428,7 +454,8 @@ def lattice_elastic_rung_tables(report: dict) -> list:
             option={option: value, "pillars": "elastic"},
             source=f"lattice: elastic-pillar {model} at {option} {value} against the "
                    "elastic-pillar fem-3d (Richardson)",
-            note=f"measured on {len(points)} lattices, E_s = E_l, {_zeta_text(report)}; the "
+            note=f"measured at {len(points)} lattice points, {_substrate_text(report)}, "
+                 f"{_zeta_text(report)}; the "
                  "whole error against fem-3d (discretisation and the pillars' coupling "
                  "together); other substrates take these values")
             for value, (points, errors) in sorted(levels.items()) if len(points) >= 3]
