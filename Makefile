@@ -38,15 +38,19 @@ study-gecit: $(STAMP)
 # Phi in {0.03, 0.1, 0.2, 0.4} x E_p/E_l in {0.1, 1, 10, 1e6} with E_s = E_l, and Phi in {0.2, 0.4}
 # x E_p/E_l in {0.1, 10} at the paper's E_s = E_p; the elastic BEM judged against its targets
 # (about 1.5 hours on 2 cores: the E_s = E_p scenes' fem-3d adds 15-25 minutes, the elastic
-# column about 5 plus 20-60 s per pillar kind on a fresh cache; resumes).  Then at zeta = 0.05 um
-# the grid with E_p/E_l = 100 added, at E_s = E_l and at E_s = E_p (36 scenes, about 15 minutes),
-# and the E_s = E_l grid at zeta = 0.015 um (about 10 minutes): the planner's lattice tables get a
-# zeta axis and a substrate axis.
+# column about 5 plus 20-60 s per pillar kind on a fresh cache; resumes).  Then at zeta = 0.05 and
+# 0.015 um the grid with E_p/E_l = 100 added, at E_s = E_l and at E_s = E_p (36 scenes each, about
+# 15 and 10 minutes), and at zeta = 0.3 um the same for Phi = 0.03 and 0.1 (18 scenes, about 10
+# minutes; the denser lattices' fem-3d at zeta = 0.3 um takes 5-10 minutes a scene): the
+# planner's lattice tables get a zeta axis and a substrate axis.
 study-lattice: $(STAMP)
 	$(VENV)/bin/pillar-xval lattice --out $(OUT)/lattice
 	$(VENV)/bin/pillar-xval lattice --zeta-um 0.05 --ratios 0.1,1,10,100,1e6 --paper-scenes grid \
 		--out $(OUT)/lattice-zeta0.05
-	$(VENV)/bin/pillar-xval lattice --zeta-um 0.015 --paper-scenes none --out $(OUT)/lattice-zeta0.015
+	$(VENV)/bin/pillar-xval lattice --zeta-um 0.015 --ratios 0.1,1,10,100,1e6 --paper-scenes grid \
+		--out $(OUT)/lattice-zeta0.015
+	$(VENV)/bin/pillar-xval lattice --surface-fractions 0.03,0.1 --ratios 0.1,1,10,100,1e6 \
+		--paper-scenes grid --out $(OUT)/lattice-substrates
 
 # The paper's Figs. 3-8 (PNG + CSV each), figures.md and timing.json in $(OUT)/figures; about
 # 900 scenes and 400 bisection solves, a few minutes on 2 cores (resumes after an interruption).
@@ -106,10 +110,14 @@ bench-figures: $(STAMP)
 # The planner's error and cost models, measured (convergence ladders, Gecit grid, closed forms,
 # FEM truncation, the lattice study's Hooke error; resumable; about 2 h, 1.5 of them the lattice
 # study) and installed as the package's data (validation/planner/data/*.json).
+# The lattice studies calibrate reads, comma-separated (the first holds a shared scene).
+empty :=
+comma := ,
+LATTICE_STUDIES = $(subst $(empty) $(empty),$(comma),$(foreach s,lattice lattice-substrates \
+	lattice-zeta0.05 lattice-zeta0.015,$(OUT)/$(s)/lattice.json))
 calibrate: study-lattice
 	$(VENV)/bin/pillar-xval calibrate --out $(OUT)/calibrate \
-		--lattice $(OUT)/lattice/lattice.json,$(OUT)/lattice-zeta0.05/lattice.json,$(OUT)/lattice-zeta0.015/lattice.json \
-		--install
+		--lattice $(LATTICE_STUDIES) --install
 
 # The planner validated on 60 seeded scenes it never saw, 15 of them lattices with sigma0
 # requested judged against fem-3d with every candidate (--scenes, --lattice-scenes, --seed;

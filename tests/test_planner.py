@@ -193,18 +193,24 @@ def test_grid_leave_one_out_measures_interpolation_not_the_step_between_nodes():
     assert loo[(1.0, 1.0)] == pytest.approx(2 * 1.0 / 4)  # one decade along u and along v
 
 
-def test_a_grid_cell_with_every_corner_missing_reads_its_grid_lines():
+def test_a_grid_cell_with_every_corner_missing_reads_its_smoothest_grid_line():
     """Where a grid was measured at fewer points in one part (one substrate convention at
     one indentation), a cell whose weighted corners are all missing takes for each the
-    nearest measured node on its grid lines, not the one nearest point of the whole table."""
+    nearest measured node along the axis on which the table changes least, not the one
+    nearest point of the whole table."""
     pts = [[u, v] for v in (0.0, 1.0) for u in (0.0, 1.0, 2.0, 3.0)] + [[3.0, 2.0]]
-    vals = [u + 10 * v for u, v in pts[:-1]] + [100.0]
-    t = ErrorTable("model", ["m"], ["single"], ["u", "v"], pts, {"F_T": vals}, component="c")
-    value, _ = t.predict({"u": 0.5, "v": 2.0}, "F_T")
-    # corners (0, 2) and (1, 2): the nodes below them, (0, 1) = 10 and (1, 1) = 11, are
-    # nearer along v (half the range) than (3, 2) along u
-    assert value == pytest.approx(10.5)
-    value, outside = t.predict({"u": 0.5, "v": 0.5}, "F_T")
+
+    def table(f):
+        return ErrorTable("model", ["m"], ["single"], ["u", "v"], pts,
+                          {"F_T": [f(u, v) for u, v in pts]}, component="c")
+
+    # 10 per step along u, 1 along v: corners (0, 2) and (1, 2) take (0, 1) and (1, 1)
+    value, _ = table(lambda u, v: 10 * u + v).predict({"u": 0.5, "v": 2.0}, "F_T")
+    assert value == pytest.approx(0.5 * (1 + 11))
+    # 1 per step along u, 10 along v: they take (3, 2) along u
+    value, _ = table(lambda u, v: u + 10 * v).predict({"u": 0.5, "v": 2.0}, "F_T")
+    assert value == pytest.approx(3 + 20)
+    value, outside = table(lambda u, v: u + 10 * v).predict({"u": 0.5, "v": 0.5}, "F_T")
     assert value == pytest.approx(5.5) and not outside
 
 
@@ -453,6 +459,8 @@ def test_lattice_studies_supply_each_elastic_rung_error_on_a_zeta_axis(tmp_path)
     merged = load_lattice(paths)
     assert sorted({row["zeta_um"] for row in merged["rows"]}) == [0.05, 0.3]
     assert len(merged["rows"]) == 8
+    # a study of part of a grid that another study holds: the shared scenes count once
+    assert len(load_lattice(paths + [paths[0]])["rows"]) == 8
     bound = ErrorTable("model", ["bem", "bem-fft"], ["multi"], [], [[]], {"sigma0": [0.03]},
                        component="elastic-coupling", option={"pillars": "elastic"},
                        source="hand: a bound")

@@ -306,18 +306,24 @@ def _grid_interpolate(points, values, q):
 
 
 def _along_grid_lines(table: np.ndarray, axes: list, at: tuple) -> float | None:
-    """The measured node nearest to the grid node ``at`` on the grid lines through it (one
-    index changed; distance in the unit-box scaling), or None when those lines hold none."""
-    best, value = math.inf, None
-    for k, a in enumerate(axes):
-        for j in range(len(a)):
-            if j == at[k]:
-                continue
-            node = at[:k] + (j,) + at[k + 1:]
-            d = abs(a[j] - a[at[k]])
-            if np.isfinite(table[node]) and d < best:
-                best, value = d, float(table[node])
-    return value
+    """A value for the missing grid node ``at`` from the grid lines through it: along the
+    axis on which the table changes least from node to node (the median |difference| of
+    measured neighbours), the nearest measured node; the next axis where that line holds
+    none; None when no line does.  (A sparser part of a grid, such as the E_s = E_p rows at
+    one indentation, then borrows along the indentation or substrate axis, not across the
+    stiffness ratio, where the errors change by decades.)"""
+    roughness = []
+    for k in range(len(axes)):
+        steps = np.abs(np.diff(table, axis=k))
+        steps = steps[np.isfinite(steps)]
+        roughness.append(float(np.median(steps)) if steps.size else math.inf)
+    for k in sorted(range(len(axes)), key=lambda k: roughness[k]):
+        found = [(abs(j - at[k]), float(table[at[:k] + (j,) + at[k + 1:]]))
+                 for j in range(len(axes[k])) if j != at[k]
+                 and np.isfinite(table[at[:k] + (j,) + at[k + 1:]])]
+        if found:
+            return min(found)[1]
+    return None
 
 
 @dataclass

@@ -228,15 +228,16 @@ LATTICE_ZETA_UM = 0.3
 
 def load_lattice(paths) -> dict:
     """One report of ``pillar-xval lattice`` (its ``lattice.json``), or several merged (a
-    path, or a list of them: studies at different indentations): every row keeps its own
-    ``zeta_um``, the report's ``zeta_um`` lists them.  InputError naming the file when it is
+    path, or a list of them: studies at different indentations, or of different parts of a
+    grid): every row keeps its own ``zeta_um``, the report's ``zeta_um`` lists them, and a
+    scene (Phi, E_p/E_l, convention, zeta) in several files is taken from the first.  InputError naming the file when it is
     missing or not such a report."""
     from scenes import InputError
 
     paths = [paths] if isinstance(paths, (str, Path)) else list(paths)
     if not paths:
         raise InputError("--lattice: expected one or more lattice.json files")
-    rows, zetas = [], []
+    rows, zetas, seen = [], [], set()
     for path in map(Path, paths):
         try:
             report = json.loads(path.read_text())
@@ -247,7 +248,13 @@ def load_lattice(paths) -> dict:
                              "(no 'rows')")
         zeta = report.get("zeta_um", LATTICE_ZETA_UM)
         zetas.append(zeta)
-        rows += [{**row, "zeta_um": row.get("zeta_um", zeta)} for row in report["rows"]]
+        for row in report["rows"]:
+            row = {**row, "zeta_um": row.get("zeta_um", zeta)}
+            key = (row.get("surface_fraction"), row.get("ratio"), row.get("substrate"),
+                   row["zeta_um"])
+            if key not in seen:  # a scene two studies share counts once (the first file's)
+                seen.add(key)
+                rows.append(row)
     if len(paths) == 1:
         return {**report, "rows": rows}
     return {"zeta_um": sorted(set(zetas)), "files": [str(p) for p in paths], "rows": rows}
