@@ -11,7 +11,7 @@
 - ``spring``: the paper's soft-flat-punch model ([P] eq. S0SFP): one Hooke pillar between
   two half-spaces, sigma_0S = 2 zeta / (pi d gamma*), F = d zeta / gamma*, the flat-punch
   profile over the whole pillar top.  Refused when a second pillar touches (Phi >= Phi_S,
-  eq. rSzeta) or when the lens curvature across the pillar top, d^2 / (8 R), reaches zeta
+  eq. rSzeta at the next ring's rim: ``scenes.analytic.single_pillar_threshold_rim``) or when the lens curvature across the pillar top, d^2 / (8 R), reaches zeta
   (then the contact covers only part of the top, which the flat punch cannot represent).
 
 How far either is from the truth is not decided here: the planner's error models measure it
@@ -89,7 +89,7 @@ def solve_hertz(scene: Scene) -> ContactResult:
     if scene.is_flat:
         return _result(HERTZ_MODEL, scene, started, h.force, h.centre_pressure, a,
                        h.contact_area, 0, [], r, h.pressure(r), "Hertz ([J] sec. 4.2)")
-    phi_s = analytic.single_pillar_threshold(scene)
+    phi_s = analytic.single_pillar_threshold_rim(scene)
     phi = scene.pillars.surface_fraction
     if phi < phi_s:
         raise ScopeError(
@@ -140,7 +140,7 @@ def solve_spring(scene: Scene) -> ContactResult:
     d = p.diameter_m
     if analytic.effective_compliance(scene) == 0.0:
         raise ScopeError("spring: lens, pillars and substrate are all rigid")
-    phi_s = analytic.single_pillar_threshold(scene)
+    phi_s = analytic.single_pillar_threshold_rim(scene)
     if p.surface_fraction >= phi_s:
         raise ScopeError(
             f"spring: pillars.surface_fraction = {p.surface_fraction:.4g} >= Phi_S = "

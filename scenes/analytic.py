@@ -185,6 +185,46 @@ def single_pillar_threshold(scene: Scene) -> float:
     return phi_from_pitch(_single_pillar(scene).diameter_m, second_pillar_radius(scene))
 
 
+def rim_contact_radius(scene: Scene) -> float | None:
+    """The outer root r_S >= d/2 of [P] eq. rSzeta (m), None when the gap stays closed down
+    to the centre pillar's rim (no pitch then leaves a pillar of the ring apart).
+
+    Unlike :func:`second_pillar_radius`, which needs a pillar centre at r_S >= d, the ring's
+    rim may touch anywhere beyond the centre pillar's rim, so the scan (inwards, vectorised;
+    the first sign change is the outer root, never the spurious one just above d/2) runs
+    down to d/2.
+    """
+    p = _single_pillar(scene)
+    R, d, zeta = scene.lens.radius_m, p.diameter_m, scene.indentation_m
+    big_pi = stiffness_number(scene)
+
+    def gap(r):
+        r = np.asarray(r, float)
+        return lens_gap(R, r) + (2.0 / big_pi * np.arcsin(
+            np.minimum(d / (2.0 * r), 1.0)) - 1.0) * zeta
+
+    hi = min(0.999 * R, max(2.0 * math.sqrt(2.0 * R * zeta), 2.0 * d))
+    radii = np.geomspace(d / 2.0, hi, 4000)[::-1]
+    closed = np.nonzero(gap(radii) <= 0.0)[0]
+    if closed.size == 0 or closed[0] == 0:
+        return None
+    k = int(closed[0])
+    from scipy.optimize import brentq  # here, not at import: scipy.optimize costs 0.5 s
+
+    return brentq(lambda r: float(gap(r)), radii[k], radii[k - 1], xtol=1e-15 * R, rtol=1e-14)
+
+
+def single_pillar_threshold_rim(scene: Scene) -> float:
+    """Phi_S where the second ring first touches: at its inner rim, a distance e - d/2 from
+    the centre, so the pitch at the threshold is e_S = r_S + d/2 (:func:`rim_contact_radius`),
+    not [P]'s e_S = r_S (:func:`single_pillar_threshold`, which lets the lens reach a
+    neighbour's rim while it counts one pillar).  Close packing when no pitch keeps the ring
+    apart.  The models that hold one pillar, and the planner's regimes, use this one."""
+    d = _single_pillar(scene).diameter_m
+    r_s = rim_contact_radius(scene)
+    return PHI_CLOSE_PACKING if r_s is None else phi_from_pitch(d, max(r_s + d / 2.0, d))
+
+
 def single_pillar_threshold_large_indentation(scene: Scene) -> float:
     """Large-zeta limit Phi_S ~ pi d^2 / (4 sqrt 3 R zeta), valid for
     zeta >> (d / Pi)^2 / (2 R) (the paper's stated criterion is dimensionally wrong)."""

@@ -265,12 +265,13 @@ def _setup(scene: Scene, mesh_size: float, block_factor: float) -> dict:
                    "contact_substrate" if not sub.rigid else None)
     else:
         p = scene.pillars
-        phi_s = analytic.single_pillar_threshold(scene)
+        phi_s = analytic.single_pillar_threshold_rim(scene)
         if p.surface_fraction >= phi_s:
             raise ScopeError(
                 f"pillars.surface_fraction = {p.surface_fraction:.4g} >= Phi_S = {phi_s:.4g}: "
-                "the spring-model threshold says a second pillar would touch; the "
-                "axisymmetric FEM holds the centre pillar only (use the BEM, or lower Phi)")
+                "the lens, pushed by the centre pillar's flat-punch field, reaches the rim of "
+                "the next ring; the axisymmetric FEM holds the centre pillar only (use the "
+                "BEM, or lower Phi)")
         pillar = p.material
         refuse_rigid_pair(lens, pillar, "a rigid pillar")
         ell = 0.5 * p.diameter_m

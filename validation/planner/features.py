@@ -4,9 +4,10 @@ features its error and cost models are tabulated against.
 Regime (thresholds of [P], computed by :mod:`scenes.analytic`):
 
 - ``flat``: no pillars, the Hertz problem;
-- ``single``: Phi < Phi_S, one pillar touches.  Phi_S is the exact threshold of [P]
-  eqs. rSzeta and PhiSrS (outer root; the undeformed lens plus the centre punch's lift
-  reaches the nearest neighbour);
+- ``single``: Phi < Phi_S, one pillar touches.  Phi_S is where the lens, the undeformed
+  sphere plus the centre punch's lift ([P] eq. rSzeta, outer root), reaches the inner rim of
+  the next ring (:func:`scenes.analytic.single_pillar_threshold_rim`; [P]'s eq. PhiSrS puts
+  that ring's centre there and so counts one pillar where its rim already touches);
 - ``multi``: a second pillar touches.  Within it, ``hertz-like`` above Phi_H and
   ``transition`` below.  Phi_H is [P]'s fitted value, 0.306 for hard to 0.38 for soft pillars
   (Fig. 4a, zeta = 0.3 um), taken linearly in log10(E_p/E_l) between 1e6 and 1e-3 and
@@ -72,11 +73,12 @@ def regime(scene: Scene) -> dict:
         return {"name": "flat", "label": "flat (Hertz problem)", "phi": None, "phi_s": None,
                 "phi_h": None, "why": "no pillars: a sphere on a flat substrate"}
     phi = scene.pillars.surface_fraction
-    phi_s = analytic.single_pillar_threshold(scene)
+    phi_s = analytic.single_pillar_threshold_rim(scene)
     ph = phi_h(scene)
     if phi < phi_s:
         name, label = "single", "single pillar"
-        why = f"Phi = {phi:.4g} < Phi_S = {phi_s:.4g} (eqs. rSzeta, PhiSrS): one pillar touches"
+        why = (f"Phi = {phi:.4g} < Phi_S = {phi_s:.4g} (eq. rSzeta, at the next ring's rim): "
+               "one pillar touches")
     elif phi >= ph:
         name, label = "multi", "hertz-like"
         why = (f"Phi = {phi:.4g} >= Phi_H = {ph:.3g} ([P] Fig. 4a fit): many pillars touch, "

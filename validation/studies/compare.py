@@ -92,7 +92,8 @@ def pillar_label(pillars: str) -> str:
 def fem_model_for(scene: Scene) -> str:
     """The cheapest FEM that represents ``scene``: the axisymmetric model on a flat scene or
     one pillar alone (Phi below the spring-model threshold Phi_S), fem-3d otherwise."""
-    if scene.is_flat or scene.pillars.surface_fraction < analytic.single_pillar_threshold(scene):
+    if scene.is_flat or \
+            scene.pillars.surface_fraction < analytic.single_pillar_threshold_rim(scene):
         return FEM
     return FEM_3D
 

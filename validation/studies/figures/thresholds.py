@@ -26,10 +26,8 @@ from __future__ import annotations
 import functools
 import math
 
-import numpy as np
-from scipy.optimize import brentq
-
 from scenes import PHI_CLOSE_PACKING, analytic
+from scenes.analytic import rim_contact_radius, single_pillar_threshold_rim
 
 from ...engine import Case, Engine
 from .scenes import table1_scene
@@ -40,41 +38,6 @@ __all__ = ["analytic_thresholds", "bisect_single_pillar", "rim_contact_radius",
 # A bracket [guess / BRACKET, guess * BRACKET] around the closed-form estimate; widened by
 # this factor again while it does not hold the threshold.
 BRACKET = 1.15
-
-
-def rim_contact_radius(scene) -> float | None:
-    """The outer root r_S >= d/2 of [P] eq. rSzeta (m), None when the gap stays closed down
-    to the centre pillar's rim (no pitch then leaves a pillar of the ring apart).
-
-    Unlike :func:`scenes.analytic.second_pillar_radius`, which needs a pillar centre at
-    r_S >= d, the ring's rim may touch anywhere beyond the centre pillar's rim, so the scan
-    (inwards, vectorised; the first sign change is the outer root, never the spurious one
-    just above d/2) runs down to d/2.
-    """
-    R, d, zeta = scene.lens.radius_m, scene.pillars.diameter_m, scene.indentation_m
-    big_pi = analytic.stiffness_number(scene)
-
-    def gap(r):
-        r = np.asarray(r, float)
-        return analytic.lens_gap(R, r) + (2.0 / big_pi * np.arcsin(
-            np.minimum(d / (2.0 * r), 1.0)) - 1.0) * zeta
-
-    hi = min(0.999 * R, max(2.0 * math.sqrt(2.0 * R * zeta), 2.0 * d))
-    radii = np.geomspace(d / 2.0, hi, 4000)[::-1]
-    closed = np.nonzero(gap(radii) <= 0.0)[0]
-    if closed.size == 0 or closed[0] == 0:
-        return None
-    k = int(closed[0])
-    return brentq(lambda r: float(gap(r)), radii[k], radii[k - 1], xtol=1e-15 * R, rtol=1e-14)
-
-
-def single_pillar_threshold_rim(scene) -> float:
-    """Phi_S with the pitch e_S = r_S + d/2: the ring's inner rim at r_S (module docstring);
-    close packing when no pitch keeps the ring apart."""
-    d = scene.pillars.diameter_m
-    r_s = rim_contact_radius(scene)
-    return PHI_CLOSE_PACKING if r_s is None else analytic.phi_from_pitch(
-        d, max(r_s + d / 2.0, d))
 
 
 @functools.lru_cache(maxsize=1024)
