@@ -153,26 +153,34 @@ def second_pillar_radius(scene: Scene) -> float:
     A pitch is never below d, so the scan stops at r = d; when the gap stays open down to d
     no lattice brings a second pillar into contact and r_S = d (Phi_S = close packing).
     """
-    p = _single_pillar(scene)
-    R, d, zeta = scene.lens.radius_m, p.diameter_m, scene.indentation_m
-    big_pi = stiffness_number(scene)
-
-    def gap(r):
-        return float(lens_gap(R, r)) + (2.0 / big_pi * math.asin(d / (2.0 * r)) - 1.0) * zeta
-
-    lo = d  # a lattice pitch is never below the diameter
-    hi = min(0.999 * R, max(2.0 * math.sqrt(2.0 * R * zeta), 2.0 * d))
+    gap, hi = _punch_gap(scene)
+    lo = _single_pillar(scene).diameter_m  # a lattice pitch is never below the diameter
     if gap(hi) <= 0:
         raise SceneError("second_pillar_radius: no root below 0.999 R (indentation too large)")
     radii = np.geomspace(lo, hi, 4000)[::-1]
-    values = np.array([gap(r) for r in radii])
-    neg = np.nonzero(values <= 0)[0]
+    neg = np.nonzero(gap(radii) <= 0)[0]
     if len(neg) == 0:
         return lo  # the gap stays open down to r = d: no pitch brings a second pillar in
     k = neg[0]
     from scipy.optimize import brentq  # here, not at import: scipy.optimize costs 0.5 s
 
-    return brentq(gap, radii[k], radii[k - 1], xtol=1e-15 * R, rtol=1e-14)
+    return brentq(lambda r: float(gap(r)), radii[k], radii[k - 1],
+                  xtol=1e-15 * scene.lens.radius_m, rtol=1e-14)
+
+
+def _punch_gap(scene: Scene):
+    """(gap, hi): the gap of [P] eq. rSzeta at radius r (m; vectorised), the undeformed lens
+    less the indentation plus the centre punch's lift (2/Pi) zeta arcsin(d / 2r) ([J] eq.
+    3.37), and the radius from which the threshold scans inwards (where it is open)."""
+    R, d, zeta = scene.lens.radius_m, _single_pillar(scene).diameter_m, scene.indentation_m
+    big_pi = stiffness_number(scene)
+
+    def gap(r):
+        r = np.asarray(r, float)
+        return lens_gap(R, r) + (2.0 / big_pi * np.arcsin(
+            np.minimum(d / (2.0 * r), 1.0)) - 1.0) * zeta
+
+    return gap, min(0.999 * R, max(2.0 * math.sqrt(2.0 * R * zeta), 2.0 * d))
 
 
 def phi_from_pitch(diameter: float, pitch: float) -> float:
@@ -194,16 +202,8 @@ def rim_contact_radius(scene: Scene) -> float | None:
     the first sign change is the outer root, never the spurious one just above d/2) runs
     down to d/2.
     """
-    p = _single_pillar(scene)
-    R, d, zeta = scene.lens.radius_m, p.diameter_m, scene.indentation_m
-    big_pi = stiffness_number(scene)
-
-    def gap(r):
-        r = np.asarray(r, float)
-        return lens_gap(R, r) + (2.0 / big_pi * np.arcsin(
-            np.minimum(d / (2.0 * r), 1.0)) - 1.0) * zeta
-
-    hi = min(0.999 * R, max(2.0 * math.sqrt(2.0 * R * zeta), 2.0 * d))
+    gap, hi = _punch_gap(scene)
+    d = _single_pillar(scene).diameter_m
     radii = np.geomspace(d / 2.0, hi, 4000)[::-1]
     closed = np.nonzero(gap(radii) <= 0.0)[0]
     if closed.size == 0 or closed[0] == 0:
@@ -211,7 +211,8 @@ def rim_contact_radius(scene: Scene) -> float | None:
     k = int(closed[0])
     from scipy.optimize import brentq  # here, not at import: scipy.optimize costs 0.5 s
 
-    return brentq(lambda r: float(gap(r)), radii[k], radii[k - 1], xtol=1e-15 * R, rtol=1e-14)
+    return brentq(lambda r: float(gap(r)), radii[k], radii[k - 1],
+                  xtol=1e-15 * scene.lens.radius_m, rtol=1e-14)
 
 
 def single_pillar_threshold_rim(scene: Scene) -> float:

@@ -105,16 +105,15 @@ def _ours(scene_name, overrides, n, tol, edge_correction=True):
 
     from bem_solver._fft import solve_fft
 
-    from scipy.fft import next_fast_len
-
     from bem_solver._fft_grid import build_grid
     from bem_solver._fft_operator import padded_length
+    from bem_solver._xp import NumpyDevice
 
     scene = load_scene(scene_name, list(overrides))
     # The floors are timed before and after the solve (the machine's load moves).
     ny, nx = build_grid(scene, n).shape
-    padded = (padded_length(ny, lambda m: next_fast_len(m, real=True)),
-              padded_length(nx, lambda m: next_fast_len(m, real=True)))
+    fast = NumpyDevice().next_fast_len  # the plan's own choice of lengths
+    padded = (padded_length(ny, fast), padded_length(nx, fast))
     before = (fft_floor(padded), fft_floor_kept(padded))
     start = time.perf_counter()
     res = solve_fft(scene, n, tol=tol, edge_correction=edge_correction, workers=WORKERS)

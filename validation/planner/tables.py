@@ -143,7 +143,7 @@ class ErrorTable:
         ``errors``; a quantity measured on fewer than three points has none.
 
         On a tensor grid (:func:`_grid_interpolate`) a node is predicted along the grid
-        lines through it (:func:`_grid_misfit`): the misfit of the multilinear
+        lines through it (:meth:`_GridLines.misfit`): the misfit of the multilinear
         interpolation the planner does, not the step to the nearest node that the grid
         left with a hole would give.  Elsewhere (and at a grid's corners) the others'
         interpolant predicts the point."""
@@ -156,45 +156,53 @@ class ErrorTable:
                 continue
             vals = np.log10(np.maximum(np.abs(v), ERROR_FLOOR)) if self.log_scale else v
             scaled = (pts - lo) / span
-            on_grid = _grid_interpolate(scaled[idx], vals[idx], scaled[idx[0]]) is not None
+            grid = _GridLines(scaled[idx]) if _grid_interpolate(
+                scaled[idx], vals[idx], scaled[idx[0]]) is not None else None
             miss = [None] * len(raw)
             for i in idx:
                 if self.log_scale and vals[i] < np.log10(LOO_RELEVANT):
                     continue
-                others = idx[idx != i]
-                grid = _grid_misfit(scaled[idx], vals[idx], int(np.searchsorted(idx, i))) \
-                    if on_grid else None
-                if grid is None:
+                misfit = None if grid is None else \
+                    grid.misfit(vals[idx], int(np.searchsorted(idx, i)))
+                if misfit is None:
+                    others = idx[idx != i]
                     pred, _ = _interpolate(scaled[others], vals[others], scaled[i])
-                    grid = float(abs(pred - vals[i]))
-                miss[i] = grid
+                    misfit = float(abs(pred - vals[i]))
+                miss[i] = misfit
             out[quantity] = miss
         return out
 
 
-def _grid_misfit(points: np.ndarray, values: np.ndarray, i: int) -> float | None:
-    """Leave-one-out misfit of grid node ``i``: for each axis along which the node has
-    measured neighbours on both sides, e_k = |linear interpolation between them - value|;
-    returned as sum_k e_k / 4, the size of the multilinear interpolation's error in a cell
-    of the grid that these second differences imply (interpolating over 2 h misses by
-    ~h^2 f''_k / 2, a cell's centre by sum_k h^2 f''_k / 8).  None where the node has two
-    neighbours along no axis (a corner: the caller predicts it from the others)."""
-    axes = [np.unique(np.round(points[:, k], 12)) for k in range(points.shape[1])]
-    node = np.round(points[i], 12)
-    where = {tuple(p): j for j, p in enumerate(np.round(points, 12))}
-    misfits = []
-    for k, a in enumerate(axes):
-        j = int(np.searchsorted(a, node[k]))
-        if not 0 < j < len(a) - 1:
-            continue
-        below, above = node.copy(), node.copy()
-        below[k], above[k] = a[j - 1], a[j + 1]
-        jb, ja = where.get(tuple(below)), where.get(tuple(above))
-        if jb is None or ja is None:
-            continue
-        f = (node[k] - a[j - 1]) / (a[j + 1] - a[j - 1])
-        misfits.append(abs((1.0 - f) * values[jb] + f * values[ja] - values[i]))
-    return float(sum(misfits) / 4.0) if misfits else None
+class _GridLines:
+    """The grid lines of a tensor grid of points (scaled), set up once per table."""
+
+    def __init__(self, points: np.ndarray):
+        self.axes = [np.unique(np.round(points[:, k], 12)) for k in range(points.shape[1])]
+        self.nodes = np.round(points, 12)
+        self.where = {tuple(p): j for j, p in enumerate(self.nodes)}
+
+    def misfit(self, values: np.ndarray, i: int) -> float | None:
+        """Leave-one-out misfit of node ``i``: for each axis along which the node has
+        measured neighbours on both sides, e_k = |linear interpolation between them -
+        value|; returned as sum_k e_k / 4, the size of the multilinear interpolation's error
+        in a cell of the grid that these second differences imply (interpolating over 2 h
+        misses by ~h^2 f''_k / 2, a cell's centre by sum_k h^2 f''_k / 8).  None where the
+        node has two neighbours along no axis (a corner: the caller predicts it from the
+        others)."""
+        node = self.nodes[i]
+        misfits = []
+        for k, a in enumerate(self.axes):
+            j = int(np.searchsorted(a, node[k]))
+            if not 0 < j < len(a) - 1:
+                continue
+            below, above = node.copy(), node.copy()
+            below[k], above[k] = a[j - 1], a[j + 1]
+            jb, ja = self.where.get(tuple(below)), self.where.get(tuple(above))
+            if jb is None or ja is None:
+                continue
+            f = (node[k] - a[j - 1]) / (a[j + 1] - a[j - 1])
+            misfits.append(abs((1.0 - f) * values[jb] + f * values[ja] - values[i]))
+        return float(sum(misfits) / 4.0) if misfits else None
 
 
 def _interpolate(points: np.ndarray, values: np.ndarray, q: np.ndarray) -> tuple[float, bool]:
@@ -294,8 +302,9 @@ def _grid_interpolate(points, values, q):
         # Every corner that counts is missing (a part of the grid measured at fewer points,
         # such as one substrate convention at one indentation): each takes the nearest
         # measured node along one grid line through it; none at all: the nearest point.
+        order = _smoothest_axes(table)
         for at, w in missing:
-            v = _along_grid_lines(table, axes, at)
+            v = _along_grid_lines(table, axes, at, order)
             if v is not None:
                 total += w * v
                 weight += w
@@ -305,19 +314,24 @@ def _grid_interpolate(points, values, q):
     return total / weight, outside
 
 
-def _along_grid_lines(table: np.ndarray, axes: list, at: tuple) -> float | None:
-    """A value for the missing grid node ``at`` from the grid lines through it: along the
-    axis on which the table changes least from node to node (the median |difference| of
-    measured neighbours), the nearest measured node; the next axis where that line holds
-    none; None when no line does.  (A sparser part of a grid, such as the E_s = E_p rows at
-    one indentation, then borrows along the indentation or substrate axis, not across the
-    stiffness ratio, where the errors change by decades.)"""
+def _smoothest_axes(table: np.ndarray) -> list:
+    """The grid's axes from the one on which the table changes least from node to node (the
+    median |difference| of measured neighbours) to the one on which it changes most."""
     roughness = []
-    for k in range(len(axes)):
+    for k in range(table.ndim):
         steps = np.abs(np.diff(table, axis=k))
         steps = steps[np.isfinite(steps)]
         roughness.append(float(np.median(steps)) if steps.size else math.inf)
-    for k in sorted(range(len(axes)), key=lambda k: roughness[k]):
+    return sorted(range(table.ndim), key=lambda k: roughness[k])
+
+
+def _along_grid_lines(table: np.ndarray, axes: list, at: tuple, order: list) -> float | None:
+    """A value for the missing grid node ``at`` from the grid lines through it: along the
+    first axis of ``order`` (:func:`_smoothest_axes`), the nearest measured node; the next
+    axis where that line holds none; None when no line does.  (A sparser part of a grid,
+    such as the E_s = E_p rows at one indentation, then borrows along the indentation or
+    substrate axis, not across the stiffness ratio, where the errors change by decades.)"""
+    for k in order:
         found = [(abs(j - at[k]), float(table[at[:k] + (j,) + at[k + 1:]]))
                  for j in range(len(axes[k])) if j != at[k]
                  and np.isfinite(table[at[:k] + (j,) + at[k + 1:]])]

@@ -511,9 +511,9 @@ def relattice(errors: dict, report: dict, source: str = "") -> dict:
     table alone), so they follow the current rule."""
     tables = [ErrorTable(**t) for t in errors["tables"]]
     tables = [t for t in tables if not t.source.startswith("lattice")]
-    tables = with_lattice(tables, report)
-    for t in tables:
+    for t in tables:  # the lattice tables get theirs in with_lattice
         t.loo = t.leave_one_out()
+    tables = with_lattice(tables, report)
     prov = dict(errors["provenance"])
     prov["scenes"] = {**prov.get("scenes", {}), "lattice_study": len(report["rows"])}
     prov["lattice_study"] = {"file": source, "rows": len(report["rows"]),
