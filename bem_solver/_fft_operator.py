@@ -48,9 +48,17 @@ NEAR_FIELD_CELLS = 3
 EXACT_CELLS = int(FAR_FIELD_RATIO) + 1
 # CompliancePlan.apply_few takes the half-space part from the kernel table for at most
 # FEW_COST_RATIO log2(M) M / G clipped cells (M padded FFT points, G grid cells): one scaled
-# copy of the G-cell kernel table per cell against an application's FFT pair (measured: one
-# copy ~ 1/40-1/55 of the pair on 555^2-1000^2 grids); for more, one convolution.
-FEW_COST_RATIO = 0.25
+# copy of the G-cell kernel table per cell against an application's pruned FFT pair
+# (measured: one copy ~ 1/10-1/12 of the float64 convolution on 1005^2 and 555^2 grids,
+# 2.0 and 0.55 ms); for more, one convolution.  The float32 convolution takes SINGLE_COST_SHARE
+# of the float64 one (measured 0.64-0.66 on those grids), and its threshold shrinks with it.
+FEW_COST_RATIO = 0.125
+SINGLE_COST_SHARE = 0.65
+# Error of the float32 convolution relative to the result's largest value: measured
+# 1.9e-7 to 5.0e-7 on 1e6 cells (a Hertz-like pressure, white noise, a ring, scattered cells);
+# four times the largest.
+SINGLE_PRECISION_ERROR = 2e-6
+PRECISIONS = ("mixed", "double")
 # apply_few takes the near-field correction's rows of the given cells when they are at most
 # 1/SPARSE_ROWS_FRACTION of all cells (a row slice of the sparse matrix), else its whole
 # product.
@@ -179,6 +187,11 @@ class PrunedConvolution:
     same four scipy.fft transforms write into arrays kept between calls (the same
     floating-point operations as the generic path: identical results, no page faults of
     fresh 10-60 MB arrays per call).
+
+    ``single=True`` runs the same transforms in float32 (complex64), about half the time of
+    float64 on 1e6 cells, with a relative error of a few 1e-7 of the result's scale
+    (:data:`SINGLE_PRECISION_ERROR`); the result is returned in float64.  Its arrays are
+    made on the first such call.
     """
 
     def __init__(self, shape, fft_shape, flat_index, spectrum, backend):
@@ -188,47 +201,68 @@ class PrunedConvolution:
         self.backend = be
         self.shape = (ny, nx)
         self.fft_shape = tuple(fft_shape)
-        my, mx = self.fft_shape
         flat = be.asarray(flat_index, dtype=xp.int64)
-        self.padded_index = (flat // nx) * mx + flat % nx
+        self.padded_index = (flat // nx) * self.fft_shape[1] + flat % nx
         self.spectrum = spectrum
-        self._buffer = xp.zeros(ny * mx, dtype=xp.float64)
-        self._work = None
-        if _pocketfft is not None and isinstance(be, NumpyDevice):
-            # The real spectrum twice over, as the (re, im) pairs of the complex spectrum:
-            # one float product of equal arrays (half the time of numpy's complex-by-real
-            # product, which widens the real factor; the same values).
-            pairs = np.repeat(np.asarray(spectrum, dtype=np.float64)[..., None], 2, axis=-1)
-            self._work = (np.empty((my, mx // 2 + 1), dtype=np.complex128),
-                          np.empty((ny, mx), dtype=np.float64),
-                          pairs.reshape(my, 2 * (mx // 2 + 1)))
+        self._pocket = _pocketfft is not None and isinstance(be, NumpyDevice)
+        self._arrays = {}  # dtype -> (buffer, spectrum, work arrays or None)
 
-    def __call__(self, q):
-        if self._work is not None:
-            return self._numpy_call(q)
+    def _state(self, dtype):
+        """The kept scatter buffer, the spectrum in ``dtype`` and (numpy) the kept work
+        arrays: made once per precision."""
+        state = self._arrays.get(dtype)
+        if state is None:
+            be = self.backend
+            xp = be.xp
+            ny = self.shape[0]
+            my, mx = self.fft_shape
+            real = xp.float64 if dtype == "double" else xp.float32
+            spectrum = xp.astype(self.spectrum, real)
+            work = None
+            if self._pocket:
+                # The real spectrum twice over, as the (re, im) pairs of the complex
+                # spectrum: one float product of equal arrays (half the time of numpy's
+                # complex-by-real product, which widens the real factor; the same values).
+                complex_ = np.complex128 if dtype == "double" else np.complex64
+                pairs = np.repeat(np.asarray(spectrum)[..., None], 2, axis=-1)
+                work = (np.empty((my, mx // 2 + 1), dtype=complex_),
+                        np.empty((ny, mx), dtype=real),
+                        pairs.reshape(my, 2 * (mx // 2 + 1)))
+            state = (xp.zeros(ny * mx, dtype=real), spectrum, work)
+            self._arrays[dtype] = state
+        return state
+
+    def __call__(self, q, single: bool = False):
         be = self.backend
         xp = be.xp
-        ny = self.shape[0]
-        my, mx = self.fft_shape
-        self._buffer = be.put(self._buffer, self.padded_index, q)
-        spec = be.fft(be.rfft(xp.reshape(self._buffer, (ny, mx)), axis=1), n=my, axis=0)
-        spec *= self.spectrum
-        rows = be.ifft(spec, axis=0)[:ny, :]
-        out = be.irfft(rows, n=mx, axis=1)
-        return xp.take(xp.reshape(out, (-1,)), self.padded_index)
+        key = "single" if single else "double"
+        buffer, spectrum, work = self._state(key)
+        if work is not None:
+            out = self._numpy_call(q, buffer, work)
+        else:
+            ny = self.shape[0]
+            my, mx = self.fft_shape
+            buffer = be.put(buffer, self.padded_index, xp.astype(q, buffer.dtype))
+            self._arrays[key] = (buffer, spectrum, work)
+            spec = be.fft(be.rfft(xp.reshape(buffer, (ny, mx)), axis=1), n=my, axis=0)
+            spec *= spectrum
+            rows = be.ifft(spec, axis=0)[:ny, :]
+            out = xp.take(xp.reshape(be.irfft(rows, n=mx, axis=1), (-1,)), self.padded_index)
+        return xp.astype(out, xp.float64) if single else out
 
-    def _numpy_call(self, q):
+    def _numpy_call(self, q, buffer, work):
         """The generic path's transforms (scipy.fft's rfft, fft, ifft, irfft are these
         pocketfft calls, with the default norm) into the kept arrays."""
         ny = self.shape[0]
-        my, mx = self.fft_shape
-        spec, out, pairs = self._work
+        mx = self.fft_shape[1]
+        spec, out, pairs = work
         workers = self.backend.workers
-        self._buffer[self.padded_index] = q
-        _pocketfft.r2c(self._buffer.reshape(ny, mx), (1,), True, 0, spec[:ny], workers)
+        # Cast first: a scatter that also converts takes twice as long.
+        buffer[self.padded_index] = q if q.dtype == buffer.dtype else q.astype(buffer.dtype)
+        _pocketfft.r2c(buffer.reshape(ny, mx), (1,), True, 0, spec[:ny], workers)
         spec[ny:] = 0.0
         _pocketfft.c2c(spec, (0,), True, 0, spec, workers)
-        product = spec.view(np.float64).reshape(pairs.shape)
+        product = spec.view(out.dtype).reshape(pairs.shape)
         np.multiply(product, pairs, out=product)
         _pocketfft.c2c(spec, (0,), False, 2, spec, workers)
         _pocketfft.c2r(spec[:ny], (1,), mx, False, 2, out, workers)
@@ -259,11 +293,20 @@ class CompliancePlan:
     backend : optional
         Device backend (:mod:`bem_solver._xp`); default numpy and scipy.fft on the CPU.
         Vectors given to and returned by the plan live on its device.
+    precision : {"mixed", "double"}
+        "mixed" (default): the plan offers :meth:`approximate`, its convolution in float32,
+        for the constrained CG's steps, and the preconditioner runs in float32; "double":
+        float64 throughout (``approximate`` is None).
     """
 
     def __init__(self, shape, flat_index, cell_size, compliance, pillar=None,
                  spring_compliance=0.0, workers=FFT_WORKERS, correction=None, backend=None,
-                 pillar_term=None):
+                 pillar_term=None, precision="mixed"):
+        if precision not in PRECISIONS:
+            raise ValueError(f"precision = {precision!r}: choose one of {', '.join(PRECISIONS)}")
+        self.precision = precision
+        # The CG's cheap step (None: every application exact).
+        self.approximate = self._approximate if precision == "mixed" else None
         be = NumpyDevice(workers) if backend is None else backend
         xp = be.xp
         self.backend = be
@@ -288,8 +331,13 @@ class CompliancePlan:
         self._block = block  # the kernel table, for apply_few
         self._few_grid = None
         self.direct_updates = 0
+        self.single_applications = 0
+        # Bound, relative to the result's largest value, on the error of an application in
+        # single precision: the CG's schedule of exact refreshes (never its convergence).
+        self.approximate_error = SINGLE_PRECISION_ERROR if precision == "mixed" else 0.0
         log_points = math.log2(my * mx)
         self.few_max = max(1, int(FEW_COST_RATIO * log_points * my * mx / (ny * nx)))
+        self.few_max_single = max(1, int(SINGLE_COST_SHARE * self.few_max))
         flat = be.asarray(np.asarray(flat_index), dtype=xp.int64)
         self._convolution = PrunedConvolution(self.shape, self.fft_shape, flat,
                                               self.kernel_spectrum, be)
@@ -328,10 +376,11 @@ class CompliancePlan:
         """Sum of q over the cells of each pillar (Pa); multiply by L^2 for forces."""
         return self._pillar_sums(q)
 
-    def half_space(self, q):
-        """K q on the candidate cells (m)."""
+    def half_space(self, q, single: bool = False):
+        """K q on the candidate cells (m); ``single``: the transforms in float32."""
         self.applications += 1
-        return self._convolution(q)
+        self.single_applications += bool(single)
+        return self._convolution(q, single=single)
 
     def pillar_mode_compliance(self, counts):
         """1^T A_p 1 of the per-pillar terms of the operator (m/Pa): the displacement summed
@@ -343,9 +392,11 @@ class CompliancePlan:
             share = share + self.pillar_term.mode_compliance(counts)
         return share
 
-    def __call__(self, q):
-        """Full compliance: half-space convolution plus per-pillar Hooke shortening (m)."""
-        u = self.half_space(q)
+    def __call__(self, q, single: bool = False):
+        """Full compliance: half-space convolution plus per-pillar Hooke shortening (m).
+        ``single``: the convolution's transforms in float32 (relative error within
+        ``approximate_error`` of the result's largest value; the rest in float64)."""
+        u = self.half_space(q, single)
         if self.correction is not None:
             u += self.correction @ q
         if self.has_spring:
@@ -354,11 +405,17 @@ class CompliancePlan:
             u += self.pillar_term(q)
         return u
 
-    def apply_few(self, index, values):
+    def _approximate(self, q):
+        """A q with the half-space convolution in float32 (see :meth:`__call__`): the
+        constrained CG's steps, between its exact gap refreshes."""
+        return self(q, single=True)
+
+    def apply_few(self, index, values, single: bool = False):
         """A d for d = ``values`` on the cells ``index`` and zero elsewhere: the constrained
-        CG's gap update after a step that clips pressures, exact.  The half-space part from
-        the kernel table directly (one scaled copy of the table per cell, in four quadrant
-        slices) for at most ``few_max`` cells, else by one convolution of d; the near-field
+        CG's gap update after a step that clips pressures, exact (``single``: its convolution
+        in float32, as :meth:`approximate`).  The half-space part from the kernel table
+        directly (one scaled copy of the table per cell, in four quadrant slices) for at most
+        ``few_max`` cells (``few_max_single``), else by one convolution of d; the near-field
         correction and the pillar springs from the given cells only (not the whole
         application's sparse product and segment sums: 10-15 ms of an application's ~70 at
         N = 58); an elastic pillar term on those cells' pillars only where it can, else whole."""
@@ -375,8 +432,8 @@ class CompliancePlan:
                 spread = be.put(xp.zeros(n, dtype=xp.float64), index, values)
             return spread
 
-        if m > self.few_max:
-            u = self.half_space(whole())
+        if m > (self.few_max_single if single else self.few_max):
+            u = self.half_space(whole(), single)
         else:
             u = self._table_sum(index, values)
             self.direct_updates += 1
@@ -504,6 +561,8 @@ class CirculantPreconditioner:
         self.pillar = plan.pillar
         gamma, L = plan.compliance, plan.cell_size
         self._disk = 16.0 * gamma * L / (3.0 * math.pi * math.sqrt(math.pi))
+        # An approximate inverse: float32 transforms suffice where the plan's steps use them.
+        self.single = plan.precision == "mixed"
 
     def __call__(self, r, free):
         be = self.backend
@@ -519,8 +578,10 @@ class CirculantPreconditioner:
             per_cell = 1.0 / xp.maximum(count, 1.0)
             sums = self.plan.pillar_sums(rf)
             rf -= xp.take(sums * per_cell, self.pillar)
-        rf *= restrict
-        z = self._inverse(rf)
+            rf *= restrict
+        elif self.scale is not None:  # (else rf is already restricted to F)
+            rf *= restrict
+        z = self._inverse(rf, single=self.single)
         z *= restrict
         if not self.pillars:
             return z

@@ -30,6 +30,14 @@ the free set: :func:`diagonal_preconditioner` scales by the diagonal (which vari
 covered edge cells) and carries the Hooke term of soft pillars, whose uniform mode is up to
 1e4 times more compliant than the half-space modes at E_p / E_l = 1e-4.
 
+Mixed precision.  An operator may offer a cheaper, approximate application
+(``apply.approximate``, its error within ``apply.approximate_error`` of its result's largest
+value: the FFT model's float32 transforms).  The steps then use it, the iteration keeps a
+bound on the error this leaves in the recursively updated gap, and recomputes the gap exactly
+when that bound reaches ``DRIFT_SHARE`` of the residual and before it accepts a residual
+within ``tol`` (the reliable updates of mixed-precision Krylov solvers [3]): the returned
+residual is always that of the exact gap.
+
 Stopping: the min-map residual of the complementarity problem,
 
     e_i = |gap_i| where q_i > 0,   max(-gap_i, 0) where q_i = 0,
@@ -45,6 +53,9 @@ References
 .. [2] E. A. H. Vollebregt, "The bound-constrained conjugate gradient method for non-negative
    matrices", J. Optim. Theory Appl. 162 (2014) 931-953 (truncation, Polak-Ribiere
    continuation, preconditioned variant).
+.. [3] G. L. G. Sleijpen, H. A. van der Vorst, "Reliable updated residuals in hybrid Bi-CG
+   methods", Computing 56 (1996) 141-163 (recomputing the recursive residual when its error
+   could matter).
 """
 
 from __future__ import annotations
@@ -55,6 +66,10 @@ from ._xp import NUMPY
 # The gap is recomputed from q (one more operator application) after this many iterations
 # with an unchanged contact set, so the recursively updated gap cannot drift.
 REFRESH_EVERY = 50
+# With an approximate operator (``apply.approximate``) the recursively updated gap carries
+# the steps' rounding; it is recomputed exactly once that error's bound exceeds this share of
+# the residual, and always before the residual is accepted.
+DRIFT_SHARE = 0.1
 METHOD = "constrained-cg"
 
 
@@ -97,7 +112,9 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
         q (Pa) -> A q (m); A symmetric positive definite.  If it has a method
         ``apply_few(index, values)`` (A of a vector that is ``values`` on the cells ``index``
         and zero elsewhere, or None where a whole application is cheaper), a step that clips
-        pressures updates the gap by it instead of a fresh application.
+        pressures updates the gap by it instead of a fresh application.  If it has a callable
+        ``approximate`` (and ``approximate_error``), the steps use that (mixed precision, see
+        the module docstring) and ``apply_few`` is called with ``single=True``.
     b : array
         Undeformed gap minus indentation (m).
     q0 : array
@@ -136,6 +153,15 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
     # An operator may update the gap after a step that clips few pressures without a whole
     # application: apply.apply_few(index, values) -> A d, or None when it would not pay.
     apply_few = getattr(apply, "apply_few", None)
+    # Mixed precision: an operator may offer a cheaper approximate application
+    # (apply.approximate, within apply.approximate_error of its result's largest value).  The
+    # steps then use it, ``drift`` bounds the error it leaves in the recursively updated gap,
+    # and the gap is recomputed exactly when that bound reaches DRIFT_SHARE of the residual
+    # and before a residual within tol is accepted: the answer meets tol in the exact gap.
+    approximate = getattr(apply, "approximate", None)
+    rel_error = float(getattr(apply, "approximate_error", 0.0)) if approximate else 0.0
+    step_apply = approximate or apply
+    drift = 0.0
     gap = apply(q) + b
     n = q.shape[0]
     t = z_old = xp.zeros_like(q)
@@ -152,6 +178,10 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
     active = q > 0.0
     for it in range(1, max_iterations + 1):
         err = _residual(xp, gap, active, weights, n) / scale
+        if drift > 0.0 and (err <= tol or drift > DRIFT_SHARE * err * scale):
+            gap = apply(q) + b
+            drift, since_refresh = 0.0, 0
+            err = _residual(xp, gap, active, weights, n) / scale
         history.append(err)
         if err <= tol:
             return ContactSolution(q, gap, True, it - 1, err, METHOD, "converged", history,
@@ -171,7 +201,7 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
         if slope is None:
             t, slope = z, g_new
         z_old, g_old = z, g_new
-        w = apply(t)
+        w = step_apply(t)
         denom = dot(w, t)
         if not denom > 0:
             return ContactSolution(q, gap, False, it, err, METHOD,
@@ -184,7 +214,9 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
         if any_clipped:
             if apply_few is not None:  # A of the clipping, q_new's change on few cells
                 clipped = xp.nonzero(q_new < 0.0)[0]
-                clip_gap = apply_few(clipped, -xp.take(q_new, clipped))
+                values = -xp.take(q_new, clipped)
+                clip_gap = apply_few(clipped, values, single=True) if approximate \
+                    else apply_few(clipped, values)
             q_new = xp.maximum(q_new, 0.0)
         new_active = q_new > 0.0
         entries += bool(xp.any(new_active & ~active))
@@ -193,11 +225,15 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
         if (any_clipped and clip_gap is None) or since_refresh >= REFRESH_EVERY:
             gap = apply(q_new) + b
             since_refresh = 0
+            drift = 0.0
         else:
             w *= tau
             gap -= w  # exact: the step was taken whole along t
             if clip_gap is not None:
                 gap += clip_gap
+            if approximate:
+                drift += rel_error * (_max_abs(xp, w) + (
+                    0.0 if clip_gap is None else _max_abs(xp, clip_gap)))
         q, active = q_new, new_active
         if callback is not None:
             callback(it, err)
@@ -209,6 +245,11 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
                            "converged" if converged else
                            f"no convergence in {max_iterations} iterations (residual {err:.3g} "
                            f"> {tol:g})", history, entries)
+
+
+def _max_abs(xp, v) -> float:
+    """max |v_i| in two reductions (no temporary)."""
+    return max(float(xp.max(v)), -float(xp.min(v)), 0.0) if v.shape[0] else 0.0
 
 
 def _residual(xp, gap, active, weights, n) -> float:

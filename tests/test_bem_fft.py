@@ -141,21 +141,52 @@ def scipy_fast(n):
 def test_numpy_convolution_into_kept_arrays_is_the_generic_path():
     """The numpy path writes scipy.fft's own transforms into arrays kept between calls: the
     same floating-point operations as the generic (array-namespace) path, so the same bits,
-    for the operator's zero-padded grid and for the preconditioner's periodic box."""
+    for the operator's zero-padded grid and for the preconditioner's periodic box, in float64
+    and in float32."""
     from bem_solver._fft_operator import CirculantPreconditioner
 
     _, grid, plan = _small_plan("paper-fig3-dense", ["load.indentation_um=0.02"], 6)
     pre = CirculantPreconditioner(plan)
     q = np.random.default_rng(5).random(grid.n_cells)
     for conv in (plan._convolution, pre._inverse):
-        assert conv._work is not None
-        fast = conv(q).copy()
-        again = conv(2.0 * q).copy()  # the kept arrays hold nothing over from a call
-        conv._work, kept = None, conv._work
-        try:
-            assert np.array_equal(conv(q), fast) and np.array_equal(conv(2.0 * q), again)
-        finally:
-            conv._work = kept
+        for single in (False, True):
+            assert conv._pocket
+            fast = conv(q, single).copy()
+            again = conv(2.0 * q, single).copy()  # the kept arrays hold nothing over
+            assert conv._state("single" if single else "double")[2] is not None
+            kept = conv._arrays
+            conv._pocket, conv._arrays = False, {}
+            try:
+                assert np.array_equal(conv(q, single), fast)
+                assert np.array_equal(conv(2.0 * q, single), again)
+            finally:
+                conv._pocket, conv._arrays = True, kept
+
+
+@pytest.mark.parametrize("case", [("paper-fig3-dense", ["load.indentation_um=0.5"], 12),
+                                  ("paper-fig3-sparse", ["pillars.E_Pa=1.6e4"], 8)])
+def test_single_precision_application_within_its_stated_error(case):
+    """The constrained CG's steps use the convolution in float32: within the plan's stated
+    relative error (SINGLE_PRECISION_ERROR, four times the largest measured) of the float64
+    application, on a smooth pressure, white noise and a few scattered cells, and above
+    1e-10 of it (float64 transforms would leave ~1e-15: the float32 path really runs)."""
+    _, grid, plan = _small_plan(*case)
+    rng = np.random.default_rng(2)
+    r = np.hypot(grid.x, grid.y)
+    scattered = np.zeros(grid.n_cells)
+    scattered[rng.choice(grid.n_cells, plan.few_max_single + 3, replace=False)] = 1e6
+    fields = (np.sqrt(np.clip(1.0 - (r / r.max()) ** 2, 0.0, None)) * 1e6,
+              rng.standard_normal(grid.n_cells) * 1e6, scattered)
+    for q in fields:
+        exact, approx = plan(q), plan.approximate(q)
+        err = np.max(np.abs(approx - exact))
+        assert 1e-10 < err / np.max(np.abs(exact)) <= plan.approximate_error
+    index = np.flatnonzero(fields[2])
+    before = plan.single_applications
+    few = plan.apply_few(index, fields[2][index], single=True)  # one float32 convolution
+    assert plan.single_applications == before + 1
+    exact = plan(fields[2])
+    assert np.max(np.abs(few - exact)) <= plan.approximate_error * np.max(np.abs(exact))
 
 
 @pytest.mark.parametrize("many", [False, True])

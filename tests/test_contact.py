@@ -63,6 +63,43 @@ def test_constrained_cg_matches_enumeration():
         assert sol.history[-1] == sol.residual <= 1e-10
 
 
+class _Perturbed:
+    """A @ p exactly, and an ``approximate`` application off by a relative ``error`` of its
+    largest value (a fixed random pattern, as rounding leaves), that counts its calls."""
+
+    def __init__(self, A, error, seed=3):
+        self.A, self.approximate_error = A, error
+        self.noise = np.random.default_rng(seed).uniform(-1.0, 1.0, len(A))
+        self.exact = self.approx = 0
+
+    def __call__(self, p):
+        self.exact += 1
+        return self.A @ p
+
+    def approximate(self, p):
+        self.approx += 1
+        u = self.A @ p
+        return u + self.approximate_error * np.max(np.abs(u)) * self.noise
+
+
+@pytest.mark.parametrize("error", [1e-7, 1e-4, 1e-2])
+def test_mixed_precision_steps_still_meet_the_tolerance_in_the_exact_gap(error):
+    """With steps from an approximate operator the CG recomputes the gap exactly when the
+    carried error could matter and before accepting: the returned gap is A p + b and its
+    residual is within tol, the answer the enumeration's to the tolerance, for step errors
+    from float32's scale up to 1e-2 (which needs more exact refreshes, never a wrong
+    answer)."""
+    for A, b in _problems(10, n=8, seed=11):
+        op = _Perturbed(A, error)
+        sol = constrained_cg(op, b, np.zeros(len(b)), scale=1.0, tol=1e-10, max_iterations=500,
+                             inverse_diagonal=1.0 / np.diag(A))
+        assert sol.converged, sol.message
+        np.testing.assert_allclose(sol.gap, A @ sol.pressure + b, rtol=0, atol=1e-13)
+        assert min_map_residual(sol.pressure, A @ sol.pressure + b) <= 1e-10
+        np.testing.assert_allclose(sol.pressure, _enumerate(A, b), atol=1e-7)
+        assert op.approx >= sol.iterations and op.exact >= 2  # the first gap and the check
+
+
 def test_min_map_residual_definition():
     p = np.array([1.0, 0.0, 0.0, 2.0])
     gap = np.array([0.1, 0.5, -0.3, -0.05])
