@@ -27,7 +27,8 @@ def test_table_has_medians_ratios_and_force_differences(tmp_path):
         for pillars in ("rigid", "elastic"):
             runs += [_run("bem-fft-grid", pillars, 32, ours, 1.0),
                      _run("contactmechanics", pillars, 32, cm, 1.0 + 1e-8, it=90),
-                     _run("bem-fft", pillars, 32, 2 * ours, 1.01)]
+                     _run("bem-fft", pillars, 32, 2 * ours, 1.01),
+                     _run("bem-fft-grid-double", pillars, 32, 1.6 * ours, 1.0)]
     runs.append({"solver": "contactmechanics", "pillars": "rigid", "n": 58,
                  "error": "timed out after 1 s"})
     meta = {"scene": "paper-fig3-dense", "tolerance": 1e-8, "repeats": 3,
@@ -43,8 +44,12 @@ def test_table_has_medians_ratios_and_force_differences(tmp_path):
     assert row["iteration_over_fft_pair"] == pytest.approx(0.5 * 1.5 / 20 / 0.01)
     assert row["iteration_over_kept_pair"] == pytest.approx(0.5 * 1.5 / 20 / 0.005)
     assert row["applications_per_iteration"] == pytest.approx(25 / 20)
+    # The float64 run of the same solver, per iteration over the mixed-precision one: 1.6.
+    assert row["double_over_mixed"] == pytest.approx(1.6)
+    assert row["double_time_per_iteration_s"] == pytest.approx(0.5 * 1.6 * 1.5 / 20)
     assert rows[("rigid", 58)]["errors"] == ["contactmechanics: timed out after 1 s"]
     assert "| rigid | 4.00e+02 (d/32) | 20 + 7 |" in table and "5.0x" in table
     assert "| 10.0 / 5.0 (45x45) | 3.75 / 7.50 |" in table
+    assert "| 60.0 (6.00), 2.40 |" in table  # float64: 0.5 * 2.4 / 20 s/it, pair 10 ms
     doc = json.loads((tmp_path / "bench_fft.json").read_text())
     assert doc["table"] == table == (tmp_path / "bench_fft.md").read_text().rstrip("\n")

@@ -12,7 +12,9 @@ whose displacement adds c times each pillar's force to its cells (its CG is unch
 solver runs with ``edge_correction=False`` (edge cells loaded and collocated at their
 centres: exactly the masked-grid problem); our default model (edge cells as equivalent
 squares at their centroids) runs on the same grid too and is reported beside it (its F_T
-differs by its smaller discretisation error).
+differs by its smaller discretisation error), and so does the same solver in float64
+throughout (``precision="double"``: the model before mixed precision), so that before and
+after come from one run.
 
 For each case: grid cells; our CG iterations on the finest grid (and on the coarser
 warm-start levels); our time per fine iteration against the floor, the bare FFT pair
@@ -100,7 +102,7 @@ def fft_floor_kept(shape, workers=WORKERS, repeats=FLOOR_REPEATS) -> float | Non
     return statistics.median(times)
 
 
-def _ours(scene_name, overrides, n, tol, edge_correction=True):
+def _ours(scene_name, overrides, n, tol, edge_correction=True, precision="mixed"):
     from scenes import load_scene
 
     from bem_solver._fft import solve_fft
@@ -116,13 +118,15 @@ def _ours(scene_name, overrides, n, tol, edge_correction=True):
     padded = (padded_length(ny, fast), padded_length(nx, fast))
     before = (fft_floor(padded), fft_floor_kept(padded))
     start = time.perf_counter()
-    res = solve_fft(scene, n, tol=tol, edge_correction=edge_correction, workers=WORKERS)
+    res = solve_fft(scene, n, tol=tol, edge_correction=edge_correction, workers=WORKERS,
+                    precision=precision)
     wall = time.perf_counter() - start
     d = res.diagnostics
     after = (fft_floor(d["fft_shape"]), fft_floor_kept(d["fft_shape"]))
     floor = statistics.median([before[0], after[0]])
     kept = None if before[1] is None else statistics.median([before[1], after[1]])
-    name = "bem-fft" if edge_correction else "bem-fft-grid"
+    name = ("bem-fft" if edge_correction else "bem-fft-grid") \
+        + ("-double" if precision == "double" else "")
     solve = d["timings_s"]["solve"]
     return {"solver": name, "cells_per_diameter": n, "wall_time_s": wall,
             "iterations": res.iterations, "operator_applications": d["operator_applications"],
@@ -213,7 +217,8 @@ def _worker(spec: dict) -> dict:
     if spec["solver"] == "contactmechanics":
         out = _contactmechanics(*args)
     else:
-        out = _ours(*args, edge_correction=spec["solver"] == "bem-fft")
+        out = _ours(*args, edge_correction=spec["solver"] == "bem-fft",
+                    precision="double" if spec["solver"].endswith("-double") else "mixed")
     # ru_maxrss is in KiB on Linux.
     out["peak_rss_MB"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     out["pillars"] = spec.get("pillars")
@@ -274,7 +279,8 @@ def main(argv=None) -> int:
         print(json.dumps(_worker(json.loads(args.worker))))
         return 0
     reason = "left out (--no-peer)" if args.no_peer else contactmechanics_available()
-    solvers = ["bem-fft-grid"] + ([] if reason else ["contactmechanics"]) + ["bem-fft"]
+    solvers = ["bem-fft-grid"] + ([] if reason else ["contactmechanics"]) + ["bem-fft"] \
+        + ["bem-fft-grid-double"]
     runs = []
     for rep in range(args.repeats):
         for n in args.cm_levels:
@@ -327,12 +333,19 @@ def side_by_side(runs: list) -> list:
             return [r for r in mine if r.get("solver") == solver and "error" not in r]
 
         ours, cm, default = ok("bem-fft-grid"), ok("contactmechanics"), ok("bem-fft")
+        double = ok("bem-fft-grid-double")
         errors = [f"{r['solver']}: {r['error']}" for r in mine if "error" in r]
         row = {"pillars": pillars, "cells_per_diameter": n, "errors": errors}
         if ours:
             row.update(_our_columns(ours, ""))
         if default:
             row.update(_our_columns(default, "default_"))
+        if double:
+            row.update(_our_columns(double, "double_"))
+            if ours:
+                row["double_over_mixed"] = statistics.median(
+                    d["time_per_iteration_s"] / o["time_per_iteration_s"]
+                    for o, d in zip(ours, double))
         if cm:
             row.update({"cm_s": _med(cm, "wall_time_s"), "cm_iterations": _med(cm, "iterations"),
                         "cm_applications": _med(cm, "operator_applications"),
@@ -403,8 +416,8 @@ def format_table(rows: list, meta: dict) -> str:
              "",
              "| pillars | cells | it ours (fine + coarse) | ms/it | conv/it | FFT pair ms, "
              "fresh / kept (padded) | it / pair, fresh / kept | ours s | CM it | CM s | "
-             "CM / ours | F_T ours vs CM | default model s (it) |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "CM / ours | F_T ours vs CM | default model s (it) | float64 ms/it (/ pair), s |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
 
     def f(row, key, fmt, missing="-"):
         v = row.get(key)
@@ -428,7 +441,7 @@ def format_table(rows: list, meta: dict) -> str:
             f"{f(r, 'cm_iterations', 'g')} | {f(r, 'cm_s', '.2f')} | "
             f"{f(r, 'ratio_cm_over_ours', '.1f')}{'x' if 'ratio_cm_over_ours' in r else ''} | "
             f"{f(r, 'force_rel_diff', '.1e')} | {f(r, 'default_wall_time_s', '.2f')} "
-            f"({f(r, 'default_iterations', 'g')}) |")
+            f"({f(r, 'default_iterations', 'g')}) | {_double_cell(r)} |")
         if r["errors"]:
             lines.append("|  | errors: " + "; ".join(r["errors"]) + " |")
     if not peer:
@@ -447,8 +460,17 @@ def format_table(rows: list, meta: dict) -> str:
               "warm-start levels, solve); CM s: from its substrate's construction on (the "
               "grid built before); CM / ours: median of the "
               "per-repeat ratios; default model: edge cells as equivalent squares (a different "
-              "discretisation, F_T not comparable at 1e-8)."]
+              "discretisation, F_T not comparable at 1e-8); float64: our solver with "
+              "precision='double' (every FFT in float64, the model before mixed precision), "
+              "its time per iteration, that over the fresh pair, and its wall time."]
     return "\n".join(lines)
+
+
+def _double_cell(r: dict) -> str:
+    if "double_time_per_iteration_s" not in r:
+        return "-"
+    return (f"{1e3 * r['double_time_per_iteration_s']:.1f} "
+            f"({r['double_iteration_over_fft_pair']:.2f}), {r['double_wall_time_s']:.2f}")
 
 
 def write_report(out: Path, runs: list, scaling: list, meta: dict) -> str:
