@@ -228,6 +228,7 @@ class PrunedConvolution:
                 work = (np.empty((my, mx // 2 + 1), dtype=complex_),
                         np.empty((ny, mx), dtype=real),
                         pairs.reshape(my, 2 * (mx // 2 + 1)))
+                spectrum = None  # the pairs hold it
             state = (xp.zeros(ny * mx, dtype=real), spectrum, work)
             self._arrays[dtype] = state
         return state
@@ -305,8 +306,6 @@ class CompliancePlan:
         if precision not in PRECISIONS:
             raise ValueError(f"precision = {precision!r}: choose one of {', '.join(PRECISIONS)}")
         self.precision = precision
-        # The CG's cheap step (None: every application exact).
-        self.approximate = self._approximate if precision == "mixed" else None
         be = NumpyDevice(workers) if backend is None else backend
         xp = be.xp
         self.backend = be
@@ -405,9 +404,15 @@ class CompliancePlan:
             u += self.pillar_term(q)
         return u
 
+    @property
+    def approximate(self):
+        """The constrained CG's cheap step between its exact gap refreshes: q -> A q with the
+        half-space convolution in float32 (see :meth:`__call__`); None in double precision.
+        (A property, not a bound method kept on the plan: that cycle would hold the plan's
+        arrays until the garbage collector ran, ~60 MB of coarse levels at 1e6 cells.)"""
+        return self._approximate if self.precision == "mixed" else None
+
     def _approximate(self, q):
-        """A q with the half-space convolution in float32 (see :meth:`__call__`): the
-        constrained CG's steps, between its exact gap refreshes."""
         return self(q, single=True)
 
     def apply_few(self, index, values, single: bool = False):
