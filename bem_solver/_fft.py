@@ -65,8 +65,8 @@ from ._dense import _smooth_edge_radius
 from ._fft_grid import CellGrid, build_grid, candidate_side, estimate_host_memory
 from ._elastic_pillar import (FFTPillarTerm, check_pillars, scene_compliance,
                               uses_elastic_block)
-from ._fft_operator import (PRECISIONS, CirculantPreconditioner, CompliancePlan,
-                            near_field_correction)
+from ._fft_operator import CirculantPreconditioner, CompliancePlan, near_field_correction
+from ._limits import PRECISIONS
 from ._xp import NumpyDevice, select_backend
 
 __all__ = ["solve_fft"]

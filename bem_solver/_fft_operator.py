@@ -30,6 +30,7 @@ import math
 
 import numpy as np
 
+from ._limits import PRECISIONS
 from ._love import FAR_FIELD_RATIO, love_far, love_rectangle, love_square_everywhere
 from ._xp import NumpyDevice
 
@@ -58,7 +59,6 @@ SINGLE_COST_SHARE = 0.65
 # 1.9e-7 to 5.0e-7 on 1e6 cells (a Hertz-like pressure, white noise, a ring, scattered cells);
 # four times the largest.
 SINGLE_PRECISION_ERROR = 2e-6
-PRECISIONS = ("mixed", "double")
 # apply_few takes the near-field correction's rows of the given cells when they are at most
 # 1/SPARSE_ROWS_FRACTION of all cells (a row slice of the sparse matrix), else its whole
 # product.

@@ -18,3 +18,6 @@ CONTACT_METHODS = ("exact", "paper")
 PILLAR_MODELS = ("hooke", "elastic")
 # Where the FFT model runs: numpy on the CPU, cupy on a CUDA GPU, or the GPU where there is one.
 DEVICES = ("cpu", "gpu", "auto")
+# The FFT model's arithmetic: float32 FFTs in the CG's steps with float64 gap refreshes (the
+# default), or float64 throughout (bem_solver._fft_operator.CompliancePlan).
+PRECISIONS = ("mixed", "double")

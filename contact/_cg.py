@@ -161,8 +161,10 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
     approximate = getattr(apply, "approximate", None)
     rel_error = float(getattr(apply, "approximate_error", 0.0)) if approximate else 0.0
     step_apply = approximate or apply
-    drift = 0.0
-    gap = apply(q) + b
+    # The first gap too: its error enters the bound like a step's.
+    gap = step_apply(q)
+    drift = rel_error * _max_abs(xp, gap)
+    gap += b
     n = q.shape[0]
     t = z_old = xp.zeros_like(q)
     g_old = 1.0

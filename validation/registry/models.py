@@ -7,7 +7,7 @@ from __future__ import annotations
 from .ladders import Ladder
 from .model import CostLaw, Model
 from .options import (CELLS, CELLS_PER_DIAMETER, CONTACT, DEVICE, ELEMENTS_PER_DIAMETER,
-                      MAX_ITERATIONS, MESH_SIZE, MESH_SIZE_3D, PILLARS, PLANNED)
+                      MAX_ITERATIONS, MESH_SIZE, MESH_SIZE_3D, PILLARS, PLANNED, PRECISION)
 
 __all__ = ["DECLARED"]
 
@@ -48,7 +48,8 @@ DECLARED = (
         "bem-fft", "bem_solver._fft:solve_fft",
         "FFT boundary-element model: regular grid, constrained CG, numpy or cupy",
         options={"cells_per_diameter": CELLS_PER_DIAMETER, "device": DEVICE,
-                 "max_iterations": MAX_ITERATIONS, "pillars": PILLARS},
+                 "max_iterations": MAX_ITERATIONS, "pillars": PILLARS,
+                 "precision": PRECISION},
         # Grid cells across a pillar diameter, 32, 64, 128, ...
         ladder=Ladder("cells_per_diameter", 32, 2.0, "int", -1.0, (8, 12, 16, 24, 32, 48, 64),
                       {}, "cell side / diameter = 1/N"),

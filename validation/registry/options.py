@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 from bem_solver._cells import VARIANTS
 from bem_solver._limits import (CONTACT_METHODS, DEVICES, ELEMENTS_PER_DIAMETER_RANGE,
-                                MIN_CELLS_PER_DIAMETER, PILLAR_MODELS)
+                                MIN_CELLS_PER_DIAMETER, PILLAR_MODELS, PRECISIONS)
 from meshes import MESH_SIZE_RANGE, MESH_SIZE_RANGE_3D
 from scenes import InputError
 
@@ -90,6 +90,10 @@ MAX_ITERATIONS = OptionSpec(
 DEVICE = OptionSpec(
     str, choices=DEVICES,
     help="bem-fft: where the FFTs run (cpu: numpy, the default; gpu: cupy)")
+PRECISION = OptionSpec(
+    str, choices=PRECISIONS,
+    help="bem-fft: 'mixed' (default): the CG's FFTs in float32 with float64 gap refreshes, the "
+         "same tolerance met in float64; 'double': float64 throughout")
 PILLARS = OptionSpec(
     str, choices=PILLAR_MODELS,
     # The elastic pillar is the FEMs' physics: its tradeoff needs its own reference.
