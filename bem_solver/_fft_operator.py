@@ -205,32 +205,32 @@ class PrunedConvolution:
         self.padded_index = (flat // nx) * self.fft_shape[1] + flat % nx
         self.spectrum = spectrum
         self._pocket = _pocketfft is not None and isinstance(be, NumpyDevice)
-        self._arrays = {}  # dtype -> (buffer, spectrum, work arrays or None)
+        self._arrays = {}  # "single"/"double" -> (buffer, spectrum or None, work or None)
 
-    def _state(self, dtype):
-        """The kept scatter buffer, the spectrum in ``dtype`` and (numpy) the kept work
-        arrays: made once per precision."""
-        state = self._arrays.get(dtype)
+    def _state(self, precision):
+        """The kept scatter buffer, the spectrum (generic path) and the kept work arrays
+        (numpy path) of ``precision``, "single" or "double": made once per precision."""
+        state = self._arrays.get(precision)
         if state is None:
             be = self.backend
             xp = be.xp
             ny = self.shape[0]
             my, mx = self.fft_shape
-            real = xp.float64 if dtype == "double" else xp.float32
+            real = xp.float64 if precision == "double" else xp.float32
             spectrum = xp.astype(self.spectrum, real)
             work = None
             if self._pocket:
                 # The real spectrum twice over, as the (re, im) pairs of the complex
                 # spectrum: one float product of equal arrays (half the time of numpy's
                 # complex-by-real product, which widens the real factor; the same values).
-                complex_ = np.complex128 if dtype == "double" else np.complex64
+                complex_ = np.complex128 if precision == "double" else np.complex64
                 pairs = np.repeat(np.asarray(spectrum)[..., None], 2, axis=-1)
                 work = (np.empty((my, mx // 2 + 1), dtype=complex_),
                         np.empty((ny, mx), dtype=real),
                         pairs.reshape(my, 2 * (mx // 2 + 1)))
                 spectrum = None  # the pairs hold it
             state = (xp.zeros(ny * mx, dtype=real), spectrum, work)
-            self._arrays[dtype] = state
+            self._arrays[precision] = state
         return state
 
     def __call__(self, q, single: bool = False):
@@ -532,7 +532,8 @@ class CirculantPreconditioner:
 
     Both parts are symmetric positive semi-definite on F and their sum is definite there, so
     M^-1 is a valid CG preconditioner for any free set.  Cost per application: one pruned
-    FFT pair on the (py, px) box (~1/4 of the operator's), plus three segment sums when
+    FFT pair on the (py, px) box (~1/4 of the operator's; in float32 where the plan's
+    precision is mixed, symmetric then to float32's rounding), plus three segment sums when
     the pillars have a spring.
     """
 

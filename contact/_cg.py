@@ -153,11 +153,8 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
     # An operator may update the gap after a step that clips few pressures without a whole
     # application: apply.apply_few(index, values) -> A d, or None when it would not pay.
     apply_few = getattr(apply, "apply_few", None)
-    # Mixed precision: an operator may offer a cheaper approximate application
-    # (apply.approximate, within apply.approximate_error of its result's largest value).  The
-    # steps then use it, ``drift`` bounds the error it leaves in the recursively updated gap,
-    # and the gap is recomputed exactly when that bound reaches DRIFT_SHARE of the residual
-    # and before a residual within tol is accepted: the answer meets tol in the exact gap.
+    # Mixed precision (module docstring): ``drift`` bounds the error the approximate
+    # applications leave in the recursively updated gap.
     approximate = getattr(apply, "approximate", None)
     rel_error = float(getattr(apply, "approximate_error", 0.0)) if approximate else 0.0
     step_apply = approximate or apply
@@ -230,7 +227,7 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
             drift = 0.0
         else:
             w *= tau
-            gap -= w  # exact: the step was taken whole along t
+            gap -= w  # the step was taken whole along t (exact up to A's rounding)
             if clip_gap is not None:
                 gap += clip_gap
             if approximate:
