@@ -194,7 +194,8 @@ class PrunedConvolution:
     made on the first such call.
     """
 
-    def __init__(self, shape, fft_shape, flat_index, spectrum, backend):
+    def __init__(self, shape, fft_shape, flat_index, spectrum, backend,
+                 precisions=("double",)):
         be = backend
         xp = be.xp
         ny, nx = shape
@@ -206,6 +207,8 @@ class PrunedConvolution:
         self.spectrum = spectrum
         self._pocket = _pocketfft is not None and isinstance(be, NumpyDevice)
         self._arrays = {}  # "single"/"double" -> (buffer, spectrum or None, work or None)
+        for precision in precisions:  # made now, with the plan, not in the first solve's call
+            self._state(precision)
 
     def _state(self, precision):
         """The kept scatter buffer, the spectrum (generic path) and the kept work arrays
@@ -224,7 +227,9 @@ class PrunedConvolution:
                 # spectrum: one float product of equal arrays (half the time of numpy's
                 # complex-by-real product, which widens the real factor; the same values).
                 complex_ = np.complex128 if precision == "double" else np.complex64
-                pairs = np.repeat(np.asarray(spectrum)[..., None], 2, axis=-1)
+                pairs = np.empty((my, mx // 2 + 1, 2), dtype=real)
+                pairs[..., 0] = spectrum
+                pairs[..., 1] = spectrum
                 work = (np.empty((my, mx // 2 + 1), dtype=complex_),
                         np.empty((ny, mx), dtype=real),
                         pairs.reshape(my, 2 * (mx // 2 + 1)))
@@ -338,8 +343,9 @@ class CompliancePlan:
         self.few_max = max(1, int(FEW_COST_RATIO * log_points * my * mx / (ny * nx)))
         self.few_max_single = max(1, int(SINGLE_COST_SHARE * self.few_max))
         flat = be.asarray(np.asarray(flat_index), dtype=xp.int64)
-        self._convolution = PrunedConvolution(self.shape, self.fft_shape, flat,
-                                              self.kernel_spectrum, be)
+        self._convolution = PrunedConvolution(
+            self.shape, self.fft_shape, flat, self.kernel_spectrum, be,
+            ("double", "single") if precision == "mixed" else ("double",))
         self._convolution_index = flat
         self.spring = float(spring_compliance) * self.cell_size**2  # m/Pa per unit q
         self.pillar = None if pillar is None else be.asarray(np.asarray(pillar), dtype=xp.int64)
@@ -555,8 +561,11 @@ class CirculantPreconditioner:
         # Positive for this kernel (checked: ratio of extremes ~ 1e3 on 555^2); the floor
         # only guards definiteness against round-off.
         spectrum = xp.maximum(spectrum, xp.max(spectrum) * 1e-12)
+        # An approximate inverse: float32 transforms suffice where the plan's steps use them.
+        self.single = plan.precision == "mixed"
         self._inverse = PrunedConvolution(plan.shape, self.box_shape,
-                                          plan._convolution_index, 1.0 / spectrum, be)
+                                          plan._convolution_index, 1.0 / spectrum, be,
+                                          ("single",) if self.single else ("double",))
         full = plan.diagonal <= plan.self_coefficient * (1.0 + 1e-12)
         self.scale = None if bool(xp.all(full)) else xp.sqrt(plan.self_coefficient
                                                               / plan.diagonal)
@@ -567,8 +576,6 @@ class CirculantPreconditioner:
         self.pillar = plan.pillar
         gamma, L = plan.compliance, plan.cell_size
         self._disk = 16.0 * gamma * L / (3.0 * math.pi * math.sqrt(math.pi))
-        # An approximate inverse: float32 transforms suffice where the plan's steps use them.
-        self.single = plan.precision == "mixed"
 
     def __call__(self, r, free):
         be = self.backend
