@@ -11,9 +11,7 @@ from __future__ import annotations
 
 import argparse
 import json
-import statistics
 import sys
-import time
 import tracemalloc
 from pathlib import Path
 
@@ -23,18 +21,10 @@ from bem_solver import discretise, full_operator, lens_gap, solve_dense
 from contact import solve_active_set as solve_contact
 from outcome import write_atomic
 from scenes import load_scene
+from validation.bench import median_time
 from validation.output.report import figure_png
 
 UNREDUCED_MAX_ELEMENTS = 9000  # 650 MB for the full operator
-
-
-def _median_time(fn, repeats):
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times), out
 
 
 def _peak_mb(fn):
@@ -56,7 +46,7 @@ def _unreduced(scene, result):
 
 
 def bench_case(label, scene, P, repeats, log):
-    t_red, res = _median_time(lambda: solve_dense(scene, P), repeats)
+    t_red, res = median_time(lambda: solve_dense(scene, P), repeats)
     row = {"case": label, "P": P, "surface_fraction": scene.pillars.surface_fraction,
            "indentation_um": scene.indentation_m * 1e6,
            "pillars_in_contact": res.pillars_in_contact,
@@ -67,7 +57,7 @@ def bench_case(label, scene, P, repeats, log):
            "total_force_N": res.total_force_N, "time_unreduced_s": None,
            "force_unreduced_rel_diff": None}
     if res.diagnostics["elements"] <= UNREDUCED_MAX_ELEMENTS:
-        t_full, f_full = _median_time(lambda: _unreduced(scene, res), max(1, repeats // 2))
+        t_full, f_full = median_time(lambda: _unreduced(scene, res), max(1, repeats // 2))
         row["time_unreduced_s"] = t_full
         row["force_unreduced_rel_diff"] = abs(f_full / res.total_force_N - 1)
     log(f"{label:>28s}  P={P:3d}  pillars={row['pillars_in_contact']:4d}  "

@@ -63,14 +63,15 @@ def fft_floor(shape, workers=WORKERS, repeats=FLOOR_REPEATS) -> float:
     import numpy as np
     import scipy.fft as sfft
 
+    from validation.bench import median_time
+
     a = np.random.default_rng(0).random(tuple(shape))
-    sfft.irfft2(sfft.rfft2(a, workers=workers), s=a.shape, workers=workers)  # warm-up
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
+
+    def pair():
         sfft.irfft2(sfft.rfft2(a, workers=workers), s=a.shape, workers=workers)
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+
+    pair()  # warm-up
+    return median_time(pair, repeats)[0]
 
 
 def fft_floor_kept(shape, workers=WORKERS, repeats=FLOOR_REPEATS) -> float | None:
@@ -79,6 +80,8 @@ def fft_floor_kept(shape, workers=WORKERS, repeats=FLOOR_REPEATS) -> float | Non
     the page faults of fresh arrays, as the solver runs them.  None where scipy's layout
     lacks the kernels."""
     import numpy as np
+
+    from validation.bench import median_time
 
     try:
         from scipy.fft._pocketfft import pypocketfft as pocketfft
@@ -94,12 +97,7 @@ def fft_floor_kept(shape, workers=WORKERS, repeats=FLOOR_REPEATS) -> float | Non
         pocketfft.c2r(spec, (0, 1), nx, False, 2, out, workers)
 
     pair()  # warm-up
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        pair()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+    return median_time(pair, repeats)[0]
 
 
 def _ours(scene_name, overrides, n, tol, edge_correction=True, precision="mixed"):
@@ -386,8 +384,9 @@ def _our_columns(runs: list, prefix: str) -> dict:
         # Each run's time per iteration over the floors timed in the same process.
         "iteration_over_fft_pair": statistics.median(
             r["time_per_iteration_s"] / r["fft_pair_s"] for r in runs),
-        # Convolutions per fine iteration: one for the step, and one more for a step that
-        # clips more pressures than the kernel table updates directly.
+        # Convolutions per fine iteration: one for the step, one more for a step that clips
+        # more pressures than the kernel table updates directly, and the float64 refreshes
+        # of the gap (mixed precision: about two a solve).
         "applications_per_iteration": statistics.median(
             r["operator_applications"] / max(r["iterations"], 1) for r in runs),
         **_kept_columns(runs),
@@ -451,7 +450,8 @@ def format_table(rows: list, meta: dict) -> str:
               "(each a quarter of the next one's cells); ms/it: the finest level's solve time "
               "over its iterations (operator applications, preconditioner and CG vector work); "
               "conv/it: convolutions per fine iteration (one for the step, one more after a "
-              "step that clips more pressures than the kernel table updates directly); "
+              "step that clips more pressures than the kernel table updates directly, and the "
+              "float64 refreshes of the gap); "
               "FFT pair: rfft2 + irfft2 (scipy.fft, 2 workers) on our padded grid, timed in the "
               "same process before and after the solve (median of 2 x 7), fresh: scipy.fft's "
               "own calls, which page-fault their fresh output arrays in, kept: the same "
