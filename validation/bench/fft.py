@@ -230,6 +230,10 @@ def run_case(solver, scene, overrides, n, tol=TOL, timeout=3600, pillars=None) -
     return run_worker("validation.bench.fft", spec, timeout)
 
 
+# Characters of a failed worker's stderr kept in its record (its traceback, for the report).
+STDERR_KEPT = 3000
+
+
 def run_worker(module: str, spec: dict, timeout: float) -> dict:
     """``python -m module --worker SPEC`` in a fresh interpreter: the JSON it prints last, or
     ``{**spec, 'error': ...}`` (also used by validation.bench.gpu)."""
@@ -240,7 +244,7 @@ def run_worker(module: str, spec: dict, timeout: float) -> dict:
         return {**spec, "error": f"timed out after {timeout} s"}
     if proc.returncode != 0:
         tail = (proc.stderr.strip().splitlines() or ["?"])[-1]
-        return {**spec, "error": tail}
+        return {**spec, "error": tail, "stderr_tail": proc.stderr[-STDERR_KEPT:]}
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
