@@ -152,20 +152,19 @@ def build_grid(scene: Scene, cells_per_diameter: int,
         raise SceneError(
             f"cells_per_diameter = {cells_per_diameter}: the candidate disk would span "
             f"{n_side} x {n_side} cells; choose fewer cells per diameter")
+    # Cell (row iy, column ix) of the candidate square, flat index iy n_side + ix, has its
+    # centre at (ax[ix], ax[iy]): the square's coordinates are never stored whole.
     ax = (np.arange(n_side) - half) * L
-    gx, gy = np.meshgrid(ax, ax)  # row index = y, column index = x
-    gx, gy = gx.ravel(), gy.ravel()
-    rr = np.hypot(gx, gy)
     if flat:
-        keep = np.nonzero(rr <= r_cand)[0]
+        keep = np.flatnonzero(np.hypot(ax[None, :], ax[:, None]) <= r_cand)
         covered = np.ones(keep.size)
         pillar = np.zeros(keep.size, dtype=int)
         pillar_nm = np.zeros((1, 2), dtype=int)
         pillar_xy = np.zeros((1, 2))
     else:
-        keep, covered, pillar, pillar_nm, pillar_xy = _pillar_cells(
-            scene, gx, gy, rr, L, r_cand)
-    colloc_x, colloc_y = gx[keep], gy[keep]
+        keep, covered, pillar, pillar_nm, pillar_xy = _pillar_cells(scene, ax, L, r_cand)
+    colloc_y, colloc_x = np.divmod(keep, n_side)
+    colloc_x, colloc_y = ax[colloc_x], ax[colloc_y]
     if not flat:
         colloc_x, colloc_y = _centroids(colloc_x, colloc_y, covered, pillar, pillar_xy, L,
                                         0.5 * scene.pillars.diameter_m)
@@ -207,45 +206,48 @@ def _crop(keep, n_side):
             (iy - half).astype(float)), shape
 
 
-def _pillar_cells(scene, gx, gy, rr, L, r_cand):
-    """Cells on pillar tops within the candidate disk: indices into the grid, covered
-    fractions, owning pillar, and the pillar table."""
+def _pillar_cells(scene, ax, L, r_cand):
+    """Cells on pillar tops within the candidate disk: indices into the (n, n) square of
+    centres ``ax`` x ``ax``, covered fractions, owning pillar, and the pillar table."""
     p = scene.pillars
     rad = 0.5 * p.diameter_m
     table = pillars_within(r_cand + rad, p.pitch_m)
-    n_grid = gx.size
-    best_frac = np.zeros(n_grid)
-    total_frac = np.zeros(n_grid)
-    owner = np.full(n_grid, -1, dtype=int)
-    side = int(math.isqrt(n_grid))
+    side = ax.size
     half = side // 2
+    best_frac = np.zeros((side, side))
+    total_frac = np.zeros((side, side))
+    owner = np.full((side, side), -1, dtype=int)
     m = int(math.ceil(rad / L)) + 1
     for k, (_, _, px, py) in enumerate(table):
-        # Cells of the small window around this pillar only.
+        # The small window around this pillar only: views of the square, no gathers.
         ix0 = int(round(px / L)) + half
         iy0 = int(round(py / L)) + half
-        ix = np.arange(max(ix0 - m, 0), min(ix0 + m + 1, side))
-        iy = np.arange(max(iy0 - m, 0), min(iy0 + m + 1, side))
-        idx = (iy[:, None] * side + ix[None, :]).ravel()
-        cx, cy = gx[idx] - px, gy[idx] - py
+        cols = slice(max(ix0 - m, 0), min(ix0 + m + 1, side))
+        rows = slice(max(iy0 - m, 0), min(iy0 + m + 1, side))
+        cx, cy = ax[cols] - px, ax[rows] - py
         # Cells whose farthest corner is inside the top are covered (1 exactly), those whose
         # nearest point is outside it are not (0); the closed-form area only for the ~4 d / L
         # cells the rim crosses, not all (d / L)^2 of the window (8x to 40x fewer).
-        ax_, ay_ = np.abs(cx), np.abs(cy)
-        far2 = (ax_ + 0.5 * L) ** 2 + (ay_ + 0.5 * L) ** 2
-        near2 = np.maximum(ax_ - 0.5 * L, 0.0) ** 2 + np.maximum(ay_ - 0.5 * L, 0.0) ** 2
+        fx, fy = (np.abs(cx) + 0.5 * L) ** 2, (np.abs(cy) + 0.5 * L) ** 2
+        nx_, ny_ = (np.maximum(np.abs(cx) - 0.5 * L, 0.0) ** 2,
+                    np.maximum(np.abs(cy) - 0.5 * L, 0.0) ** 2)
+        far2 = fx[None, :] + fy[:, None]
+        near2 = nx_[None, :] + ny_[:, None]
         frac = (far2 <= rad * rad).astype(float)
-        rim = np.nonzero((near2 < rad * rad) & (far2 > rad * rad))[0]
-        rx, ry = cx[rim], cy[rim]
-        frac[rim] = disk_rectangle_area(rx - 0.5 * L, rx + 0.5 * L, ry - 0.5 * L,
-                                        ry + 0.5 * L, rad) / (L * L)
-        total_frac[idx] += frac
-        better = frac > best_frac[idx]
-        owner[idx[better]] = k
-        best_frac[idx[better]] = frac[better]
+        ri, ci = np.nonzero((near2 < rad * rad) & (far2 > rad * rad))
+        rx, ry = cx[ci], cy[ri]
+        frac[ri, ci] = disk_rectangle_area(rx - 0.5 * L, rx + 0.5 * L, ry - 0.5 * L,
+                                           ry + 0.5 * L, rad) / (L * L)
+        total_frac[rows, cols] += frac
+        best, own = best_frac[rows, cols], owner[rows, cols]
+        better = frac > best
+        own[better] = k
+        best[better] = frac[better]
+    in_disk = np.flatnonzero((total_frac > 0.0)
+                             & (np.hypot(ax[None, :], ax[:, None]) <= r_cand))
+    total_frac, owner = total_frac.ravel(), owner.ravel()
     # Near close packing a cell may overlap two tops: it goes to the larger share and carries
     # the sum of both (the Hooke term then acts on one pillar only, an O(L^2) effect).
-    in_disk = np.nonzero((total_frac > 0.0) & (rr <= r_cand))[0]
     keep = in_disk[total_frac[in_disk] > MIN_COVERED_FRACTION]
     covered = np.minimum(total_frac[keep], 1.0)
     # The dropped slivers' area goes to the other partly covered cells of the same pillar, so
