@@ -1,13 +1,18 @@
 """Benchmark of the FFT boundary-element model on a GPU against the same model on the CPU, on
-the same machine and in one run (issue 11).
+the same machine and in one run.
 
 Run as ``python -m validation.bench.gpu --out DIR``.  Scene: paper-fig3-dense (Phi = 0.82),
 rigid and elastic pillars, edge correction on, tolerance 1e-8 zeta, from 3e5 to 2e7 grid cells
 (32 to 256 cells per pillar diameter).  For each case it reports the wall time of each path,
 the time to build the kernel table (kernel block, its spectrum and the near-field correction
 of the finest level) apart, the iterations, and the relative difference of F_T between the
-paths.  Each solve runs in its own interpreter, so its peak host memory (``ru_maxrss``) is its
-own.  Prints a table and writes ``bench_gpu.json``.
+paths.  Each case runs in its own interpreter, so its peak host memory (``ru_maxrss``) is
+its own, and is solved there twice: the first solve is what a one-off call takes (cuFFT plans
+made, kernels loaded; the CUDA context is made before the clock), the second ('again') what
+each solve of a study in one process takes.  Prints a table and writes ``bench_gpu.json``
+after every case, so that a run stopped at a lent machine's limit keeps what it measured
+(``--budget-s`` starts no case after that many seconds).  The runs on lent GPUs are kept in
+``validation/bench/measured/``.
 
 Without a usable GPU (no cupy, or cupy finds no device) it runs the CPU column on the smallest
 levels only and says that the GPU column is pending.  The CPU path is given the machine's
