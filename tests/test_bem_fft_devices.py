@@ -246,6 +246,25 @@ def test_bench_gpu_runs_and_says_what_is_pending(tmp_path):
         assert "gpu" not in row and "GPU column pending" in doc["table"]
     else:
         assert abs(row["force_rel_diff"]) <= RTOL_SOLVER
+    # Solved twice in its interpreter: the repeat is the same solve (same grid, same start).
+    assert row["cpu"]["again_wall_time_s"] > 0
+    assert abs(row["cpu"]["again_force_rel_diff"]) <= RTOL_ROUNDOFF
+
+
+def test_bench_gpu_past_its_budget_reports_every_case_skipped(tmp_path):
+    """--budget-s 0 starts nothing: every case is in the file, each saying why it did not run
+    (a lent machine's run that ends at its budget still writes what it skipped)."""
+    import json
+
+    from validation.bench import gpu as bench_gpu
+
+    assert bench_gpu.main(["--out", str(tmp_path), "--levels", "8", "16", "--repeats", "1",
+                           "--budget-s", "0"]) == 0
+    doc = json.loads((tmp_path / "bench_gpu.json").read_text())
+    assert len(doc["rows"]) == 4
+    for row in doc["rows"]:
+        assert "past --budget-s 0" in row["cpu"]["error"]
+    assert doc["table"].count("past --budget-s 0") >= 4
 
 
 class _NumpyStandIn(types.ModuleType):
