@@ -414,6 +414,8 @@ def _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, mess
         # instead of an application.
         "direct_gap_updates": plan.direct_updates,
         "reentry_iterations": int(outcome.reentries),
+        # Truncated steps shortened because they would have raised the energy (contact._cg).
+        "step_halvings": int(outcome.halvings),
         "fft_shape": list(plan.fft_shape),
         "grid_shape": list(grid.shape),
         "candidate_cells": grid.n_cells,

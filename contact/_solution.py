@@ -14,7 +14,8 @@ class ContactSolution:
     ``pressure`` is p (the unit of the caller's unknowns), ``gap`` = A p + b (the caller's
     gap unit: m, or m times a weight), ``residual`` the min-map residual over ``scale``,
     ``history`` the residual after each iteration (iterative solvers), ``reentries`` the
-    iterations in which unknowns re-entered the contact set (constrained CG).
+    iterations in which unknowns re-entered the contact set and ``halvings`` the truncated
+    steps shortened to lower the energy (constrained CG).
     """
 
     pressure: np.ndarray
@@ -26,6 +27,7 @@ class ContactSolution:
     message: str = ""
     history: list = field(default_factory=list)
     reentries: int = 0
+    halvings: int = 0
 
 
 def min_map_residual(pressure, gap, weights=None) -> float:

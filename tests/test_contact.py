@@ -100,6 +100,37 @@ def test_mixed_precision_steps_still_meet_the_tolerance_in_the_exact_gap(error):
         assert op.approx >= sol.iterations and op.exact >= 2  # the first gap and the check
 
 
+def test_monotone_mode_lowers_the_energy_at_every_step(monkeypatch):
+    """The constrained CG's monotone mode (contact._cg: once the residual stalls), forced on
+    from the first iteration.  The iterate after k iterations (a run stopped at
+    max_iterations = k, the path being deterministic) has an energy 1/2 p.A p + b.p that
+    never rises with k beyond round-off; some truncated steps had to be shortened for that;
+    the answer is still the enumeration's, also with approximate (1e-4) step applications."""
+    import contact._cg as cg
+
+    monkeypatch.setattr(cg, "STALL_ITERATIONS", 0)
+    halvings = 0
+    for A, b in _problems(10, n=8, seed=5):
+        def energy(p, A=A, b=b):
+            return 0.5 * p @ (A @ p) + b @ p
+
+        def solve(k, op=None, A=A, b=b):
+            return constrained_cg(op or (lambda p: A @ p), b, np.zeros(len(b)), scale=1.0,
+                                  tol=1e-10, max_iterations=k,
+                                  inverse_diagonal=1.0 / np.diag(A))
+
+        full = solve(500)
+        assert full.converged, full.message
+        np.testing.assert_allclose(full.pressure, _enumerate(A, b), atol=1e-7)
+        path = [energy(solve(k).pressure) for k in range(1, full.iterations + 1)]
+        assert np.all(np.diff(path) <= 1e-12 * np.abs(path[:-1]).max())
+        halvings += full.halvings
+        mixed = solve(500, _Perturbed(A, 1e-4))
+        assert mixed.converged, mixed.message
+        np.testing.assert_allclose(mixed.pressure, _enumerate(A, b), atol=1e-7)
+    assert halvings > 0  # these problems have steps whose truncation would raise the energy
+
+
 def test_min_map_residual_definition():
     p = np.array([1.0, 0.0, 0.0, 2.0])
     gap = np.array([0.1, 0.5, -0.3, -0.05])
