@@ -33,10 +33,11 @@ covered edge cells) and carries the Hooke term of soft pillars, whose uniform mo
 Energy.  Truncating a step at zero can raise the energy 1/2 q.A q + b.q that the iteration
 minimises.  On most problems that does no harm (steps that raise it come and go on pillars
 100-1000 times softer than the lens on the sparse scene, which converge in 15-22 iterations
-all the same), but on soft pillars in a dense lattice the iteration can cycle: on
-paper-fig3-dense with E_p = 1e-3 E_l one truncated step raised the energy from -3.7e-5 to
-+0.19 (in its units), hundreds of cells then left and re-entered the contact at every step,
-and the residual never again reached its best value (no convergence in 3000 iterations).
+all the same), but on soft pillars in a dense lattice the iteration can cycle.  With
+E_p = 1e-3 E_l at Phi = 0.9 under a lens of R = 0.1 m, one truncated step raised the energy
+from -3.7e-5 to +0.19 Pa m; hundreds of cells then left and re-entered the contact at every
+step, and the residual never again reached its best value.  paper-fig3-dense itself with
+E_p = 1e-3 E_l did not converge in 7,500 iterations.
 So once the residual has not improved on its best for ``STALL_ITERATIONS`` iterations (at
 most 13 on every scene measured that converges), the iteration turns monotone: a truncated
 step is taken only if it lowers the energy, else its length is halved, with the gap
