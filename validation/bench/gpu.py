@@ -114,7 +114,7 @@ def main(argv=None) -> int:
     ap.add_argument("--levels", type=int, nargs="*", default=None,
                     help="cells per pillar diameter (default: 32 58 100 180 256 with a GPU, "
                          "32 58 without)")
-    ap.add_argument("--pillars", nargs="*", default=list(PILLARS), choices=list(PILLARS))
+    ap.add_argument("--pillars", nargs="+", default=list(PILLARS), choices=list(PILLARS))
     ap.add_argument("--repeats", type=int, default=3, help="runs per case (median)")
     ap.add_argument("--cpu-max-cells", type=float, default=2.1e7,
                     help="skip the CPU path above this many grid cells")
@@ -124,6 +124,8 @@ def main(argv=None) -> int:
                          "skipped), for a machine lent for a fixed time")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
+    if args.repeats < 1:
+        ap.error(f"--repeats {args.repeats}: must be at least 1")
     if args.worker:
         out = _solve(json.loads(args.worker))
         out["peak_rss_MB"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
@@ -147,6 +149,7 @@ def main(argv=None) -> int:
         meta["warm_up"] = {k: warm.get(k) for k in ("wall_time_s", "error", "stderr_tail")
                            if k in warm}
     rows = []
+    table = write_report(args.out, rows, meta)
     for n in levels:  # in the order given: the cases that matter most first
         for pillars in args.pillars:
             row = {"pillars": pillars, "n": n}
