@@ -194,7 +194,7 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
     history = []
     since_refresh = 0
     entries = 0
-    backtracks = 0
+    halved = 0  # truncated steps shortened, over the solve
     err = float("inf")
     # Vectors outside the free set are kept exactly zero, so plain dot products over all
     # cells equal the sums over the free set (boolean gathers are slow on 1e6 cells).
@@ -210,10 +210,10 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
         history.append(err)
         best, since_best = (err, 0) if err < best else (best, since_best + 1)
         if not monotone and since_best >= STALL_ITERATIONS:
-            monotone, energy = True, 0.5 * (dot(q, gap) + dot(q, b))
+            monotone, energy = True, _energy(dot, q, gap, b)
         if err <= tol:
             return ContactSolution(q, gap, True, it - 1, err, METHOD, "converged", history,
-                                   entries, backtracks)
+                                   entries, halved)
         free = active | (gap < 0.0)
         z = precondition(gap, free)
         g_new = dot(gap, z)
@@ -234,7 +234,7 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
         if not denom > 0:
             return ContactSolution(q, gap, False, it, err, METHOD,
                                    f"non-positive curvature {denom:g}: operator not SPD",
-                                   history, entries, backtracks)
+                                   history, entries, halved)
         tau = slope / denom
         q_new = q - tau * t
         any_clipped = n > 0 and bool(xp.min(q_new) < 0.0)
@@ -263,7 +263,7 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
         if monotone and any_clipped:
             # A truncated step: taken only if it lowers the energy, else shortened (module
             # docstring).  The gap's error bound enters as slack on the comparison.
-            new_energy = 0.5 * (dot(q_new, gap) + dot(q_new, b))
+            new_energy = _energy(dot, q_new, gap, b)
             halvings = 0
             while halvings < BACKTRACK_MAX and new_energy > energy + _energy_slack(
                     xp, drift, q_new, energy):
@@ -272,8 +272,8 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
                 q_new = xp.maximum(q - tau * t, 0.0)
                 gap = apply(q_new) + b
                 drift, since_refresh = 0.0, 0
-                new_energy = 0.5 * (dot(q_new, gap) + dot(q_new, b))
-            backtracks += halvings
+                new_energy = _energy(dot, q_new, gap, b)
+            halved += halvings
             conj = halvings == 0
             energy = new_energy
         elif monotone:
@@ -290,7 +290,13 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
     return ContactSolution(q, gap, converged, max_iterations, err, METHOD,
                            "converged" if converged else
                            f"no convergence in {max_iterations} iterations (residual {err:.3g} "
-                           f"> {tol:g})", history, entries, backtracks)
+                           f"> {tol:g})", history, entries, halved)
+
+
+def _energy(dot, q, gap, b) -> float:
+    """1/2 q.A q + b.q = 1/2 q.(gap + b), the energy the iteration minimises, from the gap
+    A q + b (two dot products, no temporary)."""
+    return 0.5 * (dot(q, gap) + dot(q, b))
 
 
 def _energy_slack(xp, drift, q, reference) -> float:

@@ -42,6 +42,8 @@ import sys
 import time
 from pathlib import Path
 
+from validation.bench import median_time
+
 SCENE = "paper-fig3-dense"
 PILLARS = {
     "rigid": ("pillars.rigid=true", "substrate.rigid=true", "substrate.nu=0.5"),
@@ -63,8 +65,6 @@ def fft_floor(shape, workers=WORKERS, repeats=FLOOR_REPEATS) -> float:
     import numpy as np
     import scipy.fft as sfft
 
-    from validation.bench import median_time
-
     a = np.random.default_rng(0).random(tuple(shape))
 
     def pair():
@@ -80,8 +80,6 @@ def fft_floor_kept(shape, workers=WORKERS, repeats=FLOOR_REPEATS) -> float | Non
     the page faults of fresh arrays, as the solver runs them.  None where scipy's layout
     lacks the kernels."""
     import numpy as np
-
-    from validation.bench import median_time
 
     try:
         from scipy.fft._pocketfft import pypocketfft as pocketfft

@@ -52,8 +52,6 @@ def _solve(spec: dict) -> dict:
     """The case solved twice in this interpreter: 'first' as a one-off call pays for its
     cuFFT plans and kernel loads (CUDA context made before the clock), 'again' as the next
     solve of a study does not.  The measurements of the first, plus the second's times."""
-    import time
-
     from bem_solver._fft import solve_fft
     from bem_solver._xp import NumpyDevice, select_backend
     from scenes import load_scene
