@@ -338,13 +338,14 @@ def test_the_calibration_places_each_substrate_convention_on_its_own_axis(fake_r
     from validation.studies.calibrate.run import _lattice_features, _lattice_rows
 
     table = lattice_hooke_table(fake_report)
-    assert table.features == ["phi", "log_ep", "es_share"]
-    assert table.points == [pytest.approx([0.1, 1.0, 0.0]), pytest.approx([0.2, 1.0, 1.0])]
+    assert table.features == ["phi", "c_p", "es_share"]
+    c_p = 1.0 / (1.0 + 10.0)  # E_p = 10 E_l
+    assert table.points == [pytest.approx([0.1, c_p, 0.0]), pytest.approx([0.2, c_p, 1.0])]
     row = {**fake_report["rows"][0], "ratio": 1.0}
     both = {"rows": [row, fake_report["rows"][1]]}
     (_, xs), _ = list(_lattice_rows(both, _lattice_features(both)))
-    assert [x[-1] for x in xs] == [0.0, 1.0] and xs[0][:2] == pytest.approx([0.1, 0.0])
-    assert _lattice_features({"rows": [fake_report["rows"][0]]}) == ["phi", "log_ep"]
+    assert [x[-1] for x in xs] == [0.0, 1.0] and xs[0][:2] == pytest.approx([0.1, 0.5])
+    assert _lattice_features({"rows": [fake_report["rows"][0]]}) == ["phi", "c_p"]
 
 
 def test_csv_values_are_plain_numbers():

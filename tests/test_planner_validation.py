@@ -202,6 +202,29 @@ def test_lattice_sigma0_scenes_are_judged_against_fem3d_with_every_candidate(
     assert CALLS == [] and again["totals"]["accurate"] == 2
 
 
+def test_a_scene_judged_against_hooke_pillars_is_planned_without_the_hooke_error(scenes):
+    """A lattice judged against the Hooke BEMs' converged answer is planned without the
+    planner's Hooke error (which that judge cannot see) and with the measured candidates
+    only; a lattice-sigma0 scene keeps both; a single pillar (judged against the elastic
+    pillar) keeps the Hooke error."""
+    data = _data()
+    single = ErrorTable("model", ["bem-fft"], ["single"], [], [[]],
+                        {q: [HOOKE_OFF] for q in TRUTH}, component="hooke")
+    data.tables.append(single)
+    hooke_tables = lambda d: [t for t in d.tables if t.component == "hooke"]  # noqa: E731
+    assert hooke_tables(validate.judged_data(data, "lattice")) == hooke_tables(data)
+    assert hooke_tables(validate.judged_data(data, "single")) == hooke_tables(data)
+    assert hooke_tables(validate.judged_data(data, "multi")) == []
+    assert all(not c.get("source", "").startswith("hand")
+               for kind in ("multi", "single") for c in validate.judged_data(data, kind).candidates)
+    prepared = {e["name"]: p for e, p, *_ in validate.prepare(scenes, 0.01, ("F_T",), data)}
+    h = next(c for c in prepared["H"]["candidates"] if c["label"] == "hooke N=32")
+    assert "hooke" not in h["errors"]["F_T"]["parts"]
+    assert prepared["H"]["choice"]["within_tolerance"]  # 0.3 % of discretisation alone
+    a = next(c for c in prepared["A"]["candidates"] if c["label"] == "hooke N=32")
+    assert a["errors"]["F_T"]["parts"]["hooke"] == pytest.approx(HOOKE_OFF)
+
+
 def _row(kind="multi", accurate=True, cheap=True, **extra) -> dict:
     return {"name": extra.pop("name", "s"), "reference_kind": kind, "accurate": accurate,
             "cheap": cheap, "cheap_strict": cheap, **extra}

@@ -209,12 +209,12 @@ def _gecit_table(rows: list, scenes: list) -> ErrorTable:
         if row.get("status") != "ok":
             continue
         x = features(entry["scene"])
-        points.append([x["log_ep"], x["log_es"], x["aspect"]])
+        points.append([x["c_p"], x["c_s"], x["aspect"]])
         errors["F_T"].append(row["err_F_T"])
         errors["sigma0"].append(row["err_sigma0"])
     return ErrorTable(
         "model", HOOKE_MODELS, ["single", "multi"],
-        ["log_ep", "log_es", "aspect"], points, errors, component="hooke",
+        ["c_p", "c_s", "aspect"], points, errors, component="hooke",
         source="gecit: Hooke-spring BEM (Richardson) against the elastic-pillar FEM",
         note="measured on one pillar; applied to every pillar of a lattice until a lattice "
              "study (fem-3d) measures it there")
@@ -265,7 +265,7 @@ def _lattice_features(report: dict) -> list:
     report's rows span more than one indentation; and the substrate's place between the two
     conventions (``es_share``: 0 at E_s = E_l, 1 at E_s = E_p) when it holds E_s = E_p rows."""
     zetas = {row.get("zeta_um", LATTICE_ZETA_UM) for row in report["rows"]}
-    return ["phi", "log_ep"] + (["log_sag"] if len(zetas) > 1 else []) \
+    return ["phi", "c_p"] + (["log_sag"] if len(zetas) > 1 else []) \
         + (["es_share"] if _has_paper_rows(report) else [])
 
 

@@ -31,7 +31,13 @@ On the lattice-sigma0 scenes every candidate of the planner's data is eligible, 
 hand-entered ones (fem-3d and the elastic-pillar BEMs, whose ``source`` starts with "hand")
 included, and judged against fem-3d.  On the other scenes they are left out
 (:func:`measured_only`): there the reference has Hooke pillars, which would judge an
-elastic-pillar choice against the wrong physics.
+elastic-pillar choice against the wrong physics.  For the same reason the scenes whose
+reference has Hooke pillars (several pillars touch, no fem-3d) are planned without the
+planner's Hooke error (:func:`judged_data`): the judge measures each candidate against the
+Hooke pillar's own converged answer, so the Hooke error (which the lattice-sigma0 scenes
+judge) would only push the plan to finer rungs than the judged accuracy needs, or, where
+no rung is predicted within tolerance of the truth, to the cheapest one near the
+unavoidable error: a choice that says nothing about the planner's discretisation model.
 
 Every candidate predicted to cost at most :data:`RUN_FACTOR` times the planned one runs too
 (three timed repeats below 1 s), and every candidate that is one of the scene's reference
@@ -75,7 +81,7 @@ from ..lattice import FEM_LEVELS
 from ..tradeoff import reference_values
 
 __all__ = ["VALIDATION_SEED", "check_options", "estimate", "estimate_text", "fem3d_fits",
-           "judged_quantities", "measured_only", "miss_reasons", "prepare", "report_totals",
+           "judged_data", "judged_quantities", "measured_only", "miss_reasons", "prepare", "report_totals",
            "scene_counts", "sigma0_lattices", "summary_text", "validate_planner", "validation_scenes",
            "write_outputs"]
 
@@ -253,19 +259,38 @@ def measured_only(data: PlannerData) -> PlannerData:
     return replace(data, candidates=[c for c in data.candidates if not is_hand(c)])
 
 
+def judged_data(data: PlannerData, kind: str) -> PlannerData:
+    """The data a scene whose reference is of ``kind`` (:func:`_reference_kind`) is planned
+    with: every candidate for a lattice-sigma0 scene; else the measured ones
+    (:func:`measured_only`), and for a reference with Hooke pillars (``multi``) no Hooke
+    model-error table either (module docstring)."""
+    from dataclasses import replace
+
+    if kind == "lattice":
+        return data
+    measured = measured_only(data)
+    if kind != "multi":
+        return measured
+    return replace(measured, tables=[t for t in measured.tables
+                                     if not (t.kind == "model" and t.component == "hooke")])
+
+
 def prepare(scenes: list, tolerance: float = DEFAULT_TOLERANCE, quantities=DEFAULT_QUANTITIES,
             data: PlannerData | None = None) -> list:
     """Each scene planned, with its reference and candidate cases (nothing runs): a list of
     (entry, plan, reference cases, candidate cases).  The lattice-sigma0 scenes are planned
     with every candidate of ``data`` (default the shipped data) and request sigma0 too; the
-    others with its measured candidates only."""
+    others with its measured candidates only (:func:`judged_data`)."""
     full = load_data() if data is None else data
-    measured = measured_only(full)
+    by_kind = {}
     out = []
     for e in scenes:
         lattice = e.get("reference") == FEM3D
+        kind = "lattice" if lattice else regime(e["scene"])["name"]
+        if kind not in by_kind:
+            by_kind[kind] = judged_data(full, kind)
         qs = tuple(dict.fromkeys((*quantities, "sigma0"))) if lattice else tuple(quantities)
-        p = plan(e["scene"], tolerance, qs, data=full if lattice else measured)
+        p = plan(e["scene"], tolerance, qs, data=by_kind[kind])
         out.append((e, p, *_scene_cases(e, p)))
     return out
 
