@@ -256,6 +256,28 @@ def test_report_counts_and_the_reasons_of_each_miss():
                                       ("F_T",))["targets_met"]
 
 
+def test_a_scene_judged_on_fewer_quantities_than_requested_has_no_cost_verdict():
+    """Where a requested quantity has no reference, the cheapest candidate within tolerance
+    on the judged quantities is only a lower bound of the cheapest on all of them: the
+    scene's accuracy counts, its cost neither way (``cheap_any`` still counts it)."""
+    partial = _row("lattice", True, False, name="partial", time_s=3.0, cheapest="bem P=5",
+                   cheapest_time_s=0.1, cost_judged=False)
+    rows = [_row(name="ok"), _row(cheap=False, name="slow", time_s=3.0, cheapest="x",
+                                  cheapest_time_s=1.0), partial]
+    t = validate.report_totals(rows, 0.01, ("F_T", "sigma0"))
+    assert (t["judged"], t["accurate"], t["cost_judged"], t["cheap"]) == (3, 3, 2, 1)
+    assert t["cheap_share"] == 0.5 and t["cheap_any"] == 1
+    assert t["cheap_any_share"] == pytest.approx(1 / 3)
+    assert validate.miss_reasons(partial, 0.01) == []
+    assert validate.miss_reasons(rows[1], 0.01)[0].startswith("time:")
+    shown = [{"regime": "transition", "phi": 0.1, "zeta_um": 0.1, "ratio": 10.0,
+              "planned": "bem P=11", **r} for r in rows]
+    doc = {"rows": shown, "reference_text": {}, "misses": [], "totals": t}
+    text = validate.summary_text(doc)
+    assert "time not judged" in text and "cost: 1/2 within 2x" in text
+    assert "1/3 (33.3 %)" in text
+
+
 def test_lattice_sigma0_scenes_fit_fem3d_and_follow_the_seed(monkeypatch):
     data = load_data()
     fit = data.costs["fem-3d"]

@@ -46,8 +46,13 @@ scene passes on accuracy when the planned model's error is within tolerance for 
 requested quantity, and on cost when its measured time is within 2x of the cheapest
 candidate within tolerance (:data:`TIME_FLOOR` seconds count as equal: below it a contended
 machine's timings are noise).  A reference quantity whose band exceeds
-:data:`REFERENCE_BAND_MAX` of it judges nothing (:func:`judged_quantities`; the scene is
-judged on its other quantities, and the summary lists what was left out).  The cost is also
+:data:`REFERENCE_BAND_MAX` of it judges nothing (:func:`judged_quantities`; the scene's
+accuracy is judged on its other quantities, and the summary lists what was left out).  Its
+cost is then not judged: the cheapest candidate within tolerance on the judged quantities
+alone is only a lower bound of the cheapest within tolerance on every requested one, so a
+time beyond 2x of it may be no miss (the fresh seed 20261126 has five such lattices, and
+four of them counted as cost misses before; the report still gives that count, ``cheap_any``,
+beside the judged one).  The cost is also
 reported against the cheapest candidate whose accuracy holds on refinement (it and every
 finer rung of its model that ran within tolerance, :func:`_mark_settled`): a rung whose
 discretisation error happens to cancel the model error is within tolerance by luck.  The
@@ -380,15 +385,24 @@ def validate_planner(out: Path, engine: Engine | None = None, *, scenes=None,
 
 
 def _counts(rows: list) -> dict:
+    """Counts and shares: accuracy over the judged scenes, cost over those whose every
+    requested quantity was judged (``cost_judged``: elsewhere the cheapest candidate within
+    tolerance on all of them is unknown); ``cheap_any`` counts cost on every judged scene,
+    against the cheapest within tolerance on the quantities judged there (a lower bound of
+    the cheapest on all of them, so a miss there may be none)."""
     judged = [r for r in rows if r["accurate"] is not None]
+    costed = [r for r in judged if r.get("cost_judged", True)]
     out = {"scenes": len(rows), "judged": len(judged),
            "accurate": sum(r["accurate"] for r in judged),
-           "cheap": sum(bool(r["cheap"]) for r in judged),
-           "cheap_strict": sum(bool(r["cheap_strict"]) for r in judged),
-           "cheap_settled": sum(bool(r.get("cheap_settled")) for r in judged)}
+           "cost_judged": len(costed),
+           "cheap": sum(bool(r["cheap"]) for r in costed),
+           "cheap_strict": sum(bool(r["cheap_strict"]) for r in costed),
+           "cheap_settled": sum(bool(r.get("cheap_settled")) for r in costed),
+           "cheap_any": sum(bool(r["cheap"]) for r in judged)}
     out["accurate_share"] = out["accurate"] / max(1, len(judged))
-    out["cheap_share"] = out["cheap"] / max(1, len(judged))
-    out["cheap_settled_share"] = out["cheap_settled"] / max(1, len(judged))
+    out["cheap_share"] = out["cheap"] / max(1, len(costed))
+    out["cheap_settled_share"] = out["cheap_settled"] / max(1, len(costed))
+    out["cheap_any_share"] = out["cheap_any"] / max(1, len(judged))
     return out
 
 
@@ -415,6 +429,8 @@ def miss_reasons(row: dict, tolerance: float) -> list:
             f"{q} off by {_pct(row['actual'][q])} (predicted {_pct(row['predicted'].get(q))})"
             for q in over) + f" > {_pct(tolerance)}" if over
             else "the planned run did not converge"))
+    if not row.get("cost_judged", True):
+        return out
     if row["cheap"] is False:
         out.append(f"time: {row['time_s']:.3g} s, over {TIME_FACTOR:g}x the cheapest "
                    f"candidate within tolerance, {row['cheapest']} "
@@ -477,7 +493,7 @@ def _judge(entry, p, ref_outcomes, cand_outcomes, tolerance) -> dict:
                        + "; ".join(f"{q}: {why}" for q, why in row["unjudged"].items()))
         return row
     row.update(actual=planned["errors"], time_s=planned["time_s"],
-               accurate=bool(planned["within"]))
+               accurate=bool(planned["within"]), cost_judged=not unjudged)
     ok = [t for t in tried if t.get("within")]
     for suffix, pool in (("", ok), ("_settled", [t for t in ok if t.get("settled")])):
         if not pool:
@@ -516,8 +532,8 @@ def _mark_settled(tried: list) -> None:
 
 CSV_COLUMNS = ("name", "family", "regime", "reference_kind", "phi", "zeta_um", "ratio",
                "planned", "predicted_F_T", "predicted_sigma0", "actual_F_T", "actual_sigma0",
-               "accurate", "time_s", "cheapest", "cheapest_time_s", "cheap", "cheap_strict",
-               "cheapest_settled", "cheapest_settled_time_s", "cheap_settled")
+               "accurate", "time_s", "cost_judged", "cheapest", "cheapest_time_s", "cheap",
+               "cheap_strict", "cheapest_settled", "cheapest_settled_time_s", "cheap_settled")
 
 
 def _flat_row(r: dict) -> dict:
@@ -541,7 +557,8 @@ def summary_text(doc: dict) -> str:
         act = max(r["actual"].values()) if r.get("actual") else None
         verdict = ("not judged" if r["accurate"] is None else
                    ("ok" if r["accurate"] else "MISS accuracy")
-                   + ("" if r["cheap"] in (None, True) else ", MISS time"))
+                   + (", time not judged" if not r.get("cost_judged", True) else
+                      "" if r["cheap"] in (None, True) else ", MISS time"))
         regime_text = r["regime"] + (" *" if r["reference_kind"] == "lattice" else "")
         lines.append(
             f"{r['name']:<7}{regime_text:<16}{_num(r['phi'], '.3g'):>8}"
@@ -558,25 +575,29 @@ def summary_text(doc: dict) -> str:
                  " (and sigma0 on the lattice-sigma0 scenes)")
               + f" ({100 * t['accurate_share']:.1f} %; target "
               f"{100 * TARGETS['accurate_share']:g} %)",
-              f"cost: {t['cheap']}/{t['judged']} within {TIME_FACTOR:g}x of the cheapest "
-              f"candidate within tolerance, or under {TIME_FLOOR:g} s "
-              f"({100 * t['cheap_share']:.1f} %; target {100 * TARGETS['cheap_share']:g} %); "
-              f"strictly within {TIME_FACTOR:g}x: {t['cheap_strict']}/{t['judged']}",
+              f"cost: {t['cheap']}/{t['cost_judged']} within {TIME_FACTOR:g}x of the "
+              f"cheapest candidate within tolerance, or under {TIME_FLOOR:g} s "
+              f"({100 * t['cheap_share']:.1f} %; target {100 * TARGETS['cheap_share']:g} %), "
+              f"over the scenes whose every requested quantity was judged; strictly within "
+              f"{TIME_FACTOR:g}x: {t['cheap_strict']}/{t['cost_judged']}; on every judged "
+              f"scene, against the cheapest within tolerance on the quantities judged there: "
+              f"{t['cheap_any']}/{t['judged']} ({100 * t['cheap_any_share']:.1f} %)",
               f"cost against the cheapest candidate whose accuracy holds on refinement (it "
               f"and every finer rung of its model within tolerance; no cancellation of "
-              f"errors at one rung): {t['cheap_settled']}/{t['judged']} "
+              f"errors at one rung): {t['cheap_settled']}/{t['cost_judged']} "
               f"({100 * t['cheap_settled_share']:.1f} %)",
               f"lattice-sigma0 scenes: {lat['judged']}/{lat['scenes']} judged, "
-              f"{lat['accurate']} within tolerance, {lat['cheap']} within "
-              f"{TIME_FACTOR:g}x of the cheapest",
+              f"{lat['accurate']} within tolerance, {lat['cheap']}/{lat['cost_judged']} "
+              f"within {TIME_FACTOR:g}x of the cheapest",
               f"targets {'met' if t['targets_met'] else 'MISSED'}; "
               f"{t['judged']}/{t['scenes']} scenes judged",
               "references: " + "; ".join(f"{k}: {v}" for k, v in doc["reference_text"].items())]
     unjudged = [(r["name"], q, why) for r in doc["rows"]
                 for q, why in (r.get("unjudged") or {}).items()]
     if unjudged:
-        lines.append(f"quantities not judged ({len(unjudged)}; the scene is judged on the "
-                     "others):")
+        lines.append(f"quantities not judged ({len(unjudged)}; the scene's accuracy is "
+                     "judged on the others, its cost not at all: the cheapest candidate "
+                     "within tolerance on every requested quantity is unknown there):")
         lines += [f"  {name} {q}: no reference, {why}" for name, q, why in unjudged]
     if doc["misses"]:
         lines.append(f"misses ({len(doc['misses'])}):")
