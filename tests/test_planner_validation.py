@@ -249,6 +249,7 @@ def test_report_counts_and_the_reasons_of_each_miss():
                                "fem-3d mesh=2.83 (1 s)"]
     assert reasons["unjudged"] == ["not judged: no reference (x) for sigma0"]
     assert reasons["lost"][1] == "time: no candidate was within tolerance"
+    assert t["time_over"] == {"misses": 1, "total_s": 2.0, "max_s": 2.0, "max_scene": "slow"}
     # the targets: 95 % within tolerance and 90 % cheap, of the judged scenes
     good = [_row(name=str(i)) for i in range(19)]
     assert validate.report_totals(good + [_row(cheap=False)], 0.01, ("F_T",))["targets_met"]

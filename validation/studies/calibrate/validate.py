@@ -90,7 +90,10 @@ __all__ = ["VALIDATION_SEED", "check_options", "estimate", "estimate_text", "fem
            "scene_counts", "sigma0_lattices", "summary_text", "validate_planner", "validation_scenes",
            "write_outputs"]
 
-VALIDATION_SEED = 20251126
+# The seed the shipped data was validated on.  Seeds 20251126 and 20251201 validated earlier
+# data, and their runs then set the elastic BEMs' cost factors (cost_models.json): they are
+# no longer unseen.
+VALIDATION_SEED = 20261126
 DEFAULT_SCENES, DEFAULT_LATTICE = 60, 15
 MAX_SCENES, MAX_LATTICE, MAX_SEED = 500, 100, 2**32 - 1
 # The scenes besides the lattice-sigma0 ones, as paper's family : stiff substrate : flat
@@ -413,6 +416,12 @@ def report_totals(rows: list, tolerance: float, quantities) -> dict:
            "lattice": _counts([r for r in rows if r["reference_kind"] == "lattice"]),
            "targets": dict(TARGETS)}
     out["targets_met"] = all(out[k] >= v for k, v in TARGETS.items())
+    over = [(r["time_s"] - r["cheapest_time_s"], r["name"]) for r in rows
+            if r["cheap"] is False and r.get("cost_judged", True)
+            and r.get("time_s") is not None and r.get("cheapest_time_s") is not None]
+    out["time_over"] = {"misses": len(over), "total_s": sum(v for v, _ in over),
+                        "max_s": max(over)[0] if over else 0.0,
+                        "max_scene": max(over)[1] if over else None}
     return out
 
 
@@ -586,6 +595,10 @@ def summary_text(doc: dict) -> str:
               f"and every finer rung of its model within tolerance; no cancellation of "
               f"errors at one rung): {t['cheap_settled']}/{t['cost_judged']} "
               f"({100 * t['cheap_settled_share']:.1f} %)",
+              *([f"time the cost misses spend beyond the cheapest candidate within "
+                 f"tolerance: {t['time_over']['total_s']:.3g} s in all, at most "
+                 f"{t['time_over']['max_s']:.3g} s ({t['time_over']['max_scene']})"]
+                if t.get("time_over", {}).get("misses") else []),
               f"lattice-sigma0 scenes: {lat['judged']}/{lat['scenes']} judged, "
               f"{lat['accurate']} within tolerance, {lat['cheap']}/{lat['cost_judged']} "
               f"within {TIME_FACTOR:g}x of the cheapest",
