@@ -97,7 +97,8 @@ def gecit_study(scenes: list[dict], cache_dir: Path, *, engine: Engine | None = 
     bem_opts = [bem_ladder.options(k, elements_per_diameter) for k in range(bem_levels)]
     batch = []
     for i, c in enumerate(scenes, 1):
-        tag = f"{i}/{len(scenes)} E_p/E_l={c['ratio']:g} h/d={c['aspect']:g}"
+        tag = f"{i}/{len(scenes)} E_p/E_l={c['ratio']:g} h/d={c['aspect']:g}" + (
+            f" zeta={c['zeta_um']:g} um" if c.get("zeta_um") is not None else "")
         batch.append(Case(FEM, c["scene"], fem_opts, tag=tag))
         batch += [Case(BEM, c["scene"], o, tag=tag) for o in bem_opts]
     own = engine is None

@@ -11,7 +11,8 @@ Every number comes from studies run on the engine (resumable, cached in ``OUT/ca
   (:func:`validation.studies.tradeoff.reference_values`), the elastic pillar's the FEM's
   Richardson estimate over mesh_size 2, 1, 0.5;
 - the Gecit-like study (:func:`validation.studies.gecit.gecit_study`) on a full grid of
-  E_p/E_l x E_s/E_l x h/d: the Hooke pillar's error against the elastic pillar;
+  E_p/E_l x E_s/E_l x h/d x zeta (:data:`.scenes.GECIT_ZETAS_UM`): the Hooke pillar's error
+  against the elastic pillar;
 - single pillars over zeta and E_p/E_l: the spring model's flat punch against the curved lens
   (the dense BEM's Richardson estimate);
 - the lattice sample again: the Hertz-like closed form against the lattice;
@@ -39,7 +40,7 @@ from outcome import package_version
 from ...engine import Case, Engine, code_version
 from ...registry import MODELS, QUANTITIES, candidates, quantity_values
 from ...analysis.verification import gci_three
-from .scenes import flat_scenes, gecit_scenes, lattice_scenes, punch_scenes
+from .scenes import GECIT_ZETAS_UM, flat_scenes, gecit_scenes, lattice_scenes, punch_scenes
 from ...planner.costs import size_terms
 from ...planner.features import features, regime
 from ...planner.tables import DATA_FORMAT, DEFAULT_POLICY, LOO_RELEVANT, CostFit, ErrorTable
@@ -204,17 +205,22 @@ def _closed_form_tables(records: list) -> list:
 
 
 def _gecit_table(rows: list, scenes: list) -> ErrorTable:
+    """The Hooke pillar's error on one pillar, over the Gecit grid's stiffnesses and aspect
+    ratios, and over the lens sag when the grid spans several indentations."""
+    names = ["c_p", "c_s", "aspect"]
+    if len({e["scene"].indentation_m for e in scenes}) > 1:
+        names.append("log_sag")
     points, errors = [], {"F_T": [], "sigma0": []}
     for row, entry in zip(rows, scenes):
         if row.get("status") != "ok":
             continue
         x = features(entry["scene"])
-        points.append([x["c_p"], x["c_s"], x["aspect"]])
+        points.append([x[n] for n in names])
         errors["F_T"].append(row["err_F_T"])
         errors["sigma0"].append(row["err_sigma0"])
     return ErrorTable(
         "model", HOOKE_MODELS, ["single", "multi"],
-        ["c_p", "c_s", "aspect"], points, errors, component="hooke",
+        names, points, errors, component="hooke",
         source="gecit: Hooke-spring BEM (Richardson) against the elastic-pillar FEM",
         note="measured on one pillar; applied to every pillar of a lattice until a lattice "
              "study (fem-3d) measures it there")
@@ -657,7 +663,8 @@ def calibrate(out: Path, engine: Engine | None = None, *, n_lattice: int = 40,
     sample = (lattice_scenes(n_lattice, seed, "pillars", "c")
               + lattice_scenes(n_stiff, seed + 1, "lens", "k") + flat_scenes()[:2 if quick else 4])
     punches = punch_scenes(zetas_um=(0.005, 0.05, 0.5)) if quick else punch_scenes()
-    gecit = gecit_scenes((1e-3, 1.0, math.inf), (0.5,), (1.0,)) if quick else gecit_scenes()
+    gecit = gecit_scenes((1e-3, 1.0, math.inf), (0.5,), (1.0,)) if quick else \
+        gecit_scenes(zetas_um=GECIT_ZETAS_UM)
     try:
         batches = [_cases_of(e) for e in sample]
         punch_batches = [[Case("bem", e["scene"], MODELS["bem"].ladder.options_at(v),

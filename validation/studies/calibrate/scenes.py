@@ -95,25 +95,37 @@ def flat_scenes(zeta_over_r=(1.5e-4, 1e-2, 0.1, 0.4)) -> list:
     return out
 
 
+# The Gecit grid's indentations (um): the preset's 0.3 and down to the bottom of the
+# sample's range (PAPER_RANGES).  The Hooke pillar's sigma0 error depends on it: for
+# E_p = 1e3 E_l on a substrate as soft as the lens (h/d = 0.5) it is -1.0 % at 0.3 um,
+# -7.8 % at 0.03 um and -28 % at 0.005 um; for E_s = E_p = 100 E_l, -1.4, -1.3 and -0.8 %.
+GECIT_ZETAS_UM = (0.3, 0.05, 0.015, 0.005)
+
+
 def gecit_scenes(ratios=(1e-3, 1e-2, 0.1, 1.0, 10.0, 100.0, 1e3, math.inf),
-                 aspects=(0.25, 0.5, 1.0), substrates=None) -> list:
-    """The Gecit-like study on a full grid of E_p/E_l x E_s/E_l x h/d on the single-pillar
-    preset (``substrates``, as ratios E_s/E_l, default the same as ``ratios``; ``inf`` is a
-    rigid body, which fem-axisym represents exactly where a finite 1e6 contrast can miss its
-    linear residual): rows for :func:`validation.studies.gecit.gecit_study` (``ratio``,
-    ``aspect``, ``scene``).  A full grid, so that the paper's diagonal E_s = E_p and a stiff
-    substrate are both interpolated along measured lines."""
+                 aspects=(0.25, 0.5, 1.0), substrates=None, zetas_um=(None,)) -> list:
+    """The Gecit-like study on a full grid of E_p/E_l x E_s/E_l x h/d (x zeta) on the
+    single-pillar preset (``substrates``, as ratios E_s/E_l, default the same as ``ratios``;
+    ``inf`` is a rigid body, which fem-axisym represents exactly where a finite 1e6 contrast
+    can miss its linear residual; ``zetas_um``, the indentations, None the preset's): rows for
+    :func:`validation.studies.gecit.gecit_study` (``ratio``, ``aspect``, ``zeta_um``,
+    ``scene``).  A full grid, so that the paper's diagonal E_s = E_p and a stiff substrate
+    are both interpolated along measured lines."""
     def modulus(part, ratio):
         return f"{part}.rigid=true" if math.isinf(ratio) else f"{part}.E_Pa={E_LENS * ratio!r}"
 
     out = []
-    for aspect in aspects:
-        for sub in (ratios if substrates is None else substrates):
-            for ratio in ratios:
-                sets = [modulus("pillars", ratio), modulus("substrate", sub),
-                        f"pillars.height_um={4.0 * aspect!r}"]
-                out.append({"ratio": ratio, "aspect": aspect, "substrate_ratio": sub,
-                            "scene": load_scene("single-pillar", sets)})
+    for zeta in zetas_um:
+        for aspect in aspects:
+            for sub in (ratios if substrates is None else substrates):
+                for ratio in ratios:
+                    sets = [modulus("pillars", ratio), modulus("substrate", sub),
+                            f"pillars.height_um={4.0 * aspect!r}"]
+                    if zeta is not None:
+                        sets.append(f"load.indentation_um={zeta!r}")
+                    scene = load_scene("single-pillar", sets)
+                    out.append({"ratio": ratio, "aspect": aspect, "substrate_ratio": sub,
+                                "zeta_um": scene.indentation_m * 1e6, "scene": scene})
     return out
 
 
