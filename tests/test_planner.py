@@ -151,7 +151,8 @@ def test_regimes_of_the_presets():
     x = features(load_scene("single-pillar", ["pillars.rigid=true"]))
     assert x["w"] == 1.0 and x["log_ep"] == 12.0 and x["c_p"] == 0.0
     lens = load_scene("single-pillar").lens.material.E_Pa
-    x = features(load_scene("single-pillar", [f"pillars.E_Pa={lens}", f"substrate.E_Pa={9 * lens}"]))
+    x = features(load_scene("single-pillar",
+                            [f"pillars.E_Pa={lens}", f"substrate.E_Pa={9 * lens}"]))
     assert x["c_p"] == pytest.approx(0.5, rel=1e-12) and x["c_s"] == pytest.approx(0.1, rel=1e-12)
 
 

@@ -86,9 +86,9 @@ from ..lattice import FEM_LEVELS
 from ..tradeoff import reference_values
 
 __all__ = ["VALIDATION_SEED", "check_options", "estimate", "estimate_text", "fem3d_fits",
-           "judged_data", "judged_quantities", "measured_only", "miss_reasons", "prepare", "report_totals",
-           "scene_counts", "sigma0_lattices", "summary_text", "validate_planner", "validation_scenes",
-           "write_outputs"]
+           "judged_data", "judged_quantities", "measured_only", "miss_reasons", "prepare",
+           "report_totals", "scene_counts", "sigma0_lattices", "summary_text",
+           "validate_planner", "validation_scenes", "write_outputs"]
 
 # The seed the shipped data was validated on.  Seeds 20251126, 20251201 and 20261126
 # validated earlier data, and their runs then set the elastic BEMs' cost factors
@@ -194,8 +194,12 @@ def _case(model, scene, options, tag) -> Case:
                 tag=tag)
 
 
-def _reference_kind(entry: dict, p: dict) -> str:
-    return "lattice" if entry.get("reference") == FEM3D else p["regime"]["name"]
+def _reference_kind(entry: dict, p: dict | None = None) -> str:
+    """"lattice" for a lattice-sigma0 scene, else the scene's regime (from its plan ``p``
+    when given)."""
+    if entry.get("reference") == FEM3D:
+        return "lattice"
+    return (p["regime"] if p is not None else regime(entry["scene"]))["name"]
 
 
 def _scene_cases(entry: dict, p: dict) -> tuple[list, list]:
@@ -294,8 +298,8 @@ def prepare(scenes: list, tolerance: float = DEFAULT_TOLERANCE, quantities=DEFAU
     by_kind = {}
     out = []
     for e in scenes:
-        lattice = e.get("reference") == FEM3D
-        kind = "lattice" if lattice else regime(e["scene"])["name"]
+        kind = _reference_kind(e)
+        lattice = kind == "lattice"
         if kind not in by_kind:
             by_kind[kind] = judged_data(full, kind)
         qs = tuple(dict.fromkeys((*quantities, "sigma0"))) if lattice else tuple(quantities)
