@@ -107,9 +107,10 @@ bench-engine: $(STAMP)
 bench-figures: $(STAMP)
 	$(PY) -m validation.bench.figures --out $(OUT)/bench-figures
 
-# The planner's error and cost models, measured (convergence ladders, Gecit grid, closed forms,
-# FEM truncation, the lattice study's Hooke error; resumable; about 2 h, 1.5 of them the lattice
-# study) and installed as the package's data (validation/planner/data/*.json).
+# The planner's error and cost models, measured (convergence ladders, Gecit grid at four
+# indentations, closed forms, FEM truncation, the lattice study's Hooke error; resumable; about
+# 2 h, 1.5 of them the lattice study, 10 minutes the rest on a fresh cache) and installed as the
+# package's data (validation/planner/data/*.json).
 # The lattice studies calibrate reads, comma-separated (the first holds a shared scene).
 empty :=
 comma := ,
@@ -121,7 +122,8 @@ calibrate: study-lattice
 
 # The planner validated on 60 seeded scenes it never saw, 15 of them lattices with sigma0
 # requested judged against fem-3d with every candidate (--scenes, --lattice-scenes, --seed;
-# --dry-run prints the estimated time only; resumable; about half an hour of solves).
+# --dry-run prints the estimated time only; resumable; about 16 minutes of solves by the
+# planner's estimate, 8-9 minutes on this 2-core machine).
 validate-planner: $(STAMP)
 	$(VENV)/bin/pillar-xval validate-plan --out $(OUT)/validate-plan
 
