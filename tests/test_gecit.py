@@ -199,7 +199,7 @@ def test_the_hooke_error_on_a_soft_substrate_grows_as_the_indentation_falls(tmp_
         doc = gecit_study(scenes, tmp_path, engine=engine, mesh_size=1.0, bem_levels=3,
                           elements_per_diameter=SINGLE_REFERENCE_RUNGS[0])
     err = {(e["ratio"], e["zeta_um"]): r["err_sigma0"] for e, r in zip(scenes, doc["rows"])}
-    soft_deep, soft_shallow = (err[(1e3, z)] for z in (scenes[0]["zeta_um"], scenes[2]["zeta_um"]))
+    soft_deep, soft_shallow = (err[(1e3, scenes[i]["zeta_um"])] for i in (0, 2))
     assert abs(soft_deep) < 0.02 and soft_shallow < -0.15
     assert all(abs(v) < 0.02 for (ratio, _), v in err.items() if ratio == 100.0)
     table = _gecit_table(doc["rows"], scenes)

@@ -295,15 +295,12 @@ def prepare(scenes: list, tolerance: float = DEFAULT_TOLERANCE, quantities=DEFAU
     with every candidate of ``data`` (default the shipped data) and request sigma0 too; the
     others with its measured candidates only (:func:`judged_data`)."""
     full = load_data() if data is None else data
-    by_kind = {}
     out = []
     for e in scenes:
         kind = _reference_kind(e)
-        lattice = kind == "lattice"
-        if kind not in by_kind:
-            by_kind[kind] = judged_data(full, kind)
-        qs = tuple(dict.fromkeys((*quantities, "sigma0"))) if lattice else tuple(quantities)
-        p = plan(e["scene"], tolerance, qs, data=by_kind[kind])
+        qs = tuple(dict.fromkeys((*quantities, "sigma0"))) if kind == "lattice" \
+            else tuple(quantities)
+        p = plan(e["scene"], tolerance, qs, data=judged_data(full, kind))
         out.append((e, p, *_scene_cases(e, p)))
     return out
 
@@ -424,9 +421,9 @@ def report_totals(rows: list, tolerance: float, quantities) -> dict:
     over = [(r["time_s"] - r["cheapest_time_s"], r["name"]) for r in rows
             if r["cheap"] is False and r.get("cost_judged", True)
             and r.get("time_s") is not None and r.get("cheapest_time_s") is not None]
+    worst_s, worst = max(over, default=(0.0, None))
     out["time_over"] = {"misses": len(over), "total_s": sum(v for v, _ in over),
-                        "max_s": max(over)[0] if over else 0.0,
-                        "max_scene": max(over)[1] if over else None}
+                        "max_s": worst_s, "max_scene": worst}
     return out
 
 
