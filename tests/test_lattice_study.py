@@ -51,7 +51,7 @@ def coarse_compliance(monkeypatch, tmp_path_factory):
 def test_one_point_of_the_study_on_the_real_models(tmp_path, coarse_compliance):
     point = study.LatticePoint(0.03, 1.0)
     levels = {"fem_levels": study.QUICK_FEM_LEVELS, "bem_levels": study.QUICK_BEM_LEVELS,
-              "dense_levels": study.QUICK_DENSE_LEVELS}
+              "dense_levels": study.QUICK_DENSE_LEVELS, "fft_rungs": study.QUICK_FFT_RUNGS}
     with Engine("serial", quiet=True) as engine:
         report = study.lattice_study(tmp_path, engine=engine, points=[point], **levels)
         row = report["rows"][0]
@@ -117,7 +117,7 @@ HOOKE_OFF = 0.10
 ELASTIC_OFF = {0.1: 0.004, 0.2: 0.02}  # by Phi: within every target, then F_T's 1 % missed
 FORCES = {(0, 0): 4.0, (1, 0): 1.0, (0, 1): 1.0, (2, 1): 0.25}  # ring 0, 1, 1, 2 (shares)
 FAKE_LEVELS = {"fem_levels": (2.0, 1.41, 1.0), "bem_levels": (8, 16, 32),
-               "dense_levels": (11, 21)}
+               "dense_levels": (11, 21), "fft_rungs": (12, 24)}
 
 
 def _fake_result(model, scene, factor, disc):
@@ -213,7 +213,8 @@ def test_both_bems_climb_the_same_ladder_and_hooke_keeps_its_keys():
     elastic = [c.options for c in bem if c.options.get("pillars") == "elastic"]
     # the Hooke cases' options are what they were before the elastic column: same case keys
     assert hooke == [{"cells_per_diameter": n} for n in study.BEM_LEVELS]
-    assert [o["cells_per_diameter"] for o in elastic] == list(study.BEM_LEVELS)
+    # the elastic ladder, then its single rungs between the ladder's levels
+    assert [o["cells_per_diameter"] for o in elastic] == list(study.BEM_LEVELS + study.FFT_RUNGS)
 
 
 def test_a_target_is_the_tolerance_or_both_bands_where_wider():
@@ -280,6 +281,12 @@ def test_the_elastic_column_and_its_targets_on_fake_models(fake_report):
         assert [lv["elements_per_diameter"] for lv in row["elastic_dense_levels"]] == [11, 21]
         for lv in row["elastic_dense_levels"]:
             n = lv["elements_per_diameter"]
+            assert lv["converged"] and lv["F_T"] == pytest.approx(
+                1e-6 * scale * (1 + off) * (1 + C_BEM / n**2), rel=1e-12)
+        # the elastic bem-fft's single rungs between its ladder's levels, likewise
+        assert [lv["cells_per_diameter"] for lv in row["elastic_fft_rungs"]] == [12, 24]
+        for lv in row["elastic_fft_rungs"]:
+            n = lv["cells_per_diameter"]
             assert lv["converged"] and lv["F_T"] == pytest.approx(
                 1e-6 * scale * (1 + off) * (1 + C_BEM / n**2), rel=1e-12)
         assert row["zeta_um"] == study.ZETA_UM

@@ -491,6 +491,9 @@ def test_lattice_studies_supply_each_elastic_rung_error_on_a_zeta_axis(tmp_path)
             row["elastic_dense_levels"] = [{"elements_per_diameter": 11, "converged": True,
                                             "F_T": 1.0 + err(phi, ratio, zeta, 11),
                                             "sigma0": 1.0 + err(phi, ratio, zeta, 11)}]
+            row["elastic_fft_rungs"] = [{"cells_per_diameter": 24, "converged": True,
+                                         "F_T": 1.0 + err(phi, ratio, zeta, 24),
+                                         "sigma0": 1.0 + err(phi, ratio, zeta, 24)}]
         path = tmp_path / f"lattice-{zeta}.json"
         path.write_text(json.dumps(report))
         paths.append(path)
@@ -510,11 +513,16 @@ def test_lattice_studies_supply_each_elastic_rung_error_on_a_zeta_axis(tmp_path)
     rungs = {(t.models[0], tuple(sorted(t.option.items()))): t for t in tables
              if t.option.get("pillars") == "elastic" and t.kind == "discretisation"}
     assert set(rungs) == {("bem-fft", (("cells_per_diameter", 16), ("pillars", "elastic"))),
+                          ("bem-fft", (("cells_per_diameter", 24), ("pillars", "elastic"))),
                           ("bem-fft", (("cells_per_diameter", 32), ("pillars", "elastic"))),
                           ("bem", (("elements_per_diameter", 11), ("pillars", "elastic")))}
     dense = rungs[("bem", (("elements_per_diameter", 11), ("pillars", "elastic")))]
     assert dense.features == ["phi", "c_p", "log_sag"]
     sets = ["pillars.surface_fraction=0.3", "pillars.E_Pa=1.6e7", "substrate.E_Pa=1.6e6"]
+    # a single rung of the elastic bem-fft: its own measured error, like a ladder level's
+    rung24 = rungs[("bem-fft", (("cells_per_diameter", 24), ("pillars", "elastic")))]
+    x = features(load_scene("paper-fig3-sparse", sets + ["load.indentation_um=0.05"]))
+    assert rung24.predict(x, "sigma0")[0] == pytest.approx(err(0.3, 10.0, 0.05, 24), rel=1e-9)
     for zeta in (0.3, 0.05):  # on a node: the measured error itself
         x = features(load_scene("paper-fig3-sparse", sets + [f"load.indentation_um={zeta}"]))
         value, outside = dense.predict(x, "sigma0")

@@ -233,7 +233,8 @@ def test_a_recalibration_keeps_the_hand_entries(tmp_path):
     costs = {"format": DATA_FORMAT, "provenance": {},
              "models": {k: v for k, v in shipped_costs["models"].items() if k != "fem-3d"}}
     keep_hand_entries(errors, costs)
-    assert len(hand(errors["candidates"])) == len(hand(shipped_errors["candidates"])) == 8
+    # the elastic bem-fft at N = 16, 24, 32, 48, 64 and bem at P = 11, 15, 21; fem-3d's three
+    assert len(hand(errors["candidates"])) == len(hand(shipped_errors["candidates"])) == 11
     # 1 (the elastic BEM's bound on one pillar): the lattice studies measured the others (the
     # elastic BEMs' error at each rung and fem-3d's discretisation in lattices)
     assert len(hand(errors["tables"])) == len(hand(shipped_errors["tables"])) == 1
@@ -287,3 +288,29 @@ def test_the_planner_validation_judges_only_measured_candidates():
     assert p["candidates"] and not any(
         c["model"] == "fem-3d" or c.get("options", {}).get("pillars") == "elastic"
         for c in p["candidates"])
+
+
+def test_the_elastic_bems_rungs_are_as_close_in_time_as_the_hooke_bems(cached):
+    """The validation's cost target counts a plan within 2x of the cheapest candidate within
+    tolerance. A plan one rung finer than needed can meet it only if adjacent rungs are close
+    in time. The elastic BEMs' rungs (bem-fft N = 16, 24, 32, 48, 64; bem P = 11, 15, 21) are
+    as close as the Hooke BEMs' on a lattice: no step between adjacent rungs larger than the
+    Hooke family's largest (1.8-2.6x here). Without the single rungs N = 24, 48 and P = 15
+    the steps were 4x (N = 16 -> 32) and 3.6x (P = 11 -> 21)."""
+    p = plan(_lattice(), 0.05, "sigma0")
+    families = {}
+    for c in p["candidates"]:
+        if c["model"] not in ("bem", "bem-fft") or c["time_s"] is None:
+            continue
+        n = c["options"].get("cells_per_diameter") or c["options"]["elements_per_diameter"]
+        families.setdefault((c["model"], _elastic(c)), []).append((n, c["time_s"]))
+
+    def largest_step(rungs):
+        times = [t for _, t in sorted(rungs)]
+        return max(b / a for a, b in zip(times, times[1:]))
+
+    for model in ("bem", "bem-fft"):
+        elastic, hooke = families[(model, True)], families[(model, False)]
+        assert len(elastic) >= 3
+        assert largest_step(elastic) <= largest_step(hooke) * (1 + 1e-9), (
+            model, sorted(elastic), sorted(hooke))

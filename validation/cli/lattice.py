@@ -90,13 +90,15 @@ def run(args) -> int:
     points = study.default_points(args.surface_fractions, args.ratios, pairs, args.zeta_um)
     for point in points:
         point.scene()  # refuse a bad Phi or ratio before any solve, naming it
-    levels = ((study.QUICK_FEM_LEVELS, study.QUICK_BEM_LEVELS, study.QUICK_DENSE_LEVELS)
-              if args.quick else (study.FEM_LEVELS, study.BEM_LEVELS, study.DENSE_LEVELS))
+    levels = ((study.QUICK_FEM_LEVELS, study.QUICK_BEM_LEVELS, study.QUICK_DENSE_LEVELS,
+               study.QUICK_FFT_RUNGS) if args.quick else
+              (study.FEM_LEVELS, study.BEM_LEVELS, study.DENSE_LEVELS, study.FFT_RUNGS))
     out = check_out(args.out or Path("out") / "lattice")
     clear_outputs(out, study.OUTPUTS, "lattice")
     with engine_from_args(args, "lattice") as engine:
         report = study.lattice_study(out, engine=engine, points=points, fem_levels=levels[0],
-                                     bem_levels=levels[1], dense_levels=levels[2])
+                                     bem_levels=levels[1], dense_levels=levels[2],
+                                     fft_rungs=levels[3])
     names = study.write_report(report, out)
     if args.json:
         print_json(report)

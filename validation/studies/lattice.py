@@ -38,7 +38,8 @@ the FEM, per quantity ``fem``, ``fem_band``, ``bem``, ``bem_band``, ``difference
 / BEM, ``band`` = both bands over BEM, ``significant``) and ``elastic_quantities`` (the same
 for the elastic BEM); ``rings`` and ``elastic_rings`` (finest-level force ratios by ring);
 ``ring_forces`` and ``profile`` (the Richardson estimates the ring and profile targets judge);
-``targets``; each model's ``*_levels``; ``status``.
+``targets``; each model's ``*_levels`` (the elastic bem-fft's single rungs in
+``elastic_fft_rungs``); ``status``.
 
 All cases run on the engine, so the study resumes after an interruption.
 """
@@ -72,13 +73,18 @@ FEM_LEVELS = (2.83, 2.0, 1.41)
 # cells) where the dense model's edge-cut pattern makes its order wobble.  Both BEMs climb it.
 BEM_LEVELS = (16, 32, 64)
 QUICK_FEM_LEVELS, QUICK_BEM_LEVELS = (4.0, 2.83), (8, 16)
-# The dense elastic-pillar BEM at the planner's rungs (its candidates "bem P=11 elastic" and
+# The dense elastic-pillar BEM at the planner's rungs (its candidates "bem P=11 elastic" ...
 # "bem P=21 elastic", same options): single levels, not a ladder; each is set against fem-3d's
-# estimate, so the planner reads its error in a lattice directly (calibrate).
+# estimate, so the planner reads its error in a lattice directly (calibrate).  P = 15 and the
+# elastic bem-fft's single levels FFT_RUNGS, between its ladder's levels, put the elastic rungs
+# as close in time as the Hooke BEMs' (1.8-2.6x a step, against 3.6x from P = 11 to 21 and 4x
+# from N = 16 to 32): a plan one rung finer than needed then stays near 2x of the cheapest.
 DENSE_MODEL = "bem"
-DENSE_LEVELS = (11, 21)
+DENSE_LEVELS = (11, 15, 21)
 QUICK_DENSE_LEVELS = (11,)
 DENSE_OPTIONS = {"cells": "covered", "pillars": ELASTIC}
+FFT_RUNGS = (24, 48)
+QUICK_FFT_RUNGS = ()
 
 # Substrate conventions: the lens material (the grid) or the pillars' (the paper's Table 1).
 LENS, PILLAR = "E_s = E_l", "E_s = E_p"
@@ -158,9 +164,9 @@ def default_points(phis=PHIS, ratios=RATIOS, pairs=None,
 
 
 def cases(point: LatticePoint, fem_levels=FEM_LEVELS, bem_levels=BEM_LEVELS,
-          dense_levels=DENSE_LEVELS) -> list[Case]:
-    """fem-3d's levels, the Hooke BEM's, the elastic BEM's (same cells per diameter), then
-    the dense elastic BEM's."""
+          dense_levels=DENSE_LEVELS, fft_rungs=FFT_RUNGS) -> list[Case]:
+    """fem-3d's levels, the Hooke BEM's, the elastic BEM's (same cells per diameter), the
+    dense elastic BEM's, then the elastic bem-fft's single rungs."""
     scene = point.scene()
     out = [Case(FEM_MODEL, scene, {"mesh_size": float(s)}, tag=f"{point.label} fem")
            for s in fem_levels]
@@ -169,15 +175,17 @@ def cases(point: LatticePoint, fem_levels=FEM_LEVELS, bem_levels=BEM_LEVELS,
                      tag=f"{point.label} {kind}") for n in bem_levels]
     out += [Case(DENSE_MODEL, scene, {"elements_per_diameter": int(n), **DENSE_OPTIONS},
                  tag=f"{point.label} dense {ELASTIC}") for n in dense_levels]
+    out += [Case(BEM_MODEL, scene, {"cells_per_diameter": int(n), **BEM_OPTIONS[ELASTIC]},
+                 tag=f"{point.label} {ELASTIC} rung") for n in fft_rungs]
     return out
 
 
-def _dense_levels(outcomes) -> list[dict]:
-    """The dense elastic BEM's levels: each one's quantities, or the error that stopped it
-    (a failed level is reported, not judged)."""
+def _single_levels(outcomes, option: str) -> list[dict]:
+    """An elastic BEM's single levels (its ``option`` names each): each one's quantities, or
+    the error that stopped it (a failed level is reported, not judged)."""
     out = []
     for o in outcomes:
-        level = {"elements_per_diameter": o.case.options["elements_per_diameter"]}
+        level = {option: o.case.options[option]}
         if o.ok:
             level.update(converged=bool(o.result.converged),
                          wall_time_s=o.result.wall_time_s, **quantity_values(o.result))
@@ -385,7 +393,7 @@ def targets_met(rows: list[dict]) -> dict:
 
 
 def compare_point(point: LatticePoint, fem_outcomes, bem_outcomes, elastic_outcomes=(),
-                  dense_outcomes=()) -> dict:
+                  dense_outcomes=(), rung_outcomes=()) -> dict:
     """One scene of the study: the three ladders, each BEM's differences beside the bands, the
     rings, the profile and the elastic BEM's targets."""
     fem = _ladder(fem_outcomes, "mesh_size", 1.0)
@@ -418,7 +426,9 @@ def compare_point(point: LatticePoint, fem_outcomes, bem_outcomes, elastic_outco
         row["elastic_rings"] = _rings(fem, good[ELASTIC])
         row["elastic_levels"] = good[ELASTIC]["levels"]
     if dense_outcomes:
-        row["elastic_dense_levels"] = _dense_levels(dense_outcomes)
+        row["elastic_dense_levels"] = _single_levels(dense_outcomes, "elements_per_diameter")
+    if rung_outcomes:
+        row["elastic_fft_rungs"] = _single_levels(rung_outcomes, "cells_per_diameter")
     if good:
         radius = point.scene().pillars.diameter_m / 2.0
         row["ring_forces"] = _ring_estimates(fem, good)
@@ -434,7 +444,8 @@ def compare_point(point: LatticePoint, fem_outcomes, bem_outcomes, elastic_outco
 
 
 def lattice_study(folder, *, engine: Engine | None = None, points=None, fem_levels=FEM_LEVELS,
-                  bem_levels=BEM_LEVELS, dense_levels=DENSE_LEVELS) -> dict:
+                  bem_levels=BEM_LEVELS, dense_levels=DENSE_LEVELS,
+                  fft_rungs=FFT_RUNGS) -> dict:
     """Run (or resume) the study into ``folder``/cases; returns the JSON-ready report.
     ``points`` default to :func:`default_points` (the E_s = E_l grid and the E_s = E_p
     scenes); they share one indentation."""
@@ -446,7 +457,8 @@ def lattice_study(folder, *, engine: Engine | None = None, points=None, fem_leve
         raise InputError(f"lattice study: the scenes have indentations {sorted(zetas)} um; "
                          "one study runs at one zeta")
     engine = engine or Engine("serial")
-    all_cases = [c for p in points for c in cases(p, fem_levels, bem_levels, dense_levels)]
+    all_cases = [c for p in points
+                 for c in cases(p, fem_levels, bem_levels, dense_levels, fft_rungs)]
     # Cheap cases first: the Hooke BEM, then the elastic BEMs (2-3x the Hooke time, and one
     # pillar compliance per kind, cached), then the FEM from coarse to fine: a long run
     # shows its BEM columns early and an interruption loses at most one FEM solve.
@@ -459,14 +471,14 @@ def lattice_study(folder, *, engine: Engine | None = None, points=None, fem_leve
     for i, o in zip(order, ran):
         outcomes[i] = o
     rows, k = [], 0
-    nf, nb, nd = len(fem_levels), len(bem_levels), len(dense_levels)
+    sizes = (len(fem_levels), len(bem_levels), len(bem_levels), len(dense_levels),
+             len(fft_rungs))
     for p in points:
-        fem_o = outcomes[k:k + nf]
-        hooke_o = outcomes[k + nf:k + nf + nb]
-        elastic_o = outcomes[k + nf + nb:k + nf + 2 * nb]
-        dense_o = outcomes[k + nf + 2 * nb:k + nf + 2 * nb + nd]
-        k += nf + 2 * nb + nd
-        rows.append(compare_point(p, fem_o, hooke_o, elastic_o, dense_o))
+        parts = []
+        for n in sizes:
+            parts.append(outcomes[k:k + n])
+            k += n
+        rows.append(compare_point(p, *parts))
     conventions = [c for c in CONVENTIONS if any(p.substrate == c for p in points)]
     return {"zeta_um": zetas.pop(), "E_lens_Pa": E_LENS,
             "substrate": conventions[0] if len(conventions) == 1

@@ -446,22 +446,26 @@ def lattice_fem3d_tables(report: dict) -> list:
         for mesh_size, (points, errors) in sorted(levels.items()) if len(points) >= 3]
 
 
-# The elastic-pillar BEMs' rungs in a lattice report: (model, option) -> the rows' column.
-ELASTIC_RUNGS = {("bem-fft", "cells_per_diameter"): "elastic_levels",
-                 ("bem", "elements_per_diameter"): "elastic_dense_levels"}
+# The elastic-pillar BEMs' rungs in a lattice report: (model, option) -> the rows' columns
+# (the bem-fft's ladder and its single rungs between the ladder's levels).
+ELASTIC_RUNGS = {("bem-fft", "cells_per_diameter"): ("elastic_levels", "elastic_fft_rungs"),
+                 ("bem", "elements_per_diameter"): ("elastic_dense_levels",)}
 
 
 def lattice_elastic_rung_tables(report: dict) -> list:
     """The elastic-pillar BEMs' error in a lattice at each of the planner's rungs, measured
-    directly: each level of the study's elastic bem-fft ladder and each dense elastic level
-    against fem-3d's Richardson estimate (:func:`_level_errors`).  One table per rung, of kind
+    directly: each level of the study's elastic bem-fft ladder, each of its single rungs and
+    each dense elastic level against fem-3d's Richardson estimate (:func:`_level_errors`).
+    One table per rung, of kind
     ``discretisation`` with the rung's option and ``pillars = elastic``: the error it holds is
     the whole error against the reference of the same physics (the elastic pillar), so its
     discretisation and what remains of its coupling through the substrate together, and no
     coupling table is added on top (:func:`with_lattice`)."""
     out = []
-    for (model, option), column in ELASTIC_RUNGS.items():
-        levels = _level_errors(report, column, option, judge_difference=True)
+    for (model, option), columns in ELASTIC_RUNGS.items():
+        levels = {}
+        for column in columns:
+            levels.update(_level_errors(report, column, option, judge_difference=True))
         out += [ErrorTable(
             "discretisation", [model], ["multi"], _lattice_features(report), points, errors,
             option={option: value, "pillars": "elastic"},
