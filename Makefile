@@ -109,7 +109,7 @@ bench-figures: $(STAMP)
 
 # The planner's error and cost models, measured (convergence ladders, Gecit grid at four
 # indentations, closed forms, FEM truncation, the lattice study's Hooke error; resumable; about
-# 2 h, 1.5 of them the lattice study, 15 minutes the rest on a fresh cache) and installed as the
+# 2 h, 1.5 of them the lattice study, 10 minutes the rest on a fresh cache) and installed as the
 # package's data (validation/planner/data/*.json).
 # The lattice studies calibrate reads, comma-separated (the first holds a shared scene).
 empty :=

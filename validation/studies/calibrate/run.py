@@ -651,14 +651,7 @@ def _cost_samples(outcomes: list) -> list:
     return out
 
 
-# Scenes of the paper's family (E_s = E_p) the convergence ladders run on.  80, not 40: the
-# multi-pillar discretisation tables then hold 35 points over (w, log Phi/Phi_S, Phi), not
-# 22, and on four validation seeds' stored runs the re-planned choices gained 0-2 scenes of
-# cost each and 2 of accuracy on one, losing none.
-N_LATTICE = 80
-
-
-def calibrate(out: Path, engine: Engine | None = None, *, n_lattice: int = N_LATTICE,
+def calibrate(out: Path, engine: Engine | None = None, *, n_lattice: int = 40,
               n_stiff: int = 10, seed: int = CALIBRATION_SEED, quick: bool = False,
               lattice: dict | None = None) -> dict:
     """Run (or resume) every calibration study into ``out/cases`` and build the planner's
