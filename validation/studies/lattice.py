@@ -73,12 +73,13 @@ FEM_LEVELS = (2.83, 2.0, 1.41)
 # cells) where the dense model's edge-cut pattern makes its order wobble.  Both BEMs climb it.
 BEM_LEVELS = (16, 32, 64)
 QUICK_FEM_LEVELS, QUICK_BEM_LEVELS = (4.0, 2.83), (8, 16)
-# The dense elastic-pillar BEM at the planner's rungs (its candidates "bem P=11 elastic" ...
-# "bem P=21 elastic", same options): single levels, not a ladder; each is set against fem-3d's
-# estimate, so the planner reads its error in a lattice directly (calibrate).  P = 15 and the
-# elastic bem-fft's single levels FFT_RUNGS, between its ladder's levels, put the elastic rungs
-# as close in time as the Hooke BEMs' (1.8-2.6x a step, against 3.6x from P = 11 to 21 and 4x
-# from N = 16 to 32): a plan one rung finer than needed then stays near 2x of the cheapest.
+# The dense elastic-pillar BEM at the planner's rungs (its candidates "bem P=11 elastic",
+# "bem P=15 elastic" and "bem P=21 elastic", same options): single levels, not a ladder; each
+# is set against fem-3d's estimate, so the planner reads its error in a lattice directly
+# (calibrate).  P = 15 and the elastic bem-fft's single levels FFT_RUNGS, between its ladder's
+# levels, put the elastic rungs as close in time as the Hooke BEMs' (1.8-2.6x a step, against
+# 3.6x from P = 11 to 21 and 4x from N = 16 to 32): a plan one rung finer than needed then
+# stays near 2x of the cheapest.
 DENSE_MODEL = "bem"
 DENSE_LEVELS = (11, 15, 21)
 QUICK_DENSE_LEVELS = (11,)

@@ -456,11 +456,11 @@ def lattice_elastic_rung_tables(report: dict) -> list:
     """The elastic-pillar BEMs' error in a lattice at each of the planner's rungs, measured
     directly: each level of the study's elastic bem-fft ladder, each of its single rungs and
     each dense elastic level against fem-3d's Richardson estimate (:func:`_level_errors`).
-    One table per rung, of kind
-    ``discretisation`` with the rung's option and ``pillars = elastic``: the error it holds is
-    the whole error against the reference of the same physics (the elastic pillar), so its
-    discretisation and what remains of its coupling through the substrate together, and no
-    coupling table is added on top (:func:`with_lattice`)."""
+    One table per rung, of kind ``discretisation`` with the rung's option and ``pillars =
+    elastic``: the error it holds is the whole error against the reference of the same
+    physics (the elastic pillar), so its discretisation and what remains of its coupling
+    through the substrate together, and no coupling table is added on top
+    (:func:`with_lattice`)."""
     out = []
     for (model, option), columns in ELASTIC_RUNGS.items():
         levels = {}
