@@ -55,7 +55,11 @@ four of them counted as cost misses before; the report still gives that count, `
 beside the judged one).  The cost is also
 reported against the cheapest candidate whose accuracy holds on refinement (it and every
 finer rung of its model that ran within tolerance, :func:`_mark_settled`): a rung whose
-discretisation error happens to cancel the model error is within tolerance by luck.  The
+discretisation error happens to cancel the model error is within tolerance by luck.  An
+accuracy miss is also marked ``miss_resolved`` when the reference resolves it: some quantity
+off by more than the tolerance plus the reference's own band (as the lattice study's targets
+count a difference within both bands as met).  The headline count is unchanged; the summary
+gives the accuracy with the unresolved misses set apart beside it.  The
 report (:func:`write_outputs`): both shares against
 :data:`TARGETS`, the lattice-sigma0 scenes' own counts, and each miss with its reasons
 (:func:`miss_reasons`).  :func:`estimate` predicts the whole run's time from the planner's
@@ -406,7 +410,11 @@ def _counts(rows: list) -> dict:
            "cheap_strict": sum(bool(r["cheap_strict"]) for r in costed),
            "cheap_settled": sum(bool(r.get("cheap_settled")) for r in costed),
            "cheap_any": sum(bool(r["cheap"]) for r in judged)}
+    # misses within the reference's band (not resolved by it) set apart
+    out["accurate_or_unresolved"] = out["accurate"] + sum(
+        r.get("miss_resolved") is False for r in judged)
     out["accurate_share"] = out["accurate"] / max(1, len(judged))
+    out["accurate_or_unresolved_share"] = out["accurate_or_unresolved"] / max(1, len(judged))
     out["cheap_share"] = out["cheap"] / max(1, len(costed))
     out["cheap_settled_share"] = out["cheap_settled"] / max(1, len(costed))
     out["cheap_any_share"] = out["cheap_any"] / max(1, len(judged))
@@ -440,7 +448,9 @@ def miss_reasons(row: dict, tolerance: float) -> list:
         over = [q for q, v in row["actual"].items() if v > tolerance]
         out.append("accuracy: " + (", ".join(
             f"{q} off by {_pct(row['actual'][q])} (predicted {_pct(row['predicted'].get(q))})"
-            for q in over) + f" > {_pct(tolerance)}" if over
+            for q in over) + f" > {_pct(tolerance)}"
+            + ("" if row.get("miss_resolved", True) else
+               " (within the reference's band: not resolved by it)") if over
             else "the planned run did not converge"))
     if not row.get("cost_judged", True):
         return out
@@ -459,6 +469,12 @@ def _pct(v) -> str:
 
 def _band(ref_q: dict) -> float:
     return abs(ref_q["band"]) / abs(ref_q["value"]) if ref_q["value"] else float("inf")
+
+
+def resolved_miss(errors: dict, ref: dict, tolerance: float) -> bool:
+    """Whether the reference resolves a miss: some quantity off by more than ``tolerance``
+    plus the reference's own band (both relative to the reference value)."""
+    return any(e > tolerance + _band(ref[q]) for q, e in errors.items())
 
 
 def _judge(entry, p, ref_outcomes, cand_outcomes, tolerance) -> dict:
@@ -507,6 +523,8 @@ def _judge(entry, p, ref_outcomes, cand_outcomes, tolerance) -> dict:
         return row
     row.update(actual=planned["errors"], time_s=planned["time_s"],
                accurate=bool(planned["within"]), cost_judged=not unjudged)
+    if not planned["within"] and planned["converged"]:
+        row["miss_resolved"] = resolved_miss(planned["errors"], ref, tolerance)
     ok = [t for t in tried if t.get("within")]
     for suffix, pool in (("", ok), ("_settled", [t for t in ok if t.get("settled")])):
         if not pool:
@@ -545,7 +563,7 @@ def _mark_settled(tried: list) -> None:
 
 CSV_COLUMNS = ("name", "family", "regime", "reference_kind", "phi", "zeta_um", "ratio",
                "planned", "predicted_F_T", "predicted_sigma0", "actual_F_T", "actual_sigma0",
-               "accurate", "time_s", "cost_judged", "cheapest", "cheapest_time_s", "cheap",
+               "accurate", "miss_resolved", "time_s", "cost_judged", "cheapest", "cheapest_time_s", "cheap",
                "cheap_strict", "cheapest_settled", "cheapest_settled_time_s", "cheap_settled")
 
 
@@ -587,7 +605,10 @@ def summary_text(doc: dict) -> str:
               + ("" if "sigma0" in t["quantities"] else
                  " (and sigma0 on the lattice-sigma0 scenes)")
               + f" ({100 * t['accurate_share']:.1f} %; target "
-              f"{100 * TARGETS['accurate_share']:g} %)",
+              f"{100 * TARGETS['accurate_share']:g} %); counting only the misses the "
+              f"reference resolves (off by more than the tolerance plus its band): "
+              f"{t['accurate_or_unresolved']}/{t['judged']} "
+              f"({100 * t['accurate_or_unresolved_share']:.1f} %)",
               f"cost: {t['cheap']}/{t['cost_judged']} within {TIME_FACTOR:g}x of the "
               f"cheapest candidate within tolerance, or under {TIME_FLOOR:g} s "
               f"({100 * t['cheap_share']:.1f} %; target {100 * TARGETS['cheap_share']:g} %), "
