@@ -563,8 +563,9 @@ def _mark_settled(tried: list) -> None:
 
 CSV_COLUMNS = ("name", "family", "regime", "reference_kind", "phi", "zeta_um", "ratio",
                "planned", "predicted_F_T", "predicted_sigma0", "actual_F_T", "actual_sigma0",
-               "accurate", "miss_resolved", "time_s", "cost_judged", "cheapest", "cheapest_time_s", "cheap",
-               "cheap_strict", "cheapest_settled", "cheapest_settled_time_s", "cheap_settled")
+               "accurate", "miss_resolved", "time_s", "cost_judged", "cheapest",
+               "cheapest_time_s", "cheap", "cheap_strict", "cheapest_settled",
+               "cheapest_settled_time_s", "cheap_settled")
 
 
 def _flat_row(r: dict) -> dict:
