@@ -44,9 +44,9 @@ soft value as c_p -> 1.  Linear interpolation in c_p follows that law between st
 decades, where linear interpolation in log10(E_p / E_l) does not: the lattice study's Hooke
 error of sigma0 falls from -10.6 % at E_p = 10 E_l to -1.2 % at 100 E_l and 0.09 % at 1e6 E_l
 (Phi = 0.1, zeta = 0.05 um, E_s = E_p), and a straight line in the log ratio from 10 to 1e6
-misses the node at 100 by 7.2 points, one in c_p by 0.17.  The tables' leave-one-out margins (the planner's
-safety term, :mod:`.tables`) shrink with it: the lattice Hooke table's median margin of
-sigma0 from 1.4 % to 0.5 %.
+misses the node at 100 by 7.2 points, one in c_p by 0.17.  The tables' leave-one-out margins
+(the planner's safety term, :mod:`.tables`) shrink with it: the lattice Hooke table's median
+margin of sigma0 from 1.4 % to 0.5 %.
 
 References
 ----------

@@ -72,6 +72,7 @@ import csv
 import io
 import json
 import time
+from dataclasses import replace
 from pathlib import Path
 
 from outcome import write_atomic
@@ -91,7 +92,7 @@ from ..tradeoff import reference_values
 
 __all__ = ["VALIDATION_SEED", "check_options", "estimate", "estimate_text", "fem3d_fits",
            "judged_data", "judged_quantities", "measured_only", "miss_reasons", "prepare",
-           "report_totals", "scene_counts", "sigma0_lattices", "summary_text",
+           "report_totals", "resolved_miss", "scene_counts", "sigma0_lattices", "summary_text",
            "validate_planner", "validation_scenes", "write_outputs"]
 
 # The seed the shipped data was validated on.  Seeds 20251126, 20251201, 20261126, 20261127
@@ -273,8 +274,6 @@ def _errors(result, ref: dict, quantities) -> dict | None:
 
 def measured_only(data: PlannerData) -> PlannerData:
     """``data`` without its hand-entered candidates (module docstring)."""
-    from dataclasses import replace
-
     return replace(data, candidates=[c for c in data.candidates if not is_hand(c)])
 
 
@@ -283,8 +282,6 @@ def judged_data(data: PlannerData, kind: str) -> PlannerData:
     with: every candidate for a lattice-sigma0 scene; else the measured ones
     (:func:`measured_only`), and for a reference with Hooke pillars (``multi``) no Hooke
     model-error table either (module docstring)."""
-    from dataclasses import replace
-
     if kind == "lattice":
         return data
     measured = measured_only(data)
