@@ -9,7 +9,9 @@ planner predicts, per requested quantity,
   one (Hooke pillar against elastic pillar, flat punch against curved lens, Hertz against
   the lattice, finite blocks against half-spaces), interpolated likewise;
 
-and adds them with their leave-one-out margins (:mod:`.tables`); its time and memory
+and adds them with their leave-one-out margins (:mod:`.tables`), with their signs where
+both have a systematic sign (:func:`combined_error`: a coarse BEM's sigma0 high, the Hooke
+pillar's low, so they partly cancel); its time and memory
 come from the cost fits (:mod:`.costs`). The choice is the cheapest candidate
 predicted within tolerance for every requested quantity.
 
@@ -43,8 +45,8 @@ from ..registry import QUANTITIES
 from .features import features, regime
 from .tables import PlannerData, load_data
 
-__all__ = ["DEFAULT_QUANTITIES", "DEFAULT_TOLERANCE", "check_request", "hooke_error", "plan",
-           "plan_text", "solve_auto"]
+__all__ = ["DEFAULT_QUANTITIES", "DEFAULT_TOLERANCE", "check_request", "combined_error",
+           "hooke_error", "plan", "plan_text", "solve_auto"]
 
 DEFAULT_TOLERANCE = 0.01
 DEFAULT_QUANTITIES = ("F_T", "sigma0")
@@ -99,6 +101,24 @@ def check_request(tolerance, quantities, budget=None) -> tuple[float, tuple, flo
     return tolerance, quantities, budget
 
 
+def combined_error(disc: float, factor: float, disc_sign: int, model: list) -> float | None:
+    """The bound on a discretisation error and model errors added with their signs, or None
+    where one of them has no systematic sign (:meth:`.tables.ErrorTable.sign`).
+
+    ``disc`` is the interpolated discretisation error's magnitude and ``factor`` its margin:
+    the error is ``disc_sign`` times a magnitude within [disc / factor, disc * factor].
+    ``model`` lists (value, margin, sign) per model component: its signed error lies within
+    value +- margin.  The bound is the largest |discretisation + model| over that box, found
+    at a corner (|.| is convex).  Where the signs agree it is the plain sum of the bounds; where
+    they differ the errors partly cancel and it is less."""
+    if not disc_sign or not model or not all(sign for _, _, sign in model):
+        return None
+    value = sum(v for v, _, _ in model)
+    margin = sum(m for _, m, _ in model)
+    return max(abs(disc_sign * d + value + e)
+               for d in (disc / factor, disc * factor) for e in (-margin, margin))
+
+
 def _candidate(scene, x, reg, cand, data, quantities) -> dict:
     """Predictions for one candidate: errors per quantity, time, memory, eligibility."""
     model, options = cand["model"], dict(cand.get("options", {}))
@@ -118,31 +138,38 @@ def _candidate(scene, x, reg, cand, data, quantities) -> dict:
     components = [t for t in data.tables_for(model, options, reg["name"], "model")
                   if t.component not in removed]
     scale = float(data.policy["margin_scale"])
+    sign_share = float(data.policy["sign_share"])
     extrapolated = set()
     for q in quantities:
-        parts = {}
+        parts, signed = {}, []
         if disc:
             pred = disc[0].predict(x, q)
             if pred is None:
                 out["why"] = f"no measured convergence of {q} for {reg['name']} scenes"
                 return out
-            parts["discretisation"] = pred[0] * disc[0].margin(q, x, scale)
+            factor = disc[0].margin(q, x, scale)
+            parts["discretisation"] = pred[0] * factor
+            magnitude, disc_sign = pred[0], disc[0].sign(q, sign_share)
             if pred[1]:
                 extrapolated.add(f"discretisation ({', '.join(disc[0].features)})")
         for t in components:
             pred = t.predict(x, q)
             if pred is None:
                 continue
-            share = abs(pred[0]) + t.margin(q, x, scale)
-            parts[t.component] = parts.get(t.component, 0.0) + share
+            margin = t.margin(q, x, scale)
+            parts[t.component] = parts.get(t.component, 0.0) + abs(pred[0]) + margin
+            signed.append((pred[0], margin, t.sign(q, sign_share)))
             if pred[1]:
                 extrapolated.add(f"{t.component} ({', '.join(t.features)})")
         model_part = sum(v for k, v in parts.items() if k != "discretisation")
         if cand.get("closed_form") and not parts:
             out["why"] = f"error of {q} not measured for {reg['name']} scenes"
             return out
-        out["errors"][q] = {"total": parts.get("discretisation", 0.0) + model_part,
-                            "model": model_part, "parts": parts}
+        total = parts.get("discretisation", 0.0) + model_part
+        both = combined_error(magnitude, factor, disc_sign, signed) if disc else None
+        out["errors"][q] = {"total": total if both is None else min(total, both),
+                            "model": model_part, "parts": parts,
+                            "signed": bool(both is not None and both < total)}
     out["extrapolated"] = sorted(extrapolated)
     fit = data.costs.get(cand.get("cost", model))
     if fit is None:
@@ -317,6 +344,8 @@ def plan_text(p: dict) -> str:
                        for q in qs)
         mark = "<- chosen" if p["choice"] and c["label"] == p["choice"]["label"] else ""
         note = mark or (c["why"] if not c["eligible"] else "")
+        if c["eligible"] and any(v.get("signed") for v in c["errors"].values()):
+            note = (note + " " if note else "") + "(errors added with their signs)"
         if c.get("extrapolated") and c["eligible"]:
             note = (note + " " if note else "") + "(extrapolated)"
         if c.get("setup_s") and c["time_s"] is not None:

@@ -171,12 +171,12 @@ def _disc_tables(records: list) -> list:
                 points.append([rec["features"][f] for f in feats])
                 for q in QKEYS:
                     e = row["errors"][q]
-                    errors[q].append(None if e is None else abs(e))
+                    errors[q].append(e)
             if points:
                 tables.append(ErrorTable(
                     "discretisation", [model], [reg], feats, points, errors,
-                    option={option: value}, source="calibrate: convergence ladders",
-                    note=f"|f - f_ref| / |f_ref| of {cand['label']} against the converged "
+                    option={option: value}, signed=True, source="calibrate: convergence ladders",
+                    note=f"(f - f_ref) / |f_ref| of {cand['label']} against the converged "
                          f"reference of its physics, {len(points)} {reg} scenes"))
     return tables
 
@@ -199,8 +199,8 @@ def _closed_form_tables(records: list) -> list:
                 errors[q].append(row["errors"][q])
         if points:
             tables.append(ErrorTable("model", ["hertz"], [reg], feats, points, errors,
-                                     component=comp, source="calibrate: lattice sample",
-                                     note=what))
+                                     component=comp, signed=True,
+                                     source="calibrate: lattice sample", note=what))
     return tables
 
 
@@ -221,7 +221,7 @@ def _gecit_table(rows: list, scenes: list) -> ErrorTable:
     return ErrorTable(
         "model", HOOKE_MODELS, ["single", "multi"],
         names, points, errors, component="hooke",
-        source="gecit: Hooke-spring BEM (Richardson) against the elastic-pillar FEM",
+        signed=True, source="gecit: Hooke-spring BEM (Richardson) against the elastic-pillar FEM",
         note="measured on one pillar; applied to every pillar of a lattice until a lattice "
              "study (fem-3d) measures it there")
 
@@ -380,6 +380,7 @@ def lattice_hooke_table(report: dict) -> ErrorTable:
         "model", [m for m in HOOKE_MODELS if "multi" in MODELS[m].scopes], ["multi"],
         _lattice_features(report), points, errors,
         component="hooke",
+        signed=True,
         source="lattice: Hooke-pillar bem-fft (Richardson) against the elastic-pillar fem-3d "
                "(Richardson)",
         note=f"measured at {len(points)} lattice points, {_substrate_text(report)}, "
@@ -397,6 +398,7 @@ def lattice_elastic_table(report: dict) -> ErrorTable | None:
     return ErrorTable(
         "model", ["bem", "bem-fft"], ["multi"], _lattice_features(report), points, errors,
         component="elastic-coupling", option={"pillars": "elastic"},
+        signed=True,
         source="lattice: elastic-pillar bem-fft (Richardson) against the elastic-pillar "
                "fem-3d (Richardson)",
         note=f"measured at {len(points)} lattice points, {_substrate_text(report)}, "
@@ -439,6 +441,7 @@ def lattice_fem3d_tables(report: dict) -> list:
     return [ErrorTable(
         "discretisation", ["fem-3d"], ["multi"], _lattice_features(report), points, errors,
         option={"mesh_size": mesh_size},
+        signed=True,
         source=f"lattice: fem-3d at mesh_size {mesh_size:g} against its Richardson estimate "
                f"over mesh_size {ladder}",
         note=f"measured at {len(points)} lattice points, {_substrate_text(report)}, "
@@ -469,7 +472,7 @@ def lattice_elastic_rung_tables(report: dict) -> list:
         out += [ErrorTable(
             "discretisation", [model], ["multi"], _lattice_features(report), points, errors,
             option={option: value, "pillars": "elastic"},
-            source=f"lattice: elastic-pillar {model} at {option} {value} against the "
+            signed=True, source=f"lattice: elastic-pillar {model} at {option} {value} against the "
                    "elastic-pillar fem-3d (Richardson)",
             note=f"measured at {len(points)} lattice points, {_substrate_text(report)}, "
                  f"{_zeta_text(report)}; the "
@@ -543,7 +546,8 @@ def _punch_table(records: list) -> ErrorTable:
         for q in QKEYS:
             errors[q].append(row["errors"][q])
     return ErrorTable("model", ["spring"], ["single"], ["w", "log_sag"], points, errors,
-                      component="flat-punch", source="calibrate: single pillars over zeta",
+                      component="flat-punch", signed=True,
+                      source="calibrate: single pillars over zeta",
                       note="the spring model's flat punch against the Hooke BEM with the "
                            "lens's curvature (dense BEM Richardson, P = 23, 47, 95)")
 
@@ -555,7 +559,7 @@ def _truncation_tables(records: list) -> list:
         tables.append(ErrorTable(
             "model", ["fem-axisym"], [rec["regime"]], [], [[]],
             {q: [errors.get(q)] for q in QKEYS}, component="truncation",
-            source="calibrate: fem-axisym on blocks 1e3, 1e4, 1e5 radii",
+            signed=True, source="calibrate: fem-axisym on blocks 1e3, 1e4, 1e5 radii",
             note=f"f(L) = f_inf + k / L fitted on {rec['scene']}; error of the default block"))
     return tables
 
