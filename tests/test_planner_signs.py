@@ -133,8 +133,25 @@ def test_the_shipped_tables_carry_the_signs_the_calibration_measured():
         assert t.signed == (not t.source.startswith("hand")), t.source
     bem = [t for t in data.tables if t.kind == "discretisation" and t.source.startswith(
         "calibrate") and set(t.models) <= {"bem", "bem-fft"} and t.regimes != ["flat"]]
-    assert len(bem) == 26
+    assert len(bem) == 28  # 6 dense and 8 FFT rungs, single and multi
     for t in bem:
         assert (t.sign("F_T", share), t.sign("sigma0", share)) == (-1, 1), (t.models, t.option)
     hooke = [t for t in data.tables if t.component == "hooke"]
     assert {t.sign("sigma0", share) for t in hooke} == {-1}
+
+
+@pytest.mark.parametrize("share", [0.5, 1.2, "most"])
+def test_a_sign_share_outside_its_range_is_refused(tmp_path, share):
+    import json
+    import shutil
+
+    from scenes import InputError
+    from validation.planner.tables import data_dir
+
+    for name in ("error_models.json", "cost_models.json"):
+        shutil.copyfile(data_dir() / name, tmp_path / name)
+    doc = json.loads((tmp_path / "error_models.json").read_text())
+    doc["policy"]["sign_share"] = share
+    (tmp_path / "error_models.json").write_text(json.dumps(doc))
+    with pytest.raises(InputError, match=r"sign_share .*\(0\.5, 1\]"):
+        load_data(tmp_path)

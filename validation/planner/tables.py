@@ -512,10 +512,15 @@ def load_data(folder: str | Path | None = None) -> PlannerData:
                              f"{c['base']!r}, which {folder / 'cost_models.json'} lacks")
         fits[key] = ScaledCost(key, fits[c["base"]], c.get("factor", 1.0), c.get("setup", {}),
                                c.get("note", ""))
+    policy = {**DEFAULT_POLICY, **errors.get("policy", {})}
+    share = policy["sign_share"]
+    if not (isinstance(share, (int, float)) and 0.5 < share <= 1.0):
+        raise InputError(f"planner data: {folder / 'error_models.json'} policy sign_share "
+                         f"{share!r}: must be in (0.5, 1] (a share of a table's points)")
     return PlannerData(
         candidates=errors["candidates"],
         tables=[ErrorTable(**t) for t in errors["tables"]],
         costs=fits,
         provenance={"errors": errors.get("provenance", {}),
                     "costs": costs.get("provenance", {})},
-        policy={**DEFAULT_POLICY, **errors.get("policy", {})})
+        policy=policy)

@@ -100,9 +100,10 @@ __all__ = ["VALIDATION_SEED", "check_options", "estimate", "estimate_text", "fem
 # (cost_models.json), showed where the Gecit grid needed more indentations and where the
 # elastic rungs were too far apart: they are no longer unseen.  20261129-20261132 (the last
 # with 120 scenes) validated the data before its errors carried signs, and their runs,
-# re-planned offline, chose how signed errors combine (tables.DEFAULT_POLICY); 20261134
-# validated the shipped data too.
-VALIDATION_SEED = 20261133
+# re-planned offline, chose how signed errors combine (tables.DEFAULT_POLICY); 20261133-35
+# validated the signed data before the FFT BEM's rung N = 28 (their runs showed it missing);
+# 20261137 and 20261138 validated the shipped data too.
+VALIDATION_SEED = 20261136
 DEFAULT_SCENES, DEFAULT_LATTICE = 60, 15
 MAX_SCENES, MAX_LATTICE, MAX_SEED = 500, 100, 2**32 - 1
 # The scenes besides the lattice-sigma0 ones, as paper's family : stiff substrate : flat
