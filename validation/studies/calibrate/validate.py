@@ -102,7 +102,8 @@ __all__ = ["VALIDATION_SEED", "check_options", "estimate", "estimate_text", "fem
 # with 120 scenes) validated the data before its errors carried signs, and their runs,
 # re-planned offline, chose how signed errors combine (tables.DEFAULT_POLICY); 20261133-35
 # validated the signed data before the FFT BEM's rung N = 28 (their runs showed it missing);
-# 20261137 and 20261138 validated the shipped data too.
+# 20261137-39 validated the shipped data too (all four, 240 scenes: 95.8 % within tolerance,
+# 90.6 % within 2x of the cheapest accurate candidate).
 VALIDATION_SEED = 20261136
 DEFAULT_SCENES, DEFAULT_LATTICE = 60, 15
 MAX_SCENES, MAX_LATTICE, MAX_SEED = 500, 100, 2**32 - 1
