@@ -141,7 +141,7 @@ def _candidate(scene, x, reg, cand, data, quantities) -> dict:
     sign_share = float(data.policy["sign_share"])
     extrapolated = set()
     for q in quantities:
-        parts, signed = {}, []
+        parts, model_errors = {}, []
         if disc:
             pred = disc[0].predict(x, q)
             if pred is None:
@@ -158,7 +158,7 @@ def _candidate(scene, x, reg, cand, data, quantities) -> dict:
                 continue
             margin = t.margin(q, x, scale)
             parts[t.component] = parts.get(t.component, 0.0) + abs(pred[0]) + margin
-            signed.append((pred[0], margin, t.sign(q, sign_share)))
+            model_errors.append((pred[0], margin, t.sign(q, sign_share)))
             if pred[1]:
                 extrapolated.add(f"{t.component} ({', '.join(t.features)})")
         model_part = sum(v for k, v in parts.items() if k != "discretisation")
@@ -166,7 +166,7 @@ def _candidate(scene, x, reg, cand, data, quantities) -> dict:
             out["why"] = f"error of {q} not measured for {reg['name']} scenes"
             return out
         total = parts.get("discretisation", 0.0) + model_part
-        both = combined_error(magnitude, factor, disc_sign, signed) if disc else None
+        both = combined_error(magnitude, factor, disc_sign, model_errors) if disc else None
         out["errors"][q] = {"total": total if both is None else min(total, both),
                             "model": model_part, "parts": parts,
                             "signed": bool(both is not None and both < total)}

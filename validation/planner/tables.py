@@ -95,14 +95,23 @@ class ErrorTable:
         """+1 or -1 when at least ``share`` of the quantity's measured non-zero errors (and
         :data:`SIGN_MIN_POINTS` of them) have that sign: a systematic sign; else 0, and 0 for a
         table that is not ``signed``."""
-        if not self.signed or quantity not in self.errors:
+        if not self.signed or quantity not in self._positive_shares:
             return 0
-        v = np.array([e for e in self.errors[quantity] if e is not None], dtype=float)
-        v = v[np.isfinite(v) & (v != 0.0)]
-        if len(v) < SIGN_MIN_POINTS:
+        up, count = self._positive_shares[quantity]
+        if count < SIGN_MIN_POINTS:
             return 0
-        up = float(np.mean(v > 0))
         return 1 if up >= share else -1 if 1.0 - up >= share else 0
+
+    @cached_property
+    def _positive_shares(self) -> dict:
+        """Per quantity: (share of the measured non-zero errors that are positive, their
+        count), counted once (every plan asks every table)."""
+        out = {}
+        for quantity, raw in self.errors.items():
+            v = np.array([e for e in raw if e is not None], dtype=float)
+            v = v[np.isfinite(v) & (v != 0.0)]
+            out[quantity] = (float(np.mean(v > 0)) if len(v) else 0.0, len(v))
+        return out
 
     @property
     def log_scale(self) -> bool:

@@ -152,6 +152,12 @@ def _scene_record(entry: dict, outcomes: list) -> dict:
             "reference_detail": refs["detail"], "refused": refused}
 
 
+def _measured(*args, **kwargs) -> ErrorTable:
+    """An error table calibrate measured: its errors keep their signs (``signed``; the
+    hand bounds it carries over do not)."""
+    return ErrorTable(*args, signed=True, **kwargs)
+
+
 def _disc_tables(records: list) -> list:
     tables = []
     for cand in CANDIDATES:
@@ -170,12 +176,11 @@ def _disc_tables(records: list) -> list:
                     continue
                 points.append([rec["features"][f] for f in feats])
                 for q in QKEYS:
-                    e = row["errors"][q]
-                    errors[q].append(e)
+                    errors[q].append(row["errors"][q])
             if points:
-                tables.append(ErrorTable(
+                tables.append(_measured(
                     "discretisation", [model], [reg], feats, points, errors,
-                    option={option: value}, signed=True, source="calibrate: convergence ladders",
+                    option={option: value}, source="calibrate: convergence ladders",
                     note=f"(f - f_ref) / |f_ref| of {cand['label']} against the converged "
                          f"reference of its physics, {len(points)} {reg} scenes"))
     return tables
@@ -198,9 +203,9 @@ def _closed_form_tables(records: list) -> list:
             for q in QKEYS:
                 errors[q].append(row["errors"][q])
         if points:
-            tables.append(ErrorTable("model", ["hertz"], [reg], feats, points, errors,
-                                     component=comp, signed=True,
-                                     source="calibrate: lattice sample", note=what))
+            tables.append(_measured("model", ["hertz"], [reg], feats, points, errors,
+                                    component=comp, source="calibrate: lattice sample",
+                                    note=what))
     return tables
 
 
@@ -218,10 +223,10 @@ def _gecit_table(rows: list, scenes: list) -> ErrorTable:
         points.append([x[n] for n in names])
         errors["F_T"].append(row["err_F_T"])
         errors["sigma0"].append(row["err_sigma0"])
-    return ErrorTable(
+    return _measured(
         "model", HOOKE_MODELS, ["single", "multi"],
         names, points, errors, component="hooke",
-        signed=True, source="gecit: Hooke-spring BEM (Richardson) against the elastic-pillar FEM",
+        source="gecit: Hooke-spring BEM (Richardson) against the elastic-pillar FEM",
         note="measured on one pillar; applied to every pillar of a lattice until a lattice "
              "study (fem-3d) measures it there")
 
@@ -376,11 +381,10 @@ def lattice_hooke_table(report: dict) -> ErrorTable:
     """The Hooke pillar's error in a lattice: the Hooke bem-fft against fem-3d
     (:func:`_lattice_errors`)."""
     points, errors = _lattice_errors(report, "quantities")
-    return ErrorTable(
+    return _measured(
         "model", [m for m in HOOKE_MODELS if "multi" in MODELS[m].scopes], ["multi"],
         _lattice_features(report), points, errors,
         component="hooke",
-        signed=True,
         source="lattice: Hooke-pillar bem-fft (Richardson) against the elastic-pillar fem-3d "
                "(Richardson)",
         note=f"measured at {len(points)} lattice points, {_substrate_text(report)}, "
@@ -395,10 +399,9 @@ def lattice_elastic_table(report: dict) -> ErrorTable | None:
     if not any(r.get("elastic_quantities") for r in report["rows"]):
         return None
     points, errors = _lattice_errors(report, "elastic_quantities")
-    return ErrorTable(
+    return _measured(
         "model", ["bem", "bem-fft"], ["multi"], _lattice_features(report), points, errors,
         component="elastic-coupling", option={"pillars": "elastic"},
-        signed=True,
         source="lattice: elastic-pillar bem-fft (Richardson) against the elastic-pillar "
                "fem-3d (Richardson)",
         note=f"measured at {len(points)} lattice points, {_substrate_text(report)}, "
@@ -438,10 +441,9 @@ def lattice_fem3d_tables(report: dict) -> list:
     ladder (:func:`_level_errors`); empty when the report has no fem-3d levels."""
     levels = _level_errors(report, "fem_levels", "mesh_size", judge_difference=False)
     ladder = ", ".join(f"{m:g}" for m in sorted(levels, reverse=True))
-    return [ErrorTable(
+    return [_measured(
         "discretisation", ["fem-3d"], ["multi"], _lattice_features(report), points, errors,
         option={"mesh_size": mesh_size},
-        signed=True,
         source=f"lattice: fem-3d at mesh_size {mesh_size:g} against its Richardson estimate "
                f"over mesh_size {ladder}",
         note=f"measured at {len(points)} lattice points, {_substrate_text(report)}, "
@@ -469,10 +471,10 @@ def lattice_elastic_rung_tables(report: dict) -> list:
         levels = {}
         for column in columns:
             levels.update(_level_errors(report, column, option, judge_difference=True))
-        out += [ErrorTable(
+        out += [_measured(
             "discretisation", [model], ["multi"], _lattice_features(report), points, errors,
             option={option: value, "pillars": "elastic"},
-            signed=True, source=f"lattice: elastic-pillar {model} at {option} {value} against the "
+            source=f"lattice: elastic-pillar {model} at {option} {value} against the "
                    "elastic-pillar fem-3d (Richardson)",
             note=f"measured at {len(points)} lattice points, {_substrate_text(report)}, "
                  f"{_zeta_text(report)}; the "
@@ -545,21 +547,20 @@ def _punch_table(records: list) -> ErrorTable:
         points.append([rec["features"]["w"], rec["features"]["log_sag"]])
         for q in QKEYS:
             errors[q].append(row["errors"][q])
-    return ErrorTable("model", ["spring"], ["single"], ["w", "log_sag"], points, errors,
-                      component="flat-punch", signed=True,
-                      source="calibrate: single pillars over zeta",
-                      note="the spring model's flat punch against the Hooke BEM with the "
-                           "lens's curvature (dense BEM Richardson, P = 23, 47, 95)")
+    return _measured("model", ["spring"], ["single"], ["w", "log_sag"], points, errors,
+                     component="flat-punch", source="calibrate: single pillars over zeta",
+                     note="the spring model's flat punch against the Hooke BEM with the "
+                          "lens's curvature (dense BEM Richardson, P = 23, 47, 95)")
 
 
 def _truncation_tables(records: list) -> list:
     tables = []
     for rec in records:
         errors = rec["errors"]
-        tables.append(ErrorTable(
+        tables.append(_measured(
             "model", ["fem-axisym"], [rec["regime"]], [], [[]],
             {q: [errors.get(q)] for q in QKEYS}, component="truncation",
-            signed=True, source="calibrate: fem-axisym on blocks 1e3, 1e4, 1e5 radii",
+            source="calibrate: fem-axisym on blocks 1e3, 1e4, 1e5 radii",
             note=f"f(L) = f_inf + k / L fitted on {rec['scene']}; error of the default block"))
     return tables
 
