@@ -92,7 +92,7 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
               warm_start: bool = True, edge_correction: bool = True, progress=None,
               device: str = "cpu", backend=None, preconditioner: str = "circulant",
               pillars: str = "hooke", compliance=None, precision: str = "mixed",
-              _nested: bool = False) -> ContactResult:
+              _nested: bool = False, _workspace=None) -> ContactResult:
     """Solve the lens-on-pillars contact with the FFT-accelerated BEM.
 
     Parameters
@@ -194,7 +194,7 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     plan = CompliancePlan(grid.shape, grid.flat_index, L, scene.half_space_compliance,
                           pillar=grid.pillar, spring_compliance=spring, workers=workers,
                           correction=correction, backend=be, pillar_term=term,
-                          precision=precision)
+                          precision=precision, workspace=_workspace)
     be.synchronize()
     timings["kernel_table"] = time.perf_counter() - lap
     precondition = _preconditioner(plan, preconditioner)
@@ -204,12 +204,13 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     lap = time.perf_counter()
     if warm_start and coarse >= WARM_START_MIN_CELLS:
         # Nested iteration: the solution at half the resolution, interpolated, brings the
-        # contact set nearly right, so the fine constrained CG restarts seldom.
+        # contact set nearly right, so the fine constrained CG restarts seldom.  The coarser
+        # levels transform in this plan's work arrays (made first, the largest).
         rough = solve_fft(scene, coarse, tol=max(tol, WARM_START_TOL), workers=workers,
                           warm_start=True, edge_correction=edge_correction, backend=be,
                           preconditioner=preconditioner, pillars=pillars,
                           compliance=compliance if elastic else None, precision=precision,
-                          _nested=True)
+                          _nested=True, _workspace=plan.workspace)
         q0 = _interpolate(rough, grid, be, slivers=edge_correction)
         levels = rough.diagnostics["warm_start_levels"] + [{
             "cells_per_diameter": coarse, "iterations": rough.iterations,

@@ -175,6 +175,28 @@ def padded_length(n: int, next_fast_len) -> int:
     return next_fast_len(max(2 * int(n) - 2, 1))
 
 
+class TransformWorkspace:
+    """Work arrays of the numpy path's transforms, shared by convolutions that run one after
+    the other: a plan's two precisions, its preconditioner and the warm start's coarser
+    levels.  Each call overwrites its spectrum and output arrays whole before reading them,
+    so they can be one memory: fewer fresh pages to fault in (a float64 first call at 1e6
+    cells took 150-210 ms, 35-40 ms thereafter) and a smaller peak.  ``take`` gives a view of
+    the given shape and dtype at the start of the named block, grown when too small (views
+    given out before keep the old block alive)."""
+
+    def __init__(self):
+        self._blocks = {}
+
+    def take(self, name: str, shape, dtype) -> np.ndarray:
+        dtype = np.dtype(dtype)
+        nbytes = math.prod(shape) * dtype.itemsize
+        block = self._blocks.get(name)
+        if block is None or block.nbytes < nbytes:
+            block = np.empty(-(-nbytes // 16), dtype=np.complex128)  # 16-byte aligned
+            self._blocks[name] = block
+        return block.view(np.uint8)[:nbytes].view(dtype).reshape(shape)
+
+
 class PrunedConvolution:
     """Linear convolution of a field on the candidate cells with a kernel given by its
     real spectrum on an (my, mx) grid that holds the (ny, nx) box (zero padding or a
@@ -191,11 +213,13 @@ class PrunedConvolution:
     ``single=True`` runs the same transforms in float32 (complex64), 0.6-0.65 of the float64
     time, with a relative error of a few 1e-7 of the result's scale
     (:data:`SINGLE_PRECISION_ERROR`); the result is returned in float64.  The arrays of each
-    of ``precisions`` are made with the object, those of another on its first call.
+    of ``precisions`` are made with the object, those of another on its first call; on numpy
+    the spectrum and output arrays are views of ``workspace`` (:class:`TransformWorkspace`,
+    default: the object's own), which every convolution that runs in turn may share.
     """
 
     def __init__(self, shape, fft_shape, flat_index, spectrum, backend,
-                 precisions=("double",)):
+                 precisions=("double",), workspace=None):
         be = backend
         xp = be.xp
         ny, nx = shape
@@ -206,7 +230,12 @@ class PrunedConvolution:
         self.padded_index = (flat // nx) * self.fft_shape[1] + flat % nx
         self.spectrum = spectrum
         self._pocket = _pocketfft is not None and isinstance(be, NumpyDevice)
+        self.workspace = workspace if workspace is not None else TransformWorkspace()
         self._arrays = {}  # "single"/"double" -> (buffer, spectrum or None, work or None)
+        # With both precisions (mixed), float64 serves only the exact refreshes, two a level:
+        # on numpy it multiplies by the real spectrum itself (3 ms more a call at 1e6 cells)
+        # instead of keeping its own pairs (33 MB to fill with every level's plan).
+        self._rare = ("double",) if set(precisions) == {"single", "double"} else ()
         for precision in precisions:  # made now, with the plan, not in the first solve's call
             self._state(precision)
 
@@ -224,16 +253,20 @@ class PrunedConvolution:
             if not self._pocket:
                 spectrum = xp.astype(self.spectrum, real)
             else:
-                # The real spectrum twice over, as the (re, im) pairs of the complex
-                # spectrum: one float product of equal arrays (half the time of numpy's
-                # complex-by-real product, which widens the real factor; the same values).
                 complex_ = np.complex128 if precision == "double" else np.complex64
-                pairs = np.empty((my, mx // 2 + 1, 2), dtype=real)
-                pairs[..., 0] = self.spectrum
-                pairs[..., 1] = self.spectrum
-                work = (np.empty((my, mx // 2 + 1), dtype=complex_),
-                        np.empty((ny, mx), dtype=real),
-                        pairs.reshape(my, 2 * (mx // 2 + 1)))
+                if precision in self._rare:
+                    factor = xp.astype(self.spectrum, real, copy=False)
+                else:
+                    # The real spectrum twice over, as the (re, im) pairs of the complex
+                    # spectrum: one float product of equal arrays (half the time of numpy's
+                    # complex-by-real product, which widens the real factor; the same
+                    # values).
+                    pairs = np.empty((my, mx // 2 + 1, 2), dtype=real)
+                    pairs[..., 0] = self.spectrum
+                    pairs[..., 1] = self.spectrum
+                    factor = pairs.reshape(my, 2 * (mx // 2 + 1))
+                work = (self.workspace.take("spectrum", (my, mx // 2 + 1), complex_),
+                        self.workspace.take("output", (ny, mx), real), factor)
             state = (xp.zeros(ny * mx, dtype=real), spectrum, work)
             self._arrays[precision] = state
         return state
@@ -244,7 +277,9 @@ class PrunedConvolution:
         key = "single" if single else "double"
         buffer, spectrum, work = self._state(key)
         if work is not None:
-            out = self._numpy_call(q, buffer, work)
+            # Cast first: a scatter that also converts takes twice as long.
+            buffer[self.padded_index] = q if q.dtype == buffer.dtype else q.astype(buffer.dtype)
+            out = self._numpy_call(buffer, work)
         else:
             ny = self.shape[0]
             my, mx = self.fft_shape
@@ -256,20 +291,38 @@ class PrunedConvolution:
             out = xp.take(xp.reshape(be.irfft(rows, n=mx, axis=1), (-1,)), self.padded_index)
         return xp.astype(out, xp.float64) if single else out
 
-    def _numpy_call(self, q, buffer, work):
+    def few(self, index, values, single: bool = False):
+        """The convolution of the field that is ``values`` on the cells ``index`` and zero on
+        the others: the same result as ``self(q)`` for that field (on numpy, the scatter
+        buffer cleared and the few values put in it, instead of a whole field built and
+        scattered)."""
+        be = self.backend
+        xp = be.xp
+        buffer, _, work = self._state("single" if single else "double")
+        if work is None:
+            n = self.padded_index.shape[0]
+            return self(be.put(xp.zeros(n, dtype=xp.float64), index, values), single)
+        buffer.fill(0.0)  # zero off the candidate cells already: the same buffer as a scatter
+        buffer[self.padded_index[index]] = values.astype(buffer.dtype)
+        out = self._numpy_call(buffer, work)
+        return out.astype(np.float64) if single else out
+
+    def _numpy_call(self, buffer, work):
         """The generic path's transforms (scipy.fft's rfft, fft, ifft, irfft are these
-        pocketfft calls, with the default norm) into the kept arrays."""
+        pocketfft calls, with the default norm) of the scattered ``buffer`` into the kept
+        arrays."""
         ny = self.shape[0]
         mx = self.fft_shape[1]
-        spec, out, pairs = work
+        spec, out, factor = work
         workers = self.backend.workers
-        # Cast first: a scatter that also converts takes twice as long.
-        buffer[self.padded_index] = q if q.dtype == buffer.dtype else q.astype(buffer.dtype)
         _pocketfft.r2c(buffer.reshape(ny, mx), (1,), True, 0, spec[:ny], workers)
         spec[ny:] = 0.0
         _pocketfft.c2c(spec, (0,), True, 0, spec, workers)
-        product = spec.view(out.dtype).reshape(pairs.shape)
-        np.multiply(product, pairs, out=product)
+        if factor.shape == spec.shape:  # the real spectrum itself
+            np.multiply(spec, factor, out=spec)
+        else:  # its (re, im) pairs
+            product = spec.view(out.dtype).reshape(factor.shape)
+            np.multiply(product, factor, out=product)
         _pocketfft.c2c(spec, (0,), False, 2, spec, workers)
         _pocketfft.c2r(spec[:ny], (1,), mx, False, 2, out, workers)
         return out.reshape(-1).take(self.padded_index)
@@ -303,11 +356,14 @@ class CompliancePlan:
         "mixed" (default): the plan offers :meth:`approximate`, its convolution in float32,
         for the constrained CG's steps, and the preconditioner runs in float32; "double":
         float64 throughout (``approximate`` is None).
+    workspace : TransformWorkspace, optional
+        The transforms' work arrays (numpy), shared with the preconditioner; give one plan's
+        to the next plan that runs after it (the warm start's levels), largest first.
     """
 
     def __init__(self, shape, flat_index, cell_size, compliance, pillar=None,
                  spring_compliance=0.0, workers=FFT_WORKERS, correction=None, backend=None,
-                 pillar_term=None, precision="mixed"):
+                 pillar_term=None, precision="mixed", workspace=None):
         if precision not in PRECISIONS:
             raise ValueError(f"precision = {precision!r}: choose one of {', '.join(PRECISIONS)}")
         self.precision = precision
@@ -343,15 +399,17 @@ class CompliancePlan:
         self.few_max = max(1, int(FEW_COST_RATIO * log_points * my * mx / (ny * nx)))
         self.few_max_single = max(1, int(SINGLE_COST_SHARE * self.few_max))
         flat = be.asarray(np.asarray(flat_index), dtype=xp.int64)
+        self.workspace = workspace if workspace is not None else TransformWorkspace()
         self._convolution = PrunedConvolution(
             self.shape, self.fft_shape, flat, self.kernel_spectrum, be,
-            ("double", "single") if precision == "mixed" else ("double",))
+            ("double", "single") if precision == "mixed" else ("double",), self.workspace)
         self._convolution_index = flat
         self.spring = float(spring_compliance) * self.cell_size**2  # m/Pa per unit q
         self.pillar = None if pillar is None else be.asarray(np.asarray(pillar), dtype=xp.int64)
         self.n_pillars = 0 if pillar is None or len(pillar) == 0 else int(np.max(pillar)) + 1
         self._pillar_sums = None if self.pillar is None else \
             be.segments(self.pillar, self.n_pillars)
+        self._pillar_spread = None if self.pillar is None else be.spreader(self.pillar)
         self.applications = 0
         self.correction = correction
         diagonal = xp.full(flat.shape[0], self.self_coefficient, dtype=xp.float64)
@@ -381,6 +439,10 @@ class CompliancePlan:
         """Sum of q over the cells of each pillar (Pa); multiply by L^2 for forces."""
         return self._pillar_sums(q)
 
+    def per_cell(self, values):
+        """A value per pillar out to each of its cells (``values[pillar]``)."""
+        return self._pillar_spread(values)
+
     def half_space(self, q, single: bool = False):
         """K q on the candidate cells (m); ``single``: the transforms in float32."""
         self.applications += 1
@@ -405,7 +467,7 @@ class CompliancePlan:
         if self.correction is not None:
             u += self.correction @ q
         if self.has_spring:
-            u += self.backend.xp.take(self.spring * self.pillar_sums(q), self.pillar)
+            u += self.per_cell(self.spring * self.pillar_sums(q))
         if self.pillar_term is not None:
             u += self.pillar_term(q)
         return u
@@ -444,7 +506,9 @@ class CompliancePlan:
             return spread
 
         if m > (self.few_max_single if single else self.few_max):
-            u = self.half_space(whole(), single)
+            self.applications += 1
+            self.single_applications += bool(single)
+            u = self._convolution.few(index, values, single=single)
         else:
             u = self._table_sum(index, values)
             self.direct_updates += 1
@@ -455,7 +519,7 @@ class CompliancePlan:
                 u += self.correction @ whole()
         if self.has_spring:
             forces = be.segment_sum(xp.take(self.pillar, index), values, self.n_pillars)
-            u += xp.take(self.spring * forces, self.pillar)
+            u += self.per_cell(self.spring * forces)
         if self.pillar_term is not None:
             pillar_part = self.pillar_term.apply_few(index, values)
             u += self.pillar_term(whole()) if pillar_part is None else pillar_part
@@ -565,7 +629,8 @@ class CirculantPreconditioner:
         self.single = plan.precision == "mixed"
         self._inverse = PrunedConvolution(plan.shape, self.box_shape,
                                           plan._convolution_index, 1.0 / spectrum, be,
-                                          ("single",) if self.single else ("double",))
+                                          ("single",) if self.single else ("double",),
+                                          plan.workspace)
         full = plan.diagonal <= plan.self_coefficient * (1.0 + 1e-12)
         self.scale = None if bool(xp.all(full)) else xp.sqrt(plan.self_coefficient
                                                               / plan.diagonal)
@@ -573,7 +638,6 @@ class CirculantPreconditioner:
             self_hf = plan.self_coefficient * plan.high_frequency_compliance / plan.compliance
             self.scale = xp.sqrt(self_hf / xp.maximum(plan.diagonal, 1e-3 * self_hf))
         self.pillars = plan.has_pillar_terms
-        self.pillar = plan.pillar
         gamma, L = plan.compliance, plan.cell_size
         self._disk = 16.0 * gamma * L / (3.0 * math.pi * math.sqrt(math.pi))
 
@@ -590,7 +654,7 @@ class CirculantPreconditioner:
             count = self.plan.pillar_sums(mask)
             per_cell = 1.0 / xp.maximum(count, 1.0)
             sums = self.plan.pillar_sums(rf)
-            rf -= xp.take(sums * per_cell, self.pillar)
+            rf -= self.plan.per_cell(sums * per_cell)
             rf *= restrict
         elif self.scale is not None:  # (else rf is already restricted to F)
             rf *= restrict
@@ -601,6 +665,6 @@ class CirculantPreconditioner:
         z_sums = self.plan.pillar_sums(z)
         mode = self.plan.pillar_mode_compliance(count) + self._disk * count * xp.sqrt(count)
         coarse = sums / xp.where(count > 0.0, mode, 1.0)
-        z += xp.take(coarse - z_sums * per_cell, self.pillar)
+        z += self.plan.per_cell(coarse - z_sums * per_cell)
         z *= mask
         return z

@@ -8,6 +8,8 @@ handful of operations the solvers need; a backend supplies them:
 - ``segment_sum(index, weights, n)``: sums of ``weights`` per integer label (numpy's bincount);
 - ``segments(index, n)``: the same sums as a function of ``weights`` alone, for an ``index``
   used again and again (set up once: numpy sums runs of equal consecutive labels);
+- ``spreader(index)``: ``values -> values[index]`` (one value per label out to every entry of
+  that label) for an ``index`` used again and again (numpy repeats each run's value);
 - ``put(target, index, values)``: ``target[index] = values`` on a 1-D array (the standard
   has integer-array gathers, ``xp.take``, but no scatters); returns the updated array;
 - ``asarray`` / ``to_numpy``: to and from host numpy arrays.
@@ -54,17 +56,35 @@ class NumpyArrays:
         over contiguous memory instead of a scattered add per cell (0.3 against 3.1 ms on
         1.1e6 cells in 25e3 runs).  The sums differ from a bincount's by round-off only."""
         index = np.asarray(index)
-        starts = np.flatnonzero(np.concatenate(([True], index[1:] != index[:-1]))) \
-            if index.size else np.zeros(0, dtype=np.int64)
+        starts = _run_starts(index)
         if index.size == 0 or starts.size * RUNS_PAY > index.size:
             return lambda weights: np.bincount(index, weights=weights, minlength=n)
         labels = index[starts]
         return lambda weights: np.bincount(labels, weights=np.add.reduceat(weights, starts),
                                            minlength=n)
 
+    def spreader(self, index):
+        """``values -> values[index]`` for a fixed ``index``: where the labels come in runs,
+        each run's value repeated (``np.repeat``, a sequential write: 0.3 against 0.7 ms for a
+        gather of 6.8e5 cells in 1.5e4 runs); the same values as the gather."""
+        index = np.asarray(index)
+        starts = _run_starts(index)
+        if index.size == 0 or starts.size * RUNS_PAY > index.size:
+            return lambda values: np.take(values, index)
+        labels = index[starts]
+        lengths = np.diff(np.append(starts, index.size))
+        return lambda values: np.repeat(np.take(values, labels), lengths)
+
     def put(self, target, index, values):
         target[index] = values
         return target
+
+
+def _run_starts(index):
+    """Positions where a run of equal consecutive labels begins."""
+    if index.size == 0:
+        return np.zeros(0, dtype=np.int64)
+    return np.flatnonzero(np.concatenate(([True], index[1:] != index[:-1])))
 
 
 # NumpyArrays.segments sums runs when they average at least this many labels.
@@ -106,6 +126,9 @@ class CupyArrays:
 
     def segments(self, index, n: int):
         return lambda weights: self.segment_sum(index, weights, n)
+
+    def spreader(self, index):
+        return lambda values: self._cp.take(values, index)
 
     def put(self, target, index, values):
         target[index] = values

@@ -177,6 +177,69 @@ def test_numpy_convolution_into_kept_arrays_is_the_generic_path():
                 conv._pocket, conv._arrays = True, kept
 
 
+def test_convolution_of_a_few_cells_is_the_whole_field_convolution():
+    """``few(index, values)`` (the clipping update's convolution: the scatter buffer cleared
+    and only the given cells put in it) equals the convolution of the whole field that is
+    ``values`` there and zero elsewhere, bit for bit, in both precisions and on both paths;
+    and it leaves nothing behind for the next whole call."""
+    _, grid, plan = _small_plan("paper-fig3-dense", ["load.indentation_um=0.02"], 6)
+    conv = plan._convolution
+    rng = np.random.default_rng(11)
+    index = np.sort(rng.choice(grid.n_cells, 40, replace=False))
+    values = rng.random(40)
+    field = np.zeros(grid.n_cells)
+    field[index] = values
+    q = rng.random(grid.n_cells)
+    for pocket in (True, False):
+        conv._pocket, conv._arrays = pocket, {}
+        for single in (False, True):
+            whole = conv(field, single).copy()
+            after = conv(q, single).copy()
+            assert np.array_equal(conv.few(index, values, single), whole)
+            assert np.array_equal(conv(q, single), after)
+    conv._pocket, conv._arrays = True, {}
+
+
+def test_convolutions_that_run_in_turn_share_their_work_arrays():
+    """A mixed-precision plan's two precisions, its preconditioner and a coarser plan given
+    its workspace transform in one memory (views of the same blocks: no new block for the
+    coarser plan), and give the same bits as with arrays of their own; the float64 transform,
+    which serves only the exact refreshes, multiplies by the kernel spectrum itself instead
+    of a copy of it."""
+    from bem_solver._fft_operator import CirculantPreconditioner, TransformWorkspace
+
+    scene, grid, plan = _small_plan("paper-fig3-dense", ["load.indentation_um=0.02"], 8)
+    pre = CirculantPreconditioner(plan)
+    blocks = dict(plan.workspace._blocks)
+    coarse_grid = build_grid(scene, 4)
+    coarse = CompliancePlan(coarse_grid.shape, coarse_grid.flat_index, coarse_grid.cell_size,
+                            scene.half_space_compliance, pillar=coarse_grid.pillar,
+                            spring_compliance=scene.pillar_spring_compliance,
+                            workspace=plan.workspace)
+    assert plan.workspace._blocks == blocks  # the coarser plan's arrays fit in the blocks
+    works = [c._state(p)[2] for c, p in ((plan._convolution, "double"),
+                                          (plan._convolution, "single"),
+                                          (pre._inverse, "single"),
+                                          (coarse._convolution, "single"))]
+    for work in works[1:]:
+        assert np.shares_memory(work[0], works[0][0]) and np.shares_memory(work[1], works[0][1])
+    assert np.shares_memory(works[0][2], plan.kernel_spectrum)
+    q = np.random.default_rng(3).random(grid.n_cells)
+    qc = np.random.default_rng(4).random(coarse_grid.n_cells)
+    free = q > 0.3
+    shared = [plan(q), plan.approximate(q), pre(q, free), coarse.approximate(qc)]
+    fresh_plan = _small_plan("paper-fig3-dense", ["load.indentation_um=0.02"], 8)[2]
+    fresh_coarse = CompliancePlan(coarse_grid.shape, coarse_grid.flat_index,
+                                  coarse_grid.cell_size, scene.half_space_compliance,
+                                  pillar=coarse_grid.pillar,
+                                  spring_compliance=scene.pillar_spring_compliance,
+                                  workspace=TransformWorkspace())
+    alone = [fresh_plan(q), fresh_plan.approximate(q),
+             CirculantPreconditioner(fresh_plan)(q, free), fresh_coarse.approximate(qc)]
+    for a, b in zip(shared, alone):
+        assert np.array_equal(a, b)
+
+
 def test_a_plan_is_freed_when_its_last_reference_goes():
     """No reference cycle holds a plan (or its preconditioner) and its arrays until the
     garbage collector runs: the nested warm start drops each coarse level's plan, and a

@@ -101,6 +101,9 @@ class StrictDevice:
         numpy_sums = NumpyDevice().segments(self.to_numpy(index), n)
         return lambda weights: xps.asarray(numpy_sums(self.to_numpy(weights)))
 
+    def spreader(self, index):
+        return lambda values: xps.take(values, index)
+
     def put(self, target, index, values):
         out = np.array(self.to_numpy(target))
         out[self.to_numpy(index)] = self.to_numpy(values)

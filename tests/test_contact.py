@@ -158,21 +158,44 @@ def test_non_convergence_is_reported_not_raised():
     assert sol.iterations == 2 and len(sol.history) == 3
 
 
+def _labels(kind, n, rng):
+    """Labels below n: in runs of at least RUNS_PAY (a grid's pillar cells), scattered, or
+    none."""
+    from contact._xp import RUNS_PAY
+
+    if kind == "runs":
+        return np.repeat(rng.integers(0, n, 300), rng.integers(RUNS_PAY, 30, 300))
+    if kind == "scattered":
+        return rng.integers(0, n, 5000)
+    return np.zeros(0, dtype=np.int64)
+
+
+@pytest.mark.parametrize("kind", ["runs", "scattered", "empty"])
+def test_spreader_is_the_gather(kind):
+    """The backend's reusable spread of per-label values to their entries: exactly
+    ``values[index]`` (a copy, so bit for bit) whether the labels come in runs (repeated per
+    run) or scattered (gathered)."""
+    from contact._xp import NUMPY
+
+    rng = np.random.default_rng(8)
+    n = 40
+    index = _labels(kind, n, rng)
+    values = rng.standard_normal(n)
+    got = NUMPY.spreader(index)(values)
+    assert got.shape == index.shape
+    assert np.array_equal(got, values[index])
+
+
 @pytest.mark.parametrize("kind", ["runs", "scattered", "empty"])
 def test_segments_sum_like_bincount(kind):
     """The backend's reusable segment sums: the same sums as a bincount per label (to
     round-off: runs are summed first) whether the labels come in runs (a grid's pillar cells)
     or scattered, and zeros for no cells at all."""
-    from contact._xp import NUMPY, RUNS_PAY
+    from contact._xp import NUMPY
 
     rng = np.random.default_rng(7)
     n = 40
-    if kind == "runs":
-        index = np.repeat(rng.integers(0, n, 300), rng.integers(RUNS_PAY, 30, 300))
-    elif kind == "scattered":
-        index = rng.integers(0, n, 5000)
-    else:
-        index = np.zeros(0, dtype=np.int64)
+    index = _labels(kind, n, rng)
     weights = rng.standard_normal(index.size)
     expect = np.bincount(index, weights=weights, minlength=n)
     got = NUMPY.segments(index, n)(weights)
