@@ -511,7 +511,10 @@ class CompliancePlan:
 
         if m > (self.few_max_single if single else self.few_max):
             self._count(single)
-            u = self._convolution.few(index, values, single=single)
+            # numpy: only the clipped cells scattered; elsewhere the whole field, which the
+            # parts below reuse (not built twice)
+            u = self._convolution.few(index, values, single=single) if on_numpy else \
+                self._convolution(whole(), single=single)
         else:
             u = self._table_sum(index, values)
             self.direct_updates += 1
