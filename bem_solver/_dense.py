@@ -12,10 +12,10 @@ import time
 
 import numpy as np
 
-from contact import ContactSolution, min_map_residual, solve_active_set as solve_contact
-from outcome import ContactResult, PillarForce
-from scenes import Scene, ScopeError, analytic
-from outcome.memory import memory_short
+from pillar_xval.contact import ContactSolution, min_map_residual, solve_active_set as solve_contact
+from pillar_xval.outcome import ContactResult, PillarForce
+from pillar_xval.scenes import Scene, ScopeError, analytic
+from pillar_xval.outcome.memory import memory_short
 
 from ._cells import VARIANTS, cell_pattern
 from ._discretise import Discretisation, discretise, overlap_radius

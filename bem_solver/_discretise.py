@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scenes import Scene
-from scenes.lattice import d6_images, lattice_indices, wedge_orbits
+from pillar_xval.scenes import Scene
+from pillar_xval.scenes.lattice import d6_images, lattice_indices, wedge_orbits
 
 from ._cells import cell_pattern
 

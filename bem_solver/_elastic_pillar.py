@@ -44,7 +44,7 @@ import numpy as np
 import scipy.fft as sfft
 import scipy.sparse as sp
 
-from scenes import InputError, Scene
+from pillar_xval.scenes import InputError, Scene
 
 from ._limits import PILLAR_MODELS
 from ._love import unit_force_influence

@@ -40,8 +40,8 @@ from __future__ import annotations
 
 import time
 
-from outcome import ContactResult, PillarForce
-from scenes import Scene
+from pillar_xval.outcome import ContactResult, PillarForce
+from pillar_xval.scenes import Scene
 
 from ._dense import solve_dense
 

@@ -26,7 +26,7 @@ Precision.  By default (``precision="mixed"``) the CG's step applications, its c
 updates and the preconditioner run their FFTs in float32 (0.6-0.65 of the float64 time; the
 rest of the operator, the vectors and the sums stay float64), and the CG recomputes the gap in
 float64 whenever the float32 rounding it has carried could reach a tenth of the residual, and
-before it accepts a residual within ``tol`` (:func:`contact.constrained_cg`): the answer
+before it accepts a residual within ``tol`` (:func:`pillar_xval.contact.constrained_cg`): the answer
 meets the tolerance in float64 exactly as before and moves within it (F_T by 1e-11 to 2e-9,
 sigma_0 by up to 4e-8 on the paper's scenes, with the same iterations).  ``precision="double"``
 keeps float64 throughout.
@@ -56,10 +56,10 @@ import time
 
 import numpy as np
 
-from contact import constrained_cg, diagonal_preconditioner
-from outcome import ContactResult, PillarForce
-from outcome.memory import memory_short
-from scenes import InputError, Scene, ScopeError
+from pillar_xval.contact import constrained_cg, diagonal_preconditioner
+from pillar_xval.outcome import ContactResult, PillarForce
+from pillar_xval.outcome.memory import memory_short
+from pillar_xval.scenes import InputError, Scene, ScopeError
 
 from ._dense import _smooth_edge_radius
 from ._fft_grid import CellGrid, build_grid, candidate_side, estimate_host_memory
@@ -281,7 +281,7 @@ def _plain_grid(grid: CellGrid, scene: Scene) -> CellGrid:
     """The same cells collocated at their centres (no edge correction)."""
     from dataclasses import replace
 
-    from scenes.analytic import lens_gap
+    from pillar_xval.scenes.analytic import lens_gap
 
     gap0 = lens_gap(scene.lens.radius_m, np.hypot(grid.x, grid.y)) - scene.indentation_m
     return replace(grid, colloc_x=grid.x, colloc_y=grid.y, gap0=gap0)

@@ -21,9 +21,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scenes import Scene, SceneError
-from scenes.analytic import lens_gap
-from scenes.lattice import pillars_within
+from pillar_xval.scenes import Scene, SceneError
+from pillar_xval.scenes.analytic import lens_gap
+from pillar_xval.scenes.lattice import pillars_within
 
 from ._disk import disk_rectangle_area, disk_rectangle_centroid
 

@@ -32,7 +32,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from scenes import Scene
+from pillar_xval.scenes import Scene
 
 from ._discretise import Discretisation
 from ._love import FAR_FIELD_RATIO, love_square_near, unit_force_influence

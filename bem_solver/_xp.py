@@ -1,4 +1,4 @@
-"""Devices of the FFT model: an array backend (:mod:`contact._xp`) plus FFTs, sparse matrices
+"""Devices of the FFT model: an array backend (:mod:`pillar_xval.contact._xp`) plus FFTs, sparse matrices
 and the size limit of the padded FFT grid.
 
 ``select_backend("cpu" | "gpu" | "auto")`` gives the backend :func:`bem_solver.solve_fft`
@@ -12,8 +12,8 @@ import functools
 
 import numpy as np
 
-from contact._xp import CupyArrays, NumpyArrays
-from scenes import InputError
+from pillar_xval.contact._xp import CupyArrays, NumpyArrays
+from pillar_xval.scenes import InputError
 
 from ._fft_grid import MAX_FFT_POINTS
 from ._limits import DEVICES

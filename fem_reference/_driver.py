@@ -18,8 +18,8 @@ import time
 
 import numpy as np
 
-from outcome import ContactResult
-from scenes import ScopeError
+from pillar_xval.outcome import ContactResult
+from pillar_xval.scenes import ScopeError
 
 from ._reduced import SolveError
 

@@ -47,7 +47,7 @@ from scipy.sparse.linalg import splu
 from skfem import Basis, ElementTriP1, ElementTriP2, ElementVector
 
 from meshes import AxisymmetricMesh, MeshError
-from scenes import InputError, Scene, ScopeError
+from pillar_xval.scenes import InputError, Scene, ScopeError
 
 from ._pardiso import Pardiso
 from ._reduced import SolveError

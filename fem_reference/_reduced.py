@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from scenes import ToolError
+from pillar_xval.scenes import ToolError
 
 __all__ = ["ReducedSystem", "SolveError", "relative_residual"]
 

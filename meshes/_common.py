@@ -3,7 +3,7 @@ mesh builder raises (bad geometry input, exit 2; a failure of gmsh or a mesh che
 
 from __future__ import annotations
 
-from scenes import InputError, ToolError
+from pillar_xval.scenes import InputError, ToolError
 
 BODIES = ("lens", "pillar", "substrate")
 

@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 
-from outcome import ContactResult, PillarForce
-from scenes import analytic
+from pillar_xval.outcome import ContactResult, PillarForce
+from pillar_xval.scenes import analytic
 
 CALLS: list[tuple] = []
 

@@ -2,7 +2,7 @@
 
 import pytest
 
-from outcome import ContactResult
+from pillar_xval.outcome import ContactResult
 from validation.examples import api_example
 
 # The spring model assumes the rigid-punch pressure shape on a Hooke pillar; the BEM solves

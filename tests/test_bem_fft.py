@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from scenes import Lens, Material, Pillars, Scene, SceneError, analytic, load_scene
+from pillar_xval.scenes import Lens, Material, Pillars, Scene, SceneError, analytic, load_scene
 
 from bem_solver._fft import solve_fft
 from bem_solver._disk import disk_rectangle_area, disk_rectangle_centroid

@@ -12,7 +12,7 @@ import types
 import numpy as np
 import pytest
 
-from scenes import InputError, load_scene
+from pillar_xval.scenes import InputError, load_scene
 
 from bem_solver import available_devices
 from bem_solver._fft import solve_fft

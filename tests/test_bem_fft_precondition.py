@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scenes import load_scene
+from pillar_xval.scenes import load_scene
 
 from bem_solver._fft import solve_fft
 from bem_solver._fft_grid import build_grid

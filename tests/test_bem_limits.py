@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from bem_solver import solve_dense
-from scenes import analytic as an
-from scenes import load_scene
+from pillar_xval.scenes import analytic as an
+from pillar_xval.scenes import load_scene
 
 # Rigid flat punch with covered cells, measured: force error -2.4 % (P = 11), -1.37 % (21),
 # -0.79 % (41), falling monotonically ~ P^-0.8 (the 1/sqrt edge singularity); centre

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 from scipy.integrate import dblquad
 
-from contact import solve_active_set as solve_contact
+from pillar_xval.contact import solve_active_set as solve_contact
 from bem_solver import (cell_pattern, discretise, disk_rectangle_area, expansion, full_operator,
                         lens_gap, love_rectangle, reduced_operator, solve_dense)
 from bem_solver._love import (FAR_FIELD_RATIO, FAR_FIELD_RTOL, love_square_near,
                               unit_force_influence)
-from scenes import load_scene
+from pillar_xval.scenes import load_scene
 
 RTOL_ROUNDOFF = 1e-12   # identities that hold exactly up to floating-point rounding
 RTOL_QUADRATURE = 1e-9  # adaptive quadrature of the 1/r integral

@@ -16,8 +16,8 @@ import sys
 
 import pytest
 
-from outcome import package_version
-from scenes import ToolError, load_scene, preset_names, scene_to_toml
+from pillar_xval.outcome import package_version
+from pillar_xval.scenes import ToolError, load_scene, preset_names, scene_to_toml
 
 # The one line of each outcome (progress lines on stderr start with "[").
 KIND = {1: "not converged", 2: "error", 3: "failure", 4: "internal error", 130: "interrupted"}
@@ -225,7 +225,7 @@ def test_not_converged_is_exit_1_with_the_reason(fakes, monkeypatch, tmp_path, c
 
 def test_real_fft_not_converged_is_stamped(tmp_path, cli):
     """The real FFT model, stopped early through the Python API, and its figure."""
-    from scenes import load_scene
+    from pillar_xval.scenes import load_scene
     from bem_solver import solve_fft
     from validation.output.report import pressure_figure
 

@@ -134,7 +134,7 @@ BAD = ["-1", "0", "nan", "inf", "1e400", "1e-400", "abc", "", " ", "9" * 400, "0
 
 
 def test_fuzz_plan(tmp_path, cli):
-    from scenes import preset_names
+    from pillar_xval.scenes import preset_names
 
     rng = random.Random(SEED + 1)
     for k in range(40):

@@ -5,7 +5,7 @@ import json
 
 import pytest
 
-from outcome import ContactResult
+from pillar_xval.outcome import ContactResult
 from validation.cli import main
 
 
@@ -49,7 +49,7 @@ def test_grid_pressure_map_is_an_image_and_its_profile_a_density():
     from matplotlib.collections import PolyCollection
 
     from bem_solver import solve_fft
-    from scenes import load_scene
+    from pillar_xval.scenes import load_scene
     from validation.output.report import SCATTER_MAX, pressure_plot
 
     result = solve_fft(load_scene("paper-fig3-dense"), 6)
@@ -63,7 +63,7 @@ def test_grid_pressure_map_is_an_image_and_its_profile_a_density():
 
 def test_dense_map_draws_the_lattice_wedge_only_with_a_lattice():
     from bem_solver import solve_dense
-    from scenes import load_scene
+    from pillar_xval.scenes import load_scene
     from validation.output.report import pressure_plot
 
     lattice = pressure_plot(solve_dense(load_scene("paper-fig3-sparse"), 5)).axes[0]
@@ -75,7 +75,7 @@ def test_dense_map_draws_the_lattice_wedge_only_with_a_lattice():
 
 def test_model_without_element_map_gets_one_panel_sized_to_the_pillar():
     from fakes import fake_fem
-    from scenes import load_scene
+    from pillar_xval.scenes import load_scene
     from validation.output.report import pressure_plot
 
     scene = load_scene("single-pillar")
@@ -88,7 +88,7 @@ def test_model_without_element_map_gets_one_panel_sized_to_the_pillar():
 
 def test_not_converged_figures_say_so():
     from bem_solver import solve_fft
-    from scenes import load_scene
+    from pillar_xval.scenes import load_scene
     from validation.output.report import pressure_plot
 
     result = solve_fft(load_scene("paper-fig3-sparse"), 8, max_iterations=2)

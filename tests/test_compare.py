@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from scenes import InputError, analytic, load_scene
+from pillar_xval.scenes import InputError, analytic, load_scene
 from validation.cli import main
 from validation.output.report import REPORT_MARK  # the folder's owner, rewritten each run
 from validation.studies.compare import closed_form, compare_rows

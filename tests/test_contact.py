@@ -12,7 +12,7 @@ import itertools
 import numpy as np
 import pytest
 
-from contact import (constrained_cg, diagonal_preconditioner, evaluate, min_map_residual,
+from pillar_xval.contact import (constrained_cg, diagonal_preconditioner, evaluate, min_map_residual,
                      solve_active_set)
 
 RTOL_ROUNDOFF = 1e-10  # exact active-set solutions: round-off only
@@ -106,7 +106,7 @@ def test_monotone_mode_lowers_the_energy_at_every_step(monkeypatch):
     max_iterations = k, the path being deterministic) has an energy 1/2 p.A p + b.p that
     never rises with k beyond round-off; some truncated steps had to be shortened for that;
     the answer is still the enumeration's, also with approximate (1e-4) step applications."""
-    import contact._cg as cg
+    import pillar_xval.contact._cg as cg
 
     monkeypatch.setattr(cg, "STALL_ITERATIONS", 0)
     halvings = 0
@@ -161,7 +161,7 @@ def test_non_convergence_is_reported_not_raised():
 def _labels(kind, n, rng):
     """Labels below n: in runs of at least RUNS_PAY (a grid's pillar cells), scattered, or
     none."""
-    from contact._xp import RUNS_PAY
+    from pillar_xval.contact._xp import RUNS_PAY
 
     if kind == "runs":
         return np.repeat(rng.integers(0, n, 300), rng.integers(RUNS_PAY, 30, 300))
@@ -175,7 +175,7 @@ def test_spreader_is_the_gather(kind):
     """The backend's reusable spread of per-label values to their entries: exactly
     ``values[index]`` (a copy, so bit for bit) whether the labels come in runs (repeated per
     run) or scattered (gathered)."""
-    from contact._xp import NUMPY
+    from pillar_xval.contact._xp import NUMPY
 
     rng = np.random.default_rng(8)
     n = 40
@@ -191,7 +191,7 @@ def test_segments_sum_like_bincount(kind):
     """The backend's reusable segment sums: the same sums as a bincount per label (to
     round-off: runs are summed first) whether the labels come in runs (a grid's pillar cells)
     or scattered, and zeros for no cells at all."""
-    from contact._xp import NUMPY
+    from pillar_xval.contact._xp import NUMPY
 
     rng = np.random.default_rng(7)
     n = 40

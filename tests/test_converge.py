@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from scenes import analytic, load_scene
+from pillar_xval.scenes import analytic, load_scene
 from validation.cli import main
 from validation.engine import Case, Engine, case_key
 from validation.registry import ladders

@@ -19,7 +19,7 @@ from bem_solver._love import unit_force_influence
 from bem_solver._operator import reduced_operator
 from fem_reference import PillarKind, modal_compliance
 from fem_reference.axisym import solve as solve_axisymmetric
-from scenes import InputError, analytic, load_scene
+from pillar_xval.scenes import InputError, analytic, load_scene
 
 COARSE = {"mesh_size": 4.0}
 
@@ -308,7 +308,7 @@ def test_dense_elastic_refuses_a_block_beyond_memory(monkeypatch):
     """With 1 GiB available, P = 120 fits the Hooke operator (~0.3 GiB) but not the elastic
     pillar's block (2.8k representative rows x 11k cells, ~1.1 GiB): refused, never tried."""
     import bem_solver._dense as dense
-    from scenes import ScopeError
+    from pillar_xval.scenes import ScopeError
 
     monkeypatch.setattr(dense, "memory_short",
                         lambda need: "more than 80% of the 1 GiB available"

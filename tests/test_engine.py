@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pytest
 
-from scenes import load_scene
+from pillar_xval.scenes import load_scene
 from validation.engine import (Case, CaseStore, Engine, Progress, case_key, code_version,
                                read_journal, source_digest)
 
@@ -47,7 +47,7 @@ def test_key_is_stable_and_sensitive_to_what_is_computed():
     assert case_key("bem", scene.replace(name="renamed"), opts) == key
     assert case_key("bem", scene, dict(reversed(list(opts.items())))) == key
     # the same in another interpreter (no per-process hash seed in the key)
-    code = ("from scenes import load_scene; from validation.engine import case_key; "
+    code = ("from pillar_xval.scenes import load_scene; from validation.engine import case_key; "
             "print(case_key('bem', load_scene('paper-fig3-sparse'), "
             "{'cells': 'covered', 'elements_per_diameter': 7}))")
     other = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
@@ -61,7 +61,7 @@ def test_key_is_stable_and_sensitive_to_what_is_computed():
     assert case_key("bem", scene, {**opts, "elements_per_diameter": 9}) != key
     assert case_key("bem", scene, {**opts, "contact": "paper"}) != key
     assert case_key("bem", scene, opts, version=code_version() + "x") != key
-    assert code_version().startswith(__import__("outcome").package_version())
+    assert code_version().startswith(__import__("pillar_xval.outcome", fromlist=["_"]).package_version())
 
 
 def test_source_digest_follows_every_source_edit(tmp_path):
@@ -347,7 +347,7 @@ def test_a_waiting_process_takes_over_a_case_whose_holder_died(tmp_path):
     case = _bem_case()
     holder = subprocess.Popen(
         [sys.executable, "-c",
-         "import sys, time; from scenes import load_scene; "
+         "import sys, time; from pillar_xval.scenes import load_scene; "
          "from validation.engine import Case, CaseStore; "
          "c = Case('bem', load_scene('paper-fig3-sparse'), {'elements_per_diameter': 5}); "
          f"lock = CaseStore({str(tmp_path)!r}).try_lock(c); print('locked', flush=True); "

@@ -7,8 +7,8 @@ import json
 
 import pytest
 
-from outcome import ContactResult, PillarForce
-from scenes import ScopeError, load_scene
+from pillar_xval.outcome import ContactResult, PillarForce
+from pillar_xval.scenes import ScopeError, load_scene
 from validation.engine import Case, Outcome
 from validation.studies.extremes.report import STATUSES, counts, summary_text, write_outputs
 from validation.studies.extremes.run import corner_scenes, judge, run_extremes

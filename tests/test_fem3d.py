@@ -23,7 +23,7 @@ import pytest
 
 from fem_reference import axisym, solid3d
 from fem_reference.solid3d.system import mirror_normals, rigid_modes
-from scenes import ScopeError, analytic, load_scene
+from pillar_xval.scenes import ScopeError, analytic, load_scene
 
 RTOL_SOLVER = 1e-8
 RTOL_HERTZ_FORCE = 1e-2      # mesh_size 1 (measured +1.8e-3)
@@ -189,7 +189,7 @@ def test_result_schema_and_vtu(tmp_path):
     (dict(sector_angle=1.0), "sector_angle"), (dict(reach_factor=0.5), "reach_factor"),
 ])
 def test_bad_options_are_refused_clearly(kwargs, match):
-    from scenes import InputError
+    from pillar_xval.scenes import InputError
 
     with pytest.raises(InputError, match=match):
         solid3d.solve(load_scene("single-pillar"), **kwargs)

@@ -26,7 +26,7 @@ import pytest
 from fem_reference import SolveError, axisym
 from fem_reference._driver import contact_radius
 from fem_reference.axisym.contact import mortar_matrix
-from scenes import ScopeError, analytic, load_scene
+from pillar_xval.scenes import ScopeError, analytic, load_scene
 
 RTOL_SOLVER = 1e-8
 RTOL_FORCE = 5e-4            # Hertz and punch force at mesh_size 1 (measured <= 1.6e-4)

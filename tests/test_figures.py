@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from bem_solver._extrapolated import fine_level, richardson, solve_dense_extrapolated
-from scenes import analytic as an
-from scenes import load_scene
+from pillar_xval.scenes import analytic as an
+from pillar_xval.scenes import load_scene
 from validation.cli import main
 from validation.engine import Engine
 from validation.studies.figures.fits import (fit_area_exponent, fit_common_exponent,

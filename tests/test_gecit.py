@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from scenes import analytic, load_scene
+from pillar_xval.scenes import analytic, load_scene
 from validation.cli import main
 from validation.analysis.profiles import edge_exponent, outer_load_fraction, plateau_ratio
 
@@ -144,7 +144,7 @@ def test_failed_case_is_a_row_not_a_crash(fakes, tmp_path, monkeypatch):
 
     from fakes import fake_fem
 
-    from scenes import ToolError
+    from pillar_xval.scenes import ToolError
 
     def flaky(scene, mesh_size=1.0, *, vtu_path=None):
         if scene.pillars.material.E_Pa == 1.6e6:

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from scenes import analytic as an
-from scenes import lattice, load_scene
+from pillar_xval.scenes import analytic as an
+from pillar_xval.scenes import lattice, load_scene
 
 
 def test_rings_hold_6n_pillars_and_indices_invert():

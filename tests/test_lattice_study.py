@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import pytest
 
-from outcome import ContactResult, PillarForce
-from scenes import InputError
+from pillar_xval.outcome import ContactResult, PillarForce
+from pillar_xval.scenes import InputError
 from validation.engine import Engine
 from validation.studies import lattice as study
 

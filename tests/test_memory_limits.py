@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from outcome.memory import MEMORY_SHARE, memory_limit, memory_short
+from pillar_xval.outcome.memory import MEMORY_SHARE, memory_limit, memory_short
 
 LIMIT = 2_000_000 * 1024  # ulimit -v 2000000 (KiB), as a user would set it
 
@@ -23,7 +23,7 @@ def _run(code: str) -> subprocess.CompletedProcess:
 
 
 def test_the_address_space_limit_binds_under_ulimit():
-    out = _run("from outcome.memory import memory_limit; b, w = memory_limit(); "
+    out = _run("from pillar_xval.outcome.memory import memory_limit; b, w = memory_limit(); "
                "print(b); print(w)")
     assert out.returncode == 0, out.stderr
     free, what = out.stdout.splitlines()

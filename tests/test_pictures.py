@@ -14,7 +14,7 @@ import sys
 import numpy as np
 import pytest
 
-from scenes import InputError, ScopeError, load_scene
+from pillar_xval.scenes import InputError, ScopeError, load_scene
 
 
 # --- helpers ------------------------------------------------------------------------------

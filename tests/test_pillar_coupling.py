@@ -20,7 +20,7 @@ from bem_solver._fft_grid import build_grid
 from bem_solver._fft_operator import near_field_correction
 from bem_solver._operator import reduced_operator
 from fem_reference import PillarKind, modal_compliance
-from scenes import load_scene
+from pillar_xval.scenes import load_scene
 
 COARSE = {"mesh_size": 4.0}
 

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from bem_solver import discretise, estimate_memory, solve_dense
-from scenes import InputError, ScopeError, analytic, load_scene
-from closed_forms._models import solve_hertz, solve_spring
+from pillar_xval.scenes import InputError, ScopeError, analytic, load_scene
+from pillar_xval.closed_forms._models import solve_hertz, solve_spring
 from validation.cli import main
 from validation.planner.plan import plan, plan_text
 from validation.planner.features import features, regime

@@ -10,7 +10,7 @@ import json
 
 import pytest
 
-from scenes import load_scene
+from pillar_xval.scenes import load_scene
 from validation.cli import main
 from validation.planner import costs
 from validation.planner.plan import plan, plan_text

@@ -9,7 +9,7 @@ import itertools
 import numpy as np
 import pytest
 
-from scenes import load_scene
+from pillar_xval.scenes import load_scene
 from validation.planner.plan import combined_error, plan, plan_text
 from validation.planner.tables import (DEFAULT_POLICY, SIGN_MIN_POINTS, CostFit, ErrorTable,
                                        PlannerData, load_data)
@@ -145,7 +145,7 @@ def test_a_sign_share_outside_its_range_is_refused(tmp_path, share):
     import json
     import shutil
 
-    from scenes import InputError
+    from pillar_xval.scenes import InputError
     from validation.planner.tables import data_dir
 
     for name in ("error_models.json", "cost_models.json"):

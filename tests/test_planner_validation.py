@@ -13,8 +13,8 @@ import types
 
 import pytest
 
-from outcome import ContactResult, PillarForce
-from scenes import InputError
+from pillar_xval.outcome import ContactResult, PillarForce
+from pillar_xval.scenes import InputError
 from validation.engine import Engine
 from validation.planner.features import regime
 from validation.planner.tables import CostFit, ErrorTable, PlannerData, load_data

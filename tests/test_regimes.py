@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from scenes import load_scene
+from pillar_xval.scenes import load_scene
 from validation.planner import tables
 from validation.planner.plan import hooke_error, plan
 from validation.studies import regimes

@@ -12,8 +12,8 @@ import shutil
 
 import pytest
 
-from outcome import ContactResult
-from scenes import analytic, load_scene
+from pillar_xval.outcome import ContactResult
+from pillar_xval.scenes import analytic, load_scene
 from validation.engine import Case, Engine, case_key
 from validation.planner.tables import load_data
 from validation.registry import (MODELS, Ladder, Model, OptionSpec, check_option, get_model,

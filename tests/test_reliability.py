@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from scenes import InputError
+from pillar_xval.scenes import InputError
 from validation.engine import Engine
 
 SPEC = Path(__file__).resolve().parents[1] / "validation" / "examples" / "sweep-phi-zeta.toml"
@@ -44,7 +44,7 @@ CONTRAST_SCENE = ("paper-fig3-sparse", ["substrate.E_Pa=1.6e6"])  # E_s = E_l, 7
 
 
 def _contrast_run(model, contrast, **options):
-    from scenes import load_scene
+    from pillar_xval.scenes import load_scene
     from validation.registry import run_model
 
     name, sets = CONTRAST_SCENE
@@ -173,7 +173,7 @@ def test_the_cli_starts_without_the_heavy_libraries():
     import subprocess
     import sys
 
-    heavy = ("scipy.optimize", "scipy.sparse", "skfem", "gmsh", "contact", "pyvista",
+    heavy = ("scipy.optimize", "scipy.sparse", "skfem", "gmsh", "pillar_xval.contact", "pyvista",
              "matplotlib", "dask", "pyarrow", "meshio")
     code = ("import sys; from validation.cli import build_parser; build_parser(); "
             f"print(','.join(m for m in {heavy!r} if m in sys.modules))")

@@ -10,8 +10,8 @@ from importlib import resources
 
 import pytest
 
-from outcome import write_atomic
-from scenes import (LENGTH_RANGE_M, MODULUS_RANGE_PA, PHI_CLOSE_PACKING, InputError, Lens,
+from pillar_xval.outcome import write_atomic
+from pillar_xval.scenes import (LENGTH_RANGE_M, MODULUS_RANGE_PA, PHI_CLOSE_PACKING, InputError, Lens,
                     Material, Pillars, Scene, SceneError, analytic, load_scene, preset_names,
                     scene_from_dict, scene_to_toml)
 
@@ -220,7 +220,7 @@ def test_presets_state_their_substrate(tmp_path):
 
 
 def test_summary_shows_every_material():
-    from outcome import ContactResult
+    from pillar_xval.outcome import ContactResult
 
     s = load_scene("single-pillar", ["pillars.E_Pa=1e9", "lens.rigid=true"])
     res = ContactResult("bem", s.to_dict(), {}, 1.0, 1.0, 1.0, 1.0, 1, [], True, 1, 0.1)
@@ -357,7 +357,7 @@ def test_fuzz_scene_files_and_overrides(tmp_path):
     """Seeded random mutations: every outcome is a valid Scene (which round-trips through
     TOML) or a one-line SceneError that starts by naming the file, the preset or the --set."""
     rng = random.Random(20240610)
-    sources = [(name, (resources.files("scenes") / "presets" / f"{name}.toml").read_text())
+    sources = [(name, (resources.files("pillar_xval.scenes") / "presets" / f"{name}.toml").read_text())
                for name in preset_names()]
     sources.append(("implied", IMPLIED_SUBSTRATE))
     counts = {"scene": 0, "refused": 0}

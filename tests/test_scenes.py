@@ -4,7 +4,7 @@ import math
 
 import pytest
 
-from scenes import (PHI_CLOSE_PACKING, Scene, SceneError, load_scene, preset_names,
+from pillar_xval.scenes import (PHI_CLOSE_PACKING, Scene, SceneError, load_scene, preset_names,
                     scene_from_dict, scene_to_toml)
 from validation.cli import main
 

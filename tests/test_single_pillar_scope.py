@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from scenes import ScopeError, analytic, load_scene
+from pillar_xval.scenes import ScopeError, analytic, load_scene
 from validation.registry import run_model
 from validation.planner.features import regime
 

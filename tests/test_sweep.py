@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from bem_solver import solve_dense
-from scenes import InputError, SceneError, load_scene
+from pillar_xval.scenes import InputError, SceneError, load_scene
 from validation.cli import main
 from validation.engine import Engine, read_journal
 from validation.studies.sweep import (ModelSpec, Sweep, crossed, linear, log, run_sweep,

@@ -8,8 +8,8 @@ import dataclasses
 
 import pytest
 
-from scenes import analytic, load_scene
-from closed_forms import solve_hertz
+from pillar_xval.scenes import analytic, load_scene
+from pillar_xval.closed_forms import solve_hertz
 from validation.testing import (assert_agree, assert_close, assert_converged,
                                 assert_matches_closed_form, assert_order, checks_made)
 from validation.analysis.verification import study

@@ -7,7 +7,7 @@ import json
 
 import pytest
 
-from scenes import load_scene
+from pillar_xval.scenes import load_scene
 from validation.registry import Ladder, OptionSpec, ladders
 from validation.studies.tradeoff import reference_values, tradeoff, write_outputs
 
@@ -196,7 +196,7 @@ def test_cli_tradeoff_with_elastic_pillars_has_its_own_reference(fft_fake, tmp_p
     assert list(doc["references"]) == ["elastic-pillar"] and doc["options"] == \
         {"pillars": "elastic"}
     # the elastic fake's limit is the spring force (the Hooke one's is 2 % above)
-    from scenes import analytic
+    from pillar_xval.scenes import analytic
 
     spring = analytic.spring_model(load_scene("single-pillar"))
     assert doc["references"]["elastic-pillar"]["F_T"]["value"] == \

@@ -73,7 +73,7 @@ class XVal:
     def scene(self, preset_or_file: str, *overrides: str):
         """A preset by name, or a scene file (relative to the test file's folder), with
         ``table.key=value`` overrides."""
-        from scenes import load_scene, preset_names
+        from pillar_xval.scenes import load_scene, preset_names
 
         source = preset_or_file
         if source not in preset_names():
@@ -91,7 +91,7 @@ class XVal:
         return self._engine
 
     def run(self, model: str, scene, **options):
-        """The :class:`scenes.ContactResult` of ``model`` on ``scene`` (computed once, then
+        """The :class:`pillar_xval.scenes.ContactResult` of ``model`` on ``scene`` (computed once, then
         read from the cache); a case that failed raises its error."""
         from .engine import Case
 

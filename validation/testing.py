@@ -23,8 +23,8 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from outcome import ContactResult
-from scenes import InputError
+from pillar_xval.outcome import ContactResult
+from pillar_xval.scenes import InputError
 
 from .registry import QUANTITIES
 
@@ -254,7 +254,7 @@ def assert_order(study: Mapping, expected: float, *, atol: float = 0.1,
 
 
 def _closed_form_values(result: ContactResult, form: str) -> dict:
-    from scenes import Scene, analytic
+    from pillar_xval.scenes import Scene, analytic
 
     scene = Scene.from_dict(result.scene)
     if form == "hertz":

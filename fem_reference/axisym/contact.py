@@ -10,7 +10,7 @@ with C the symmetric positive definite compliance of the two bodies at the conta
 q = g(r) - zeta the initial gap minus the indentation and w~ the r-weighted gaps (Kalker's
 variational principle).  It is the minimisation of 1/2 lam^T (D^T C D) lam + (D^T q)^T lam
 over lam >= 0,
-solved exactly by :func:`contact.solve_active_set` with the vertex weights (integral of psi_j r dr)
+solved exactly by :func:`pillar_xval.contact.solve_active_set` with the vertex weights (integral of psi_j r dr)
 that turn weighted gaps into mean gaps for the residual.
 
 References

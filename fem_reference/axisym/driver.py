@@ -22,11 +22,11 @@ import math
 
 import numpy as np
 
-from contact import solve_active_set
+from pillar_xval.contact import solve_active_set
 from meshes import build_axisymmetric_mesh, flat_geometry, pillar_geometry
-from outcome import ContactResult, PillarForce
-from outcome.memory import memory_short
-from scenes import InputError, Scene, ScopeError, analytic
+from pillar_xval.outcome import ContactResult, PillarForce
+from pillar_xval.outcome.memory import memory_short
+from pillar_xval.scenes import InputError, Scene, ScopeError, analytic
 
 from .._driver import (HERTZ_CANDIDATE, RTOL_COMPLEMENTARITY, PhaseClock, contact_radius,
                        fem_result, flat_candidate, refuse_rigid_pair, scaled_materials, verdict)
@@ -109,7 +109,7 @@ def solve(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None,
         mesh vertices of the pillar top, r = 0 to d/2, graded towards the edge (flat scenes:
         of the candidate contact zone, 0 to 1.5 a).  ``diagnostics`` holds
         ``linear_residual`` (scaled, relative), ``contact_residual`` (the min-map
-        residual of :mod:`contact` on the mean gaps, relative to zeta), ``compliance_asymmetry``,
+        residual of :mod:`pillar_xval.contact` on the mean gaps, relative to zeta), ``compliance_asymmetry``,
         ``block_size_m``, ``truncation_estimate`` (F (gamma_l + gamma_s) / (pi L zeta), an
         upper bound of the relative force error from the finite block: measured 0.8 x it),
         ``max_pointwise_penetration`` (over zeta, at the P2 points; the mortar contact

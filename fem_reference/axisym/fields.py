@@ -62,7 +62,7 @@ def write_vtu(path, mesh, displacement_m: np.ndarray, cells: dict, metadata: dic
 
     import meshio
 
-    from outcome import atomic_path, write_atomic
+    from pillar_xval.outcome import atomic_path, write_atomic
 
     path = Path(path)
     pts = np.vstack([mesh.points, np.zeros(mesh.points.shape[1])]).T

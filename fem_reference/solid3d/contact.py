@@ -10,7 +10,7 @@ simply u_z(lens) - u_z(lower body) + g(r) - zeta, and the condensed problem is::
 
     w~ = D^T G K^-1 G^T D lam + D^T (g - zeta) >= 0,   lam >= 0,   lam . w~ = 0,
 
-solved by :func:`contact.constrained_cg` with the operator applied by one back-substitution
+solved by :func:`pillar_xval.contact.constrained_cg` with the operator applied by one back-substitution
 per iteration (no compliance matrix is formed).  Weights w_j = integral of psi_j turn the
 weighted gaps w~ into mean gaps for the residual.
 

@@ -28,13 +28,13 @@ import resource
 
 import numpy as np
 
-from contact import constrained_cg
+from pillar_xval.contact import constrained_cg
 from meshes import (MESH_SIZE_RANGE_3D, SECTORS, WedgeGeometry, build_wedge_mesh,
                     sector_pillars)
-from outcome import ContactResult, PillarForce
-from outcome.memory import memory_short
-from scenes import InputError, Scene, ScopeError, analytic
-from scenes.lattice import lattice_indices
+from pillar_xval.outcome import ContactResult, PillarForce
+from pillar_xval.outcome.memory import memory_short
+from pillar_xval.scenes import InputError, Scene, ScopeError, analytic
+from pillar_xval.scenes.lattice import lattice_indices
 
 from .._driver import (RTOL_COMPLEMENTARITY, PhaseClock, contact_radius, fem_result,
                        flat_candidate, refuse_rigid_pair, scaled_materials, verdict)

@@ -58,7 +58,7 @@ def write_vtu3d(path, points_m: np.ndarray, tets: np.ndarray, displacement_m: np
 
     import meshio
 
-    from outcome import atomic_path, write_atomic
+    from pillar_xval.outcome import atomic_path, write_atomic
 
     path = Path(path)
     out = meshio.Mesh(points_m.T, [("tetra", tets.T)],

@@ -168,7 +168,7 @@ class AxisymmetricMesh:
         """Write the mesh with meshio (format from the suffix: .msh, .vtu, .xdmf, ...)."""
         from pathlib import Path
 
-        from outcome import atomic_path
+        from pillar_xval.outcome import atomic_path
 
         path = Path(path)
         mesh = self.to_meshio()

@@ -215,7 +215,7 @@ def sector_pillars(pitch_m: float, diameter_m: float, reach_m: float,
                    sector_angle: float = math.pi / 6.0) -> tuple:
     """Pillars of the lattice whose centre lies in the sector and whose top comes within
     ``reach_m`` of the axis (nearest top point r = |c| - d/2 <= reach_m), as SectorPillar."""
-    from scenes.lattice import pillars_within
+    from pillar_xval.scenes.lattice import pillars_within
 
     out = []
     tol = 1e-9 * pitch_m

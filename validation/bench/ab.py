@@ -42,7 +42,7 @@ ROOT = Path(__file__).resolve().parents[2]
 WORKER = r"""
 import json, sys, time
 case, warm = json.loads(sys.argv[1]), sys.argv[2] == "1"
-from scenes import load_scene
+from pillar_xval.scenes import load_scene
 scene = load_scene(case["scene"], case["overrides"])
 if case["model"] == "dense":
     from bem_solver import solve_dense as solve

@@ -18,9 +18,9 @@ from pathlib import Path
 import numpy as np
 
 from bem_solver import discretise, full_operator, lens_gap, solve_dense
-from contact import solve_active_set as solve_contact
-from outcome import write_atomic
-from scenes import load_scene
+from pillar_xval.contact import solve_active_set as solve_contact
+from pillar_xval.outcome import write_atomic
+from pillar_xval.scenes import load_scene
 from validation.bench import median_time
 from validation.output.report import figure_png
 

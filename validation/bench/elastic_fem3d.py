@@ -76,7 +76,7 @@ TIMING_NOTE = ("BEM: median of 3 solves after one warm-up, compliance from the d
 
 
 def scene_of(phi: str):
-    from scenes import load_scene
+    from pillar_xval.scenes import load_scene
 
     preset, overrides = SCENES[phi]
     return load_scene(preset, list(overrides))
@@ -197,7 +197,7 @@ def run_case(spec: dict, out: Path) -> dict:
     """The case's JSON from DIR/cases when it finished before, else run it in a fresh
     interpreter and keep it there.  A failed case is reported and not kept (a resumed run
     retries it)."""
-    from outcome import write_atomic
+    from pillar_xval.outcome import write_atomic
 
     path = out / "cases" / f"{case_id(spec)}.json"
     if path.exists():
@@ -485,7 +485,7 @@ def _load(triple) -> str:
 
 
 def write_outputs(out: Path, doc: dict) -> tuple[Path, Path]:
-    from outcome import write_atomic
+    from pillar_xval.outcome import write_atomic
 
     md = write_atomic(out / "elastic_fem3d.md", render_markdown(doc))
     js = write_atomic(out / "elastic_fem3d.json", json.dumps(doc, indent=1, allow_nan=False))
@@ -551,7 +551,7 @@ def main(argv=None) -> int:
     ap.add_argument("--case-out", type=Path, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.case:
-        from outcome import write_atomic
+        from pillar_xval.outcome import write_atomic
 
         write_atomic(args.case_out, json.dumps(execute_case(json.loads(args.case))))
         return 0

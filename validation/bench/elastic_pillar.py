@@ -29,7 +29,7 @@ LEVELS = (21, 41)
 
 
 def _scene(ratio, aspect):
-    from scenes import load_scene
+    from pillar_xval.scenes import load_scene
 
     return load_scene("single-pillar", [f"pillars.E_Pa={ratio * 1.6e6!r}",
                                         f"pillars.height_um={aspect * 4.0!r}"])
@@ -101,7 +101,7 @@ def modes_study(ratios=(10.0, 0.1), meshes=(4.0, 2.0, 1.0), P=21) -> list:
     compliance mesh (its number of P2 points on the top)."""
     from bem_solver import solve_dense
     from fem_reference import ModalCompliance, PillarKind, modal_compliance
-    from scenes import load_scene
+    from pillar_xval.scenes import load_scene
 
     rows = []
     for ratio in ratios:
@@ -128,7 +128,7 @@ def lattice(ratios=(0.1, 10.0), phi=0.2, fem_sizes=(2.83, 2.0), P=21, N=32) -> l
     from bem_solver import solve_dense, solve_fft
     from bem_solver._elastic_pillar import scene_compliance
     from fem_reference.solid3d import solve as solve_fem3d
-    from scenes import load_scene
+    from pillar_xval.scenes import load_scene
 
     rows = []
     for ratio in ratios:

@@ -28,7 +28,7 @@ import time
 from collections import Counter
 from pathlib import Path
 
-from outcome import write_atomic
+from pillar_xval.outcome import write_atomic
 from validation.engine import read_journal
 
 # Measured columns: they differ from run to run, the results do not.

@@ -33,7 +33,7 @@ DENSE_RTOL, DENSE_TIME_S = 0.05, 900.0
 def _run_level(preset: str, overrides: list, mesh_size: float) -> dict:
     """One solve in this (fresh) process; the figures of the benchmark table."""
     from fem_reference.solid3d import solve
-    from scenes import load_scene
+    from pillar_xval.scenes import load_scene
 
     t0 = time.perf_counter()
     res = solve(load_scene(preset, overrides), mesh_size)
@@ -61,7 +61,7 @@ def _compare_solvers(preset: str, overrides: list, mesh_size: float) -> dict:
     from fem_reference.solid3d.driver import _setup
     from fem_reference.solid3d.system import assemble_sector
     from meshes import build_wedge_mesh
-    from scenes import load_scene
+    from pillar_xval.scenes import load_scene
 
     setup = _setup(load_scene(preset, overrides), mesh_size, math.pi / 6, 1e4, 1.0, {})
     mesh = build_wedge_mesh(setup["geometry"]).to_skfem().scaled([1.0 / setup["ell"]] * 3)
@@ -176,7 +176,7 @@ def main(argv=None) -> int:
             c = cmp[name]
             print(f"{name:8s} {cmp['unknowns']} unknowns: factorise {c['factorise_s']:.1f} s, "
                   f"solve {c['solve_s']:.2f} s, residual {c['residual']:.1e}")
-    from outcome import write_atomic
+    from pillar_xval.outcome import write_atomic
 
     path = write_atomic(args.out / "bench_fem3d.json", json.dumps(out, indent=2))
     print(f"wrote {path}")

@@ -99,7 +99,7 @@ def fft_floor_kept(shape, workers=WORKERS, repeats=FLOOR_REPEATS) -> float | Non
 
 
 def _ours(scene_name, overrides, n, tol, edge_correction=True, precision="mixed"):
-    from scenes import load_scene
+    from pillar_xval.scenes import load_scene
 
     from bem_solver._fft import solve_fft
 
@@ -144,10 +144,10 @@ def _contactmechanics(scene_name, overrides, n, tol):
     from ContactMechanics.Optimization import constrained_conjugate_gradients
     from SurfaceTopography import Topography
 
-    from scenes import load_scene
+    from pillar_xval.scenes import load_scene
 
     from bem_solver._fft_grid import build_grid
-    from scenes.analytic import lens_gap
+    from pillar_xval.scenes.analytic import lens_gap
 
     scene = load_scene(scene_name, list(overrides))
     grid = build_grid(scene, n)  # the same cells; setup time excluded for both codes' grids
@@ -477,7 +477,7 @@ def _double_cell(r: dict) -> str:
 
 def write_report(out: Path, runs: list, scaling: list, meta: dict) -> str:
     """Write bench_fft.json, bench_fft.md and bench_fft.png into ``out``; return the table."""
-    from outcome import write_atomic
+    from pillar_xval.outcome import write_atomic
 
     rows = side_by_side(runs)
     table = format_table(rows, meta)

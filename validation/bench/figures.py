@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from bem_solver._extrapolated import richardson
-from outcome import write_atomic
+from pillar_xval.outcome import write_atomic
 from validation.engine import Case, Engine
 from validation.studies.figures import run_figures
 from validation.studies.figures.scenes import FigureGrid, expected_pillars, figure_sweeps

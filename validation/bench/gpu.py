@@ -54,7 +54,7 @@ def _solve(spec: dict) -> dict:
     solve of a study does not.  The measurements of the first, plus the second's times."""
     from bem_solver._fft import solve_fft
     from bem_solver._xp import NumpyDevice, select_backend
-    from scenes import load_scene
+    from pillar_xval.scenes import load_scene
 
     scene = load_scene(SCENE, list(PILLARS[spec["pillars"]]))
     if spec["device"] == "cpu":
@@ -191,7 +191,7 @@ def _gpu_name() -> str:
 
 def write_report(out: Path, rows: list, meta: dict) -> str:
     """Write bench_gpu.json into ``out``; return the printed table."""
-    from outcome import write_atomic
+    from pillar_xval.outcome import write_atomic
 
     head = (f"{'pillars':>7} {'N':>4} {'cells':>9} {'CPU s':>8} {'again':>6} {'table':>6} "
             f"{'it':>4} {'GPU s':>8} {'again':>6} {'table':>6} {'it':>4} {'speed-up':>8} "

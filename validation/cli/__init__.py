@@ -5,7 +5,7 @@ that parses options (the shared vocabulary of :mod:`validation.cli._args`), vali
 option before anything is solved, calls a study (:mod:`validation.studies`) and prints.  A
 module provides ``add_parser(subparsers)`` (which sets ``func``) and the function it names.
 
-Exit status and stderr (the failure policy of :mod:`scenes._errors`): every outcome is one
+Exit status and stderr (the failure policy of :mod:`pillar_xval.scenes._errors`): every outcome is one
 line on stderr, never a traceback.
 
 ====  ===========================================================================
@@ -59,7 +59,7 @@ def __getattr__(name: str):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from outcome import package_version
+    from pillar_xval.outcome import package_version
 
     from ._args import Parser
 
@@ -137,7 +137,7 @@ def main(argv: list[str] | None = None) -> int:
 def _load() -> None:
     """Load the toolkit the commands need (the shared vocabulary, the scenes, the command
     modules): the first place a tight memory limit bites."""
-    importlib.import_module("scenes")
+    importlib.import_module("pillar_xval.scenes")
     importlib.import_module("validation.cli._args")
     for name in COMMANDS:
         importlib.import_module(name)
@@ -178,7 +178,7 @@ def _install(signum, handler):
 
 
 def _main(argv: list[str] | None) -> int:
-    from scenes import InputError, ToolError
+    from pillar_xval.scenes import InputError, ToolError
 
     from ._args import one_line
 

@@ -37,7 +37,7 @@ from pathlib import Path
 
 from ._exit import (DEBUG_ENV, EXIT_BAD_INPUT, EXIT_INTERNAL_ERROR, EXIT_NOT_CONVERGED,
                     EXIT_TOOL_FAILURE)
-from scenes import InputError, preset_names
+from pillar_xval.scenes import InputError, preset_names
 
 from ..engine import add_engine_arguments, engine_from_args
 from ..registry import family_options, flag, option_vocabulary

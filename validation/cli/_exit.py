@@ -1,4 +1,4 @@
-"""The CLI's exit statuses: one per outcome of the failure policy (:mod:`scenes._errors`).
+"""The CLI's exit statuses: one per outcome of the failure policy (:mod:`pillar_xval.scenes._errors`).
 
 =========================  ======================================  ====
 what happened              reported as                             exit

@@ -97,7 +97,7 @@ def _median(values) -> float:
 def _lattice_only(args, lattice) -> int:
     import json
 
-    from scenes import InputError
+    from pillar_xval.scenes import InputError
 
     from ..studies.calibrate import relattice, write_document
     from ..planner.tables import data_dir

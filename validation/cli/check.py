@@ -8,7 +8,7 @@ import json
 import time
 from pathlib import Path
 
-from outcome import write_atomic
+from pillar_xval.outcome import write_atomic
 
 from ._args import (add_engine_arguments, add_output_arguments, check_out, engine_from_args,
                     print_json)

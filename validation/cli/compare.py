@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from scenes import InputError, load_scene
+from pillar_xval.scenes import InputError, load_scene
 
 from ..studies.compare import BEM, BOTH, FEM_COARSEST, FEM_MODELS, OUTPUTS, pillar_models
 from ._args import (Renamed, add_engine_arguments, add_levels_argument,

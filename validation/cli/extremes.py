@@ -32,7 +32,7 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    from scenes import InputError
+    from pillar_xval.scenes import InputError
 
     from ..studies.extremes import model_options, run_extremes
     from ..studies.extremes.report import counts, summary_text, write_outputs

@@ -7,7 +7,7 @@ import argparse
 import json
 from pathlib import Path
 
-from scenes import InputError
+from pillar_xval.scenes import InputError
 
 from ._args import add_engine_arguments, check_out, engine_from_args
 

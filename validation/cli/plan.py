@@ -7,7 +7,7 @@ import json
 
 from pathlib import Path
 
-from scenes import ScopeError, load_scene
+from pillar_xval.scenes import ScopeError, load_scene
 
 from ._args import (add_engine_arguments, add_scene_arguments, check_out, engine_from_args,
                     integer, number, print_json)

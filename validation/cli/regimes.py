@@ -7,7 +7,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from scenes import load_scene
+from pillar_xval.scenes import load_scene
 
 from ._args import add_scene_arguments, check_out, integer, number
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from scenes import load_scene
+from pillar_xval.scenes import load_scene
 
 from ..registry import model_names
 from ._args import (add_choice_arguments, add_model_argument, add_output_arguments,

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from scenes import load_scene
+from pillar_xval.scenes import load_scene
 
 from ..registry import MODELS, ladders
 from ._args import (add_choice_arguments, add_engine_arguments, add_models_argument,

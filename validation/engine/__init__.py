@@ -1,6 +1,6 @@
 """The study engine: cases, their keys and records, executors, progress.
 
-A :class:`Case` is (scene, model, options) -> :class:`scenes.ContactResult`.  An
+A :class:`Case` is (scene, model, options) -> :class:`pillar_xval.scenes.ContactResult`.  An
 :class:`Engine` runs a list of cases into a folder (:class:`CaseStore`): each finished case is
 written at once, atomically, and skipped on a rerun; a corrupt or inconsistent record is
 recomputed; a case another process is computing is waited for, never duplicated.  Cases run
@@ -9,7 +9,7 @@ version enters the key.
 
 Example
 -------
->>> from scenes import load_scene
+>>> from pillar_xval.scenes import load_scene
 >>> from validation.engine import Case, Engine
 >>> cases = [Case("bem", load_scene("hertz"), {"elements_per_diameter": p}) for p in (5, 7)]
 >>> with Engine("pool", workers=2) as engine:                      # doctest: +SKIP

@@ -7,8 +7,9 @@ How the code enters the key
 :func:`code_version` and the model's own code (:func:`model_code`).  The code version is the
 package version followed by the first 12 hex digits of a SHA-256 over the source and data
 files (``*.py``, ``*.toml``, ``*.json``, with their relative paths) of
-:data:`COMPUTING_PACKAGES`, what decides every result: the physics (``outcome``, ``scenes``,
-``contact``, ``bem_solver``, ``closed_forms``, ``meshes``, ``fem_reference``), the model
+:data:`COMPUTING_PACKAGES`, what decides every result: the physics (``pillar_xval``:
+the result schema, scenes, contact and closed forms; ``bem_solver``, ``meshes``,
+``fem_reference``), the model
 registry (``validation.registry``: which options reach a solver) and this module (how a case
 runs).  A model that computes with
 more (``auto``: the planner, ``validation.planner``, and its data) declares it in its
@@ -35,14 +36,14 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from outcome import ContactResult, package_version
-from scenes import Scene, ToolError
+from pillar_xval.outcome import ContactResult, package_version
+from pillar_xval.scenes import Scene, ToolError
 
 from ._progress import SolveProgress
 
 # The packages and modules whose source decides every result (module docstring).
-COMPUTING_PACKAGES = ("outcome", "scenes", "contact", "bem_solver", "closed_forms", "meshes",
-                      "fem_reference", "validation.registry", "validation.engine._case")
+COMPUTING_PACKAGES = ("pillar_xval", "bem_solver", "meshes", "fem_reference",
+                      "validation.registry", "validation.engine._case")
 # The files of a package that enter its digest: source, and the data it reads.
 SOURCE_SUFFIXES = (".py", ".toml", ".json")
 

@@ -20,8 +20,8 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from outcome import ContactResult
-from scenes import InputError, ToolError
+from pillar_xval.outcome import ContactResult
+from pillar_xval.scenes import InputError, ToolError
 
 from ._case import Case, compute_case
 from ._executors import EXECUTORS, default_workers, make_executor

@@ -22,7 +22,7 @@ import sys
 import threading
 import time
 
-from scenes import InputError, ToolError
+from pillar_xval.scenes import InputError, ToolError
 
 EXECUTORS = ("serial", "pool", "dask")
 PR_SET_PDEATHSIG = 1

@@ -25,8 +25,8 @@ import os
 import time
 from pathlib import Path
 
-from outcome import ContactResult, write_atomic
-from scenes import ToolError
+from pillar_xval.outcome import ContactResult, write_atomic
+from pillar_xval.scenes import ToolError
 
 from ._case import Case, accepts_vtu, code_version
 

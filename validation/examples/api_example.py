@@ -10,7 +10,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from scenes import analytic, load_scene
+from pillar_xval.scenes import analytic, load_scene
 from validation.engine import Engine
 from validation.output.report import write_solve_report
 from validation.registry import run_model

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from outcome import ContactResult, write_atomic
+from pillar_xval.outcome import ContactResult, write_atomic
 
 UM, KPA = 1e6, 1e-3  # display units: micrometres and kilopascals per SI unit
 # Above this many elements a scatter of sigma(r) is a grey blob: draw its density instead.
@@ -126,7 +126,7 @@ def clear_outputs(out: Path, names, command: str) -> None:
     presence means a whole report), nor the reports of two commands (InputError, exit 2: the
     other report is the user's and stays).  A file that cannot be removed is a ToolError
     (exit 3)."""
-    from scenes import InputError, ToolError
+    from pillar_xval.scenes import InputError, ToolError
 
     owner = report_owner(out)
     if owner not in (None, command):
@@ -179,7 +179,7 @@ def pressure_plot(result: ContactResult):
     Hertz-like curves (right), as in the paper's Fig. 3.  Without one (the FEM): the pressure
     across the pillar top (or the Hertz contact) with its closed forms, on an axis sized to
     it.  Stamped NOT CONVERGED when the solve missed its tolerance."""
-    from scenes import Scene
+    from pillar_xval.scenes import Scene
 
     plt = pyplot()
     scene = Scene.from_dict(result.scene)
@@ -274,7 +274,7 @@ def _limit(limit, scene):
     """A closed-form limit of ``scene`` to draw as a reference, or None where it does not
     apply (a rigid lens has no rigid-punch curve, say): a reference curve never turns a
     finished solve into an error."""
-    from scenes import SceneError
+    from pillar_xval.scenes import SceneError
 
     try:
         return limit(scene)
@@ -285,7 +285,7 @@ def _limit(limit, scene):
 def _closed_form_curves(ax, result: ContactResult, scene, r_end: float) -> float:
     """Hertz, the spring model (pillars) and the paper's Hertz-like curve; returns the
     larger centre pressure (Pa) of the model and of Hertz, to size the pressure axis."""
-    from scenes import analytic
+    from pillar_xval.scenes import analytic
 
     hz = _limit(analytic.hertz, scene)
     r_line = np.linspace(0, r_end, 400)
@@ -307,7 +307,7 @@ def _element_profile(ax, result: ContactResult, scene) -> None:
     f = result.fields
     r = np.hypot(f["x_m"], f["y_m"]) * UM
     p = np.asarray(f["pressure_Pa"], dtype=float) * KPA
-    from scenes import analytic
+    from pillar_xval.scenes import analytic
 
     hz = _limit(analytic.hertz, scene)
     r_end = max(hz.contact_radius if hz is not None else 0.0, result.contact_radius_m) * 1.05
@@ -332,7 +332,7 @@ def _element_profile(ax, result: ContactResult, scene) -> None:
 def _top_profile(ax, result: ContactResult, scene) -> None:
     """The pressure across the pillar top (or the Hertz contact) of a model without an
     element map, with the closed forms, r from 0 to just past the edge."""
-    from scenes import analytic
+    from pillar_xval.scenes import analytic
 
     prof = result.pillar_top_profile
     r = np.asarray(prof.get("r_m", []), dtype=float)
@@ -405,7 +405,7 @@ def scene_label(scene) -> str:
     parameters that differ from it ("paper-fig3-sparse (Φ = 0.2)"); a scene that is no preset
     (a file) is named with its Φ and ζ, so that a title never names a preset whose
     parameters the run did not have."""
-    from scenes import load_scene, preset_names
+    from pillar_xval.scenes import load_scene, preset_names
 
     d = scene if isinstance(scene, dict) else scene.to_dict()
     name = str(d.get("name") or "custom")

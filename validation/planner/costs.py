@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 
-from scenes import Scene
+from pillar_xval.scenes import Scene
 
 __all__ = ["SETUPS", "SIZES", "compliance_cached", "fft_grid", "size_terms"]
 

@@ -1,12 +1,12 @@
 """What the planner knows about a scene before solving it: its regime and the dimensionless
 features its error and cost models are tabulated against.
 
-Regime (thresholds of [P], computed by :mod:`scenes.analytic`):
+Regime (thresholds of [P], computed by :mod:`pillar_xval.scenes.analytic`):
 
 - ``flat``: no pillars, the Hertz problem;
 - ``single``: Phi < Phi_S, one pillar touches.  Phi_S is where the lens, the undeformed
   sphere plus the centre punch's lift ([P] eq. rSzeta, outer root), reaches the inner rim of
-  the next ring (:func:`scenes.analytic.single_pillar_threshold_rim`; [P]'s eq. PhiSrS puts
+  the next ring (:func:`pillar_xval.scenes.analytic.single_pillar_threshold_rim`; [P]'s eq. PhiSrS puts
   that ring's centre there and so counts one pillar where its rim already touches);
 - ``multi``: a second pillar touches.  Within it, ``hertz-like`` above Phi_H and
   ``transition`` below.  Phi_H is [P]'s fitted value, 0.306 for hard to 0.38 for soft pillars
@@ -58,7 +58,7 @@ from __future__ import annotations
 
 import math
 
-from scenes import Scene, analytic
+from pillar_xval.scenes import Scene, analytic
 
 __all__ = ["FEATURES", "PHI_H_HARD", "PHI_H_SOFT", "features", "phi_h", "regime"]
 

@@ -38,8 +38,8 @@ from __future__ import annotations
 
 import math
 
-from outcome.memory import memory_short
-from scenes import InputError, Scene, ScopeError
+from pillar_xval.outcome.memory import memory_short
+from pillar_xval.scenes import InputError, Scene, ScopeError
 
 from ..registry import QUANTITIES
 from .features import features, regime

@@ -46,7 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scenes import InputError
+from pillar_xval.scenes import InputError
 
 __all__ = ["CostFit", "DATA_FORMAT", "ErrorTable", "PlannerData", "ScaledCost", "load_data"]
 

@@ -14,8 +14,8 @@ vocabulary, :func:`option_vocabulary`), :func:`ladders`, :func:`candidates` (the
 
 from __future__ import annotations
 
-from outcome import ContactResult
-from scenes import InputError, Scene
+from pillar_xval.outcome import ContactResult
+from pillar_xval.scenes import InputError, Scene
 
 from .ladders import QUANTITIES, Ladder, Quantity, quantity_values
 from .model import CostLaw, Model

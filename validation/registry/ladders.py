@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from outcome import ContactResult
+from pillar_xval.outcome import ContactResult
 
 
 @dataclass(frozen=True)

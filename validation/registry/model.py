@@ -7,8 +7,8 @@ import inspect
 from dataclasses import dataclass, field
 from typing import Callable
 
-from outcome import ContactResult
-from scenes import Scene
+from pillar_xval.outcome import ContactResult
+from pillar_xval.scenes import Scene
 
 from .ladders import Ladder
 from .options import OptionSpec
@@ -40,7 +40,7 @@ class Model:
 
     ``solver`` is ``"module:function"``, imported on first use (a command that runs only the
     BEM never imports scikit-fem or gmsh); ``function(scene, **options)`` returns a
-    :class:`scenes.ContactResult`.  ``options`` are the keywords it takes, with their specs
+    :class:`pillar_xval.scenes.ContactResult`.  ``options`` are the keywords it takes, with their specs
     (:mod:`.options`).  The rest say how the studies use it:
 
     - ``ladder``: how it is refined (``converge``, ``compare``, ``gecit``, ``tradeoff``, the

@@ -92,12 +92,12 @@ DECLARED = (
         expensive=True),
     # Closed forms as models: the planner's cheapest candidates.
     Model(
-        "hertz", "closed_forms:solve_hertz",
+        "hertz", "pillar_xval.closed_forms:solve_hertz",
         "Hertz on the substrate (flat), or the Hertz-like limit of a dense lattice",
         scopes=("flat", "multi"), scope_note="one pillar touches: no continuum",
         cost=_NO_COST, robustness={}),
     Model(
-        "spring", "closed_forms:solve_spring",
+        "spring", "pillar_xval.closed_forms:solve_spring",
         "the paper's soft-flat-punch (spring) model of one pillar",
         scopes=("single",), scope_note="a second pillar touches, or the scene is flat",
         cost=_NO_COST, robustness={}),

@@ -18,7 +18,7 @@ from bem_solver._cells import VARIANTS
 from bem_solver._limits import (CONTACT_METHODS, DEVICES, ELEMENTS_PER_DIAMETER_RANGE,
                                 MIN_CELLS_PER_DIAMETER, PILLAR_MODELS, PRECISIONS)
 from meshes import MESH_SIZE_RANGE, MESH_SIZE_RANGE_3D
-from scenes import InputError
+from pillar_xval.scenes import InputError
 
 __all__ = ["CELLS", "CELLS_PER_DIAMETER", "CONTACT", "DEVICE", "ELEMENTS_PER_DIAMETER",
            "MAX_ITERATIONS", "MESH_SIZE", "MESH_SIZE_3D", "OptionSpec", "PILLARS", "PLANNED",

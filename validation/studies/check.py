@@ -28,7 +28,7 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from scenes import InputError, load_scene, preset_names
+from pillar_xval.scenes import InputError, load_scene, preset_names
 
 from ..testing import (CLOSED_FORMS, QUANTITY_BY_KEY, assert_close,
                        assert_matches_closed_form, check_tolerance, quantity_value)

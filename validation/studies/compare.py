@@ -30,8 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from outcome import write_atomic
-from scenes import InputError, Scene, analytic
+from pillar_xval.outcome import write_atomic
+from pillar_xval.scenes import InputError, Scene, analytic
 
 from ..engine import Engine
 from ..registry import QUANTITIES, ladder_for, quantity_values

@@ -8,8 +8,8 @@ import io
 import json
 from pathlib import Path
 
-from outcome import write_atomic
-from scenes import InputError, Scene
+from pillar_xval.outcome import write_atomic
+from pillar_xval.scenes import InputError, Scene
 
 from ..engine import Case, Engine, Outcome
 from ..registry import QUANTITIES, check_option, flag, get_model, ladder_for, quantity_values

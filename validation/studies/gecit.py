@@ -25,8 +25,8 @@ import math
 import time
 from pathlib import Path
 
-from outcome import write_atomic
-from scenes import InputError, load_scene
+from pillar_xval.outcome import write_atomic
+from pillar_xval.scenes import InputError, load_scene
 
 from ..engine import Case, Engine
 from ..registry import check_option, get_model, ladder_for
@@ -158,7 +158,7 @@ def analyse_case(scene, fem, bem, edge_window=EDGE_WINDOW, edge_nodes=None,
     removed by Richardson extrapolation, so that ``err_F_T`` and ``err_sigma0`` measure the
     Hooke-spring model, not the BEM mesh; ``U_BEM_*`` is the BEM's GCI band, relative.
     """
-    from scenes import analytic
+    from pillar_xval.scenes import analytic
 
     radius = scene.pillars.diameter_m / 2.0
     f_fem = fem.pillar_forces[0].force_N if fem.pillar_forces else fem.total_force_N

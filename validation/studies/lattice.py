@@ -50,7 +50,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scenes import InputError, Scene, lattice, load_scene
+from pillar_xval.scenes import InputError, Scene, lattice, load_scene
 
 from ..engine import Case, Engine
 from ..registry import QUANTITIES, quantity_values
@@ -897,7 +897,7 @@ def write_report(report: dict, out) -> list[str]:
     import json
     from pathlib import Path
 
-    from outcome import write_atomic
+    from pillar_xval.outcome import write_atomic
 
     out = Path(out)
     write_atomic(out / "lattice.csv", rows_csv(report))

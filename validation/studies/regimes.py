@@ -29,8 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from outcome import write_atomic
-from scenes import InputError, Pillars, Scene
+from pillar_xval.outcome import write_atomic
+from pillar_xval.scenes import InputError, Pillars, Scene
 
 __all__ = ["CSV_COLUMNS", "DEFAULT_POINTS", "FAMILIES", "FORMAT", "HOOKE_LEVELS",
            "PHI_RANGE", "POINTS_RANGE", "ZETA_RANGE", "family_of", "grid_axes", "grid_scene",

@@ -31,8 +31,8 @@ import math
 import tempfile
 from pathlib import Path
 
-from outcome import package_version, write_atomic
-from scenes import InputError
+from pillar_xval.outcome import package_version, write_atomic
+from pillar_xval.scenes import InputError
 
 from ..engine import Case, Engine
 from ..registry import QUANTITIES

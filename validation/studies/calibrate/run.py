@@ -34,8 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
-from outcome import write_atomic
-from outcome import package_version
+from pillar_xval.outcome import write_atomic
+from pillar_xval.outcome import package_version
 
 from ...engine import Case, Engine, code_version
 from ...registry import MODELS, QUANTITIES, candidates, quantity_values
@@ -243,7 +243,7 @@ def load_lattice(paths) -> dict:
     grid): every row keeps its own ``zeta_um``, the report's ``zeta_um`` lists them, and a
     scene (Phi, E_p/E_l, convention, zeta) in several files is taken from the first.  InputError naming the file when it is
     missing or not such a report."""
-    from scenes import InputError
+    from pillar_xval.scenes import InputError
 
     paths = [paths] if isinstance(paths, (str, Path)) else list(paths)
     if not paths:
@@ -572,7 +572,7 @@ def _truncation(cache: Path, scene_names=("single-pillar", "hertz")) -> list:
     solves run here rather than on the engine)."""
     from fem_reference.axisym import BLOCK_FACTOR, solve
 
-    from scenes import load_scene
+    from pillar_xval.scenes import load_scene
 
     path = Path(cache) / f"truncation-{code_version()}.json"
     if path.exists():

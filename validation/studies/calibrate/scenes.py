@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from scenes import InputError, load_scene
+from pillar_xval.scenes import InputError, load_scene
 
 __all__ = ["PAPER_RANGES", "drawn_scenes", "flat_scenes", "gecit_scenes", "lattice_scenes",
            "punch_scenes"]

@@ -75,9 +75,9 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from outcome import write_atomic
-from outcome.memory import memory_short
-from scenes import InputError
+from pillar_xval.outcome import write_atomic
+from pillar_xval.outcome.memory import memory_short
+from pillar_xval.scenes import InputError
 
 from ...engine import Case, Engine
 from ...registry import MODELS, quantity_values

@@ -8,7 +8,7 @@ import io
 import json
 from pathlib import Path
 
-from outcome import write_atomic
+from pillar_xval.outcome import write_atomic
 
 __all__ = ["STATUSES", "counts", "heatmap", "summary_text", "write_outputs"]
 

@@ -48,7 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scenes import InputError, load_scene
+from pillar_xval.scenes import InputError, load_scene
 
 from ...engine import Case, Engine, Outcome
 from ...registry import MODELS
@@ -176,7 +176,7 @@ def _deeper(scene):
 
 def _stiffer(scene):
     """E_p x 1.5, or E_s x 1.5 when the pillars are rigid or absent; and which."""
-    from scenes import Material
+    from pillar_xval.scenes import Material
 
     if scene.pillars is not None and not scene.pillars.material.rigid:
         p = scene.pillars

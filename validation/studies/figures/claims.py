@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from outcome import write_atomic
+from pillar_xval.outcome import write_atomic
 
 from .fits import PAPER_AREA_EXPONENT, PAPER_EXPONENT
 

@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from outcome import write_atomic
-from scenes import Material, Scene, analytic
+from pillar_xval.outcome import write_atomic
+from pillar_xval.scenes import Material, Scene, analytic
 
 from . import plots
 from .fits import master_curve

@@ -17,8 +17,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from bem_solver import discretise
-from scenes import Scene
-from scenes.lattice import d6_images, pillars_within
+from pillar_xval.scenes import Scene
+from pillar_xval.scenes.lattice import d6_images, pillars_within
 
 __all__ = ["ElementMap"]
 

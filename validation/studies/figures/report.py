@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from outcome import write_atomic
+from pillar_xval.outcome import write_atomic
 
 from .claims import verdict
 from .fits import PAPER_AREA_EXPONENT, PAPER_EXPONENT

@@ -31,8 +31,8 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from outcome import write_atomic
-from scenes import Scene
+from pillar_xval.outcome import write_atomic
+from pillar_xval.scenes import Scene
 
 from ...engine import Case, Engine
 from .files import write_figures

@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from scenes import load_scene
+from pillar_xval.scenes import load_scene
 
 from ..sweep import ModelSpec, Sweep, crossed, log, zipped
 

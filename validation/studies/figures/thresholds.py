@@ -26,8 +26,8 @@ from __future__ import annotations
 import functools
 import math
 
-from scenes import PHI_CLOSE_PACKING, analytic
-from scenes.analytic import rim_contact_radius, single_pillar_threshold_rim
+from pillar_xval.scenes import PHI_CLOSE_PACKING, analytic
+from pillar_xval.scenes.analytic import rim_contact_radius, single_pillar_threshold_rim
 
 from ...engine import Case, Engine
 from .scenes import table1_scene

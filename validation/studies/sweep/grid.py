@@ -10,7 +10,7 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from scenes import InputError, Scene, SceneError, scene_loader
+from pillar_xval.scenes import InputError, Scene, SceneError, scene_loader
 
 from ...engine import Case
 from ...registry import check_option
@@ -255,7 +255,7 @@ class Sweep:
 
 
 def _is_preset(name: str) -> bool:
-    from scenes import preset_names
+    from pillar_xval.scenes import preset_names
 
     return name in preset_names()
 

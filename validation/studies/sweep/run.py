@@ -49,8 +49,8 @@ import csv
 import io
 from pathlib import Path
 
-from outcome import write_atomic
-from scenes import InputError, Scene, apply_overrides, scene_dict
+from pillar_xval.outcome import write_atomic
+from pillar_xval.scenes import InputError, Scene, apply_overrides, scene_dict
 
 from ...engine import Case, CaseStore, Engine, Outcome
 from .grid import (Axis, ModelSpec, Sweep, SweepCase, _override, crossed, linear, log,
@@ -213,7 +213,7 @@ def table_columns(rows: list[dict]) -> list[str]:
 
 def write_table(rows: list[dict], out: Path, name: str) -> list[Path]:
     """``<name>.csv`` and ``<name>.parquet`` in ``out`` (atomically); returns their paths."""
-    from outcome import atomic_path
+    from pillar_xval.outcome import atomic_path
 
     cols = table_columns(rows)
     buf = io.StringIO()

@@ -1,9 +1,9 @@
 """Scenes: the problem a model solves.
 
 Units: SI inside the code (m, Pa, N).  Scene files state their units in the key names
-(``radius_mm``, ``diameter_um``, ``E_Pa``); see :mod:`scenes._io` (files and presets),
-:mod:`scenes._overrides` (``--set``), :mod:`scenes._checks` (allowed ranges) and
-:mod:`scenes._tables` (file table to Scene, errors in file keys and units).
+(``radius_mm``, ``diameter_um``, ``E_Pa``); see :mod:`pillar_xval.scenes._io` (files and presets),
+:mod:`pillar_xval.scenes._overrides` (``--set``), :mod:`pillar_xval.scenes._checks` (allowed ranges) and
+:mod:`pillar_xval.scenes._tables` (file table to Scene, errors in file keys and units).
 """
 
 from . import analytic, lattice

@@ -31,9 +31,9 @@ import time
 
 import numpy as np
 
-from outcome import ContactResult, PillarForce
-from scenes import Scene, ScopeError, analytic
-from scenes.lattice import pillars_within
+from pillar_xval.outcome import ContactResult, PillarForce
+from pillar_xval.scenes import Scene, ScopeError, analytic
+from pillar_xval.scenes.lattice import pillars_within
 
 __all__ = ["HERTZ_MODEL", "SPRING_MODEL", "solve_hertz", "solve_spring"]
 

@@ -3,7 +3,7 @@
 Every error names the key as the file writes it (``load.indentation_um``), the value as the
 user wrote it (``2``, not ``2e-06 m``) and the allowed range in file units, and says where
 the value came from: the scene file or preset, or the ``--set`` that gave it.  The checks
-themselves are those of :mod:`scenes._checks`, run on the same SI floats the constructors see.
+themselves are those of :mod:`pillar_xval.scenes._checks`, run on the same SI floats the constructors see.
 """
 
 from __future__ import annotations

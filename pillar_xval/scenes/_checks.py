@@ -2,8 +2,8 @@
 them, checked once and named in the user's own words.
 
 The checks are written once, on SI values, and used by two callers: the SI constructors
-(:mod:`scenes._scene`), whose errors name the constructors' parameters (``pillars.pitch_m``),
-and the scene-file reader (:mod:`scenes._tables`), whose errors name the file's keys in the
+(:mod:`pillar_xval.scenes._scene`), whose errors name the constructors' parameters (``pillars.pitch_m``),
+and the scene-file reader (:mod:`pillar_xval.scenes._tables`), whose errors name the file's keys in the
 file's units (``pillars.pitch_um = 3.9``) and print the value exactly as it was written.  A
 :class:`Naming` is what tells them apart.  Both run the same predicates on the same floats, so
 a table that passes the reader's checks always builds a Scene.

@@ -1,6 +1,6 @@
-"""Closed forms as models (``hertz``, ``spring``): they return a :class:`outcome.ContactResult`
+"""Closed forms as models (``hertz``, ``spring``): they return a :class:`pillar_xval.outcome.ContactResult`
 like every numerical model (:mod:`._models`).  The formulas themselves are the scene's
-analytic library, :mod:`scenes.analytic`."""
+analytic library, :mod:`pillar_xval.scenes.analytic`."""
 
 from ._models import solve_hertz, solve_spring
 

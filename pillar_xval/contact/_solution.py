@@ -9,7 +9,7 @@ import numpy as np
 
 @dataclass
 class ContactSolution:
-    """Solution of gap = A p + b, p >= 0, gap >= 0, p gap = 0 (see :mod:`contact`).
+    """Solution of gap = A p + b, p >= 0, gap >= 0, p gap = 0 (see :mod:`pillar_xval.contact`).
 
     ``pressure`` is p (the unit of the caller's unknowns), ``gap`` = A p + b (the caller's
     gap unit: m, or m times a weight), ``residual`` the min-map residual over ``scale``,

@@ -1,6 +1,6 @@
 """The scene: geometry, materials and load of one lens-on-pillars contact, validated, in SI.
 
-A scene is immutable.  Every constructor checks its arguments (:mod:`scenes._checks`: the
+A scene is immutable.  Every constructor checks its arguments (:mod:`pillar_xval.scenes._checks`: the
 allowed ranges and why) and raises :class:`SceneError` naming the parameter, its value and
 the allowed range.  Nothing is clipped except a pitch within round-off of the diameter, which
 is close packing.  Rigid bodies are a limit, written ``rigid = true`` in a scene file and
@@ -76,7 +76,7 @@ class Pillars:
     @staticmethod
     def pitch_from_fraction(diameter_m: float, surface_fraction: Any) -> float:
         """Pitch in m of a lattice of pillars of ``diameter_m`` covering ``surface_fraction``
-        (close packing up to the printed 0.9069, see :mod:`scenes._checks`)."""
+        (close packing up to the printed 0.9069, see :mod:`pillar_xval.scenes._checks`)."""
         q = "pillars.surface_fraction"
         return ck.check_surface_fraction(q, ck.as_float(q, surface_fraction), diameter_m)
 

@@ -104,7 +104,7 @@ def diagonal_preconditioner(diagonal, spring=0.0, pillar=None, n_pillars=0, back
     per unit cell pressure (m/Pa); P the cell-to-pillar incidence.  For soft pillars (c n >> D,
     n cells per top) the uniform mode of each pillar is many orders more compliant than the
     half-space modes; M carries that mode so the conjugate gradients do not see it.
-    ``backend`` is the array backend of the vectors (:mod:`contact._xp`; default numpy).
+    ``backend`` is the array backend of the vectors (:mod:`pillar_xval.contact._xp`; default numpy).
     """
     be = NUMPY if backend is None else backend
     xp = be.xp
@@ -157,7 +157,7 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
     callback : callable, optional
         Called as callback(iteration, error) after each iteration (progress output).
     backend : optional
-        Array backend of ``b``, ``q0`` and of what ``apply`` returns (:mod:`contact._xp`;
+        Array backend of ``b``, ``q0`` and of what ``apply`` returns (:mod:`pillar_xval.contact._xp`;
         default numpy).  The iteration uses only the array API standard and the backend's
         ``dot``, so the same code runs on numpy or cupy arrays.
 
@@ -313,7 +313,7 @@ def _max_abs(xp, v) -> float:
 
 def _residual(xp, gap, active, weights, n) -> float:
     """Max-norm min-map residual (m): |gap| on the contact set, interpenetration elsewhere
-    (:func:`contact.min_map_residual`, in one reduction: this runs every iteration)."""
+    (:func:`pillar_xval.contact.min_map_residual`, in one reduction: this runs every iteration)."""
     if n == 0:
         return 0.0
     if weights is not None:

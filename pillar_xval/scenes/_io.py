@@ -11,7 +11,7 @@ dimensionless)::
     [load]       indentation_um
 
 A file without a ``[pillars]`` table is a flat substrate (the Hertz problem).  Allowed ranges:
-:mod:`scenes._checks`; overrides: :mod:`scenes._overrides`.
+:mod:`pillar_xval.scenes._checks`; overrides: :mod:`pillar_xval.scenes._overrides`.
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ def preset_names() -> list[str]:
 
 @functools.lru_cache(maxsize=1)
 def _preset_names() -> tuple[str, ...]:
-    folder = resources.files("scenes") / "presets"
+    folder = resources.files("pillar_xval.scenes") / "presets"
     return tuple(sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml")))
 
 
@@ -47,7 +47,7 @@ def _preset_names() -> tuple[str, ...]:
 def _preset_table(name: str) -> dict:
     """A preset's parsed table, read once: presets are package data (callers copy it)."""
     origin = f"preset {name}"
-    data = _parse_toml((resources.files("scenes") / "presets" / f"{name}.toml").read_bytes(),
+    data = _parse_toml((resources.files("pillar_xval.scenes") / "presets" / f"{name}.toml").read_bytes(),
                        origin)
     data.setdefault("name", name)
     return data
