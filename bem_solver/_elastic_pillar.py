@@ -45,11 +45,11 @@ import scipy.fft as sfft
 import scipy.sparse as sp
 
 from pillar_xval.scenes import InputError, Scene
+from pillar_xval.threads import thread_count
 
 from ._limits import PILLAR_MODELS
 from ._love import unit_force_influence
 
-FFT_THREADS = 2  # the pillar boxes' batched transforms (this machine has two cores)
 CHUNK_CELLS = 8192  # cells per chunk of the mode projections
 
 
@@ -309,12 +309,15 @@ class FFTPillarTerm:
       partly covered cells restricted to pairs on the same pillar.
 
     Collocation points: the grid's (centroids of partly covered cells), relative to their
-    pillar's centre.  CPU only (numpy and scipy).
+    pillar's centre.  CPU only (numpy and scipy); the boxes' transforms on ``workers`` threads
+    (default :func:`pillar_xval.threads.thread_count`).
     """
 
-    def __init__(self, scene: Scene, grid, compliance, correction_builder):
+    def __init__(self, scene: Scene, grid, compliance, correction_builder,
+                 workers: int | None = None):
         import scipy.sparse as sps
 
+        self.workers = thread_count() if workers is None else int(workers)
         self.modal = compliance
         self.half_space = scene.half_space_compliance
         a = 0.5 * scene.pillars.diameter_m
@@ -502,9 +505,9 @@ class FFTPillarTerm:
         M = loc["M"]
         box = np.zeros(self.n_pillars * M * M)
         box[loc["index"]] = q
-        spec = sfft.rfft2(box.reshape(self.n_pillars, M, M), workers=FFT_THREADS)
+        spec = sfft.rfft2(box.reshape(self.n_pillars, M, M), workers=self.workers)
         spec *= loc["spectrum"]
-        u = sfft.irfft2(spec, s=(M, M), workers=FFT_THREADS).reshape(-1)[loc["index"]]
+        u = sfft.irfft2(spec, s=(M, M), workers=self.workers).reshape(-1)[loc["index"]]
         if loc["correction"] is not None:
             u += loc["correction"] @ q
         return u

@@ -39,7 +39,6 @@ try:  # scipy.fft's own transforms, which write into given arrays (scipy.fft has
 except ImportError:  # another scipy layout: the public scipy.fft path (fresh arrays per call)
     _pocketfft = None
 
-FFT_WORKERS = 2  # this machine has two cores; scipy.fft threads the 2D transforms
 # Half-width (in cells) of the stencil around a partly covered cell within which its grid
 # coefficients are replaced by the equivalent-square ones.  Beyond it the two differ by a
 # dipole of the O(L) centroid shift, ~ phi L^3 / r^2; tests/test_bem_fft.py shows the effect of
@@ -345,8 +344,9 @@ class CompliancePlan:
         Owning pillar of each cell (for the Hooke term).
     spring_compliance : float
         c_s = 4 h / (pi d^2 E_p) (m/N); 0 for rigid pillars or a flat scene.
-    workers : int
-        Threads for scipy.fft (default backend only).
+    workers : int, optional
+        Threads for scipy.fft (default backend only; default
+        :func:`pillar_xval.threads.thread_count`).
     correction : sparse matrix, optional
         Near-field correction (m/Pa) from :func:`near_field_correction`, on the same device.
     backend : optional
@@ -362,7 +362,7 @@ class CompliancePlan:
     """
 
     def __init__(self, shape, flat_index, cell_size, compliance, pillar=None,
-                 spring_compliance=0.0, workers=FFT_WORKERS, correction=None, backend=None,
+                 spring_compliance=0.0, workers=None, correction=None, backend=None,
                  pillar_term=None, precision="mixed", workspace=None):
         if precision not in PRECISIONS:
             raise ValueError(f"precision = {precision!r}: choose one of {', '.join(PRECISIONS)}")
@@ -374,7 +374,7 @@ class CompliancePlan:
         self.shape = (ny, nx)
         self.cell_size = float(cell_size)
         self.compliance = float(compliance)
-        self.workers = workers
+        self.workers = getattr(be, "workers", workers)
         # Linear convolution of n-point sequences with an even kernel: >= 2n - 2 points.
         self.fft_shape = (padded_length(ny, be.next_fast_len),
                           padded_length(nx, be.next_fast_len))

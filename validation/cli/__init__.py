@@ -187,13 +187,16 @@ def _main(argv: list[str] | None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # --help, --version, or a one-line usage error (status 2)
         return exc.code if isinstance(exc.code, int) else EXIT_BAD_INPUT
+    from pillar_xval.threads import threads_override
+
     prog = f"pillar-xval {args.command}"
     debug = _debugging(args)
     with warnings.catch_warnings():
         if not debug:
             warnings.showwarning = _one_line_warnings(prog)
         try:
-            return int(args.func(args) or 0)
+            with threads_override(getattr(args, "threads", None)):
+                return int(args.func(args) or 0)
         except Terminated:
             print(f"{prog}: terminated (SIGTERM); finished cases are kept", file=sys.stderr)
             return EXIT_TERMINATED
