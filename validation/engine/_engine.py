@@ -21,10 +21,10 @@ from pathlib import Path
 
 from pillar_xval.outcome import ContactResult
 from pillar_xval.scenes import InputError, ToolError
-from pillar_xval.threads import cpu_count
+from pillar_xval.threads import cpu_count, thread_count
 
 from ._case import Case, compute_case
-from ._executors import EXECUTORS, default_workers, make_executor
+from ._executors import EXECUTORS, default_workers, make_executor, threads_per_worker
 from ._progress import Progress
 from ._store import CaseStore
 
@@ -159,6 +159,16 @@ class Engine:
         if self.executor_name == "serial" or self.scheduler:
             return 1
         return self.workers or default_workers()
+
+    @property
+    def threads(self) -> int | None:
+        """Threads each case runs on: the command's (this process), a local worker's share
+        (:func:`._executors.threads_per_worker`), None on a remote Dask cluster."""
+        if self.scheduler:
+            return None
+        if self.executor_name == "serial":
+            return thread_count()
+        return threads_per_worker(self.workers or default_workers())
 
     def describe(self) -> str:
         if self.executor_name == "dask":

@@ -48,7 +48,8 @@ import numpy as np
 
 from pillar_xval.scenes import InputError
 
-__all__ = ["CostFit", "DATA_FORMAT", "ErrorTable", "PlannerData", "ScaledCost", "load_data"]
+__all__ = ["CostFit", "DATA_FORMAT", "ErrorTable", "PlannerData", "ScaledCost", "load_data",
+           "machine_data"]
 
 DATA_FORMAT = "pillar-xval planner data 1"
 # Errors below this are round-off, not discretisation: floor of the log10 interpolation.
@@ -379,13 +380,18 @@ def _along_grid_lines(table: np.ndarray, axes: list, at: tuple, order: list) -> 
 
 @dataclass
 class CostFit:
-    """Time and memory of one model's solves on this machine.
+    """Time and memory of one model's solves, carried to this machine.
 
     time (s) = sum_k coef_k n^powers_k with n = exp(``term``) of the size function ``size``
     of :mod:`.costs` applied to the model option ``option`` (n: the dense BEM's
     unknowns, the FFT's padded points, the FEM's unknowns; a constant for closed forms), so
     that a fixed start-up, assembly (n^2) and dense solves (n^3) each keep their own law when
-    extrapolated; ``rms`` is the fit's residual in ln(time).  ``memory``:
+    extrapolated; ``rms`` is the fit's residual in ln(time).  Those are seconds of the machine
+    it was measured on, whose calibration ``machine`` holds (``{"threads", "seconds"}``, the
+    document's unless the fit has its own); ``workload`` says which reference workloads of
+    :mod:`.machine` its time follows (shares summing to 1), and ``here`` (set by
+    :func:`.machine_data`, never stored) this machine's seconds of them: the prediction is
+    the time times :func:`.machine.speed_factor` (1 without a calibration).  ``memory``:
     ``{"kind": "estimate"}`` takes the size function's own estimate,
     ``{"kind": "per_point", "fixed": B, "per_point": b}`` a line in the FFT's padded points,
     ``{"kind": "fixed", "fixed": B}`` a constant (bytes).
@@ -401,16 +407,26 @@ class CostFit:
     memory: dict = field(default_factory=dict)
     samples: int = 0
     note: str = ""
+    workload: dict = field(default_factory=dict)
+    machine: dict = field(default_factory=dict)
+    here: dict | None = field(default=None, compare=False, repr=False)
 
     def to_dict(self) -> dict:
         out = {k: getattr(self, k) for k in ("model", "size", "option", "term", "powers",
-                                              "coef", "rms", "memory", "samples")}
+                                              "coef", "rms", "memory", "samples", "workload")}
         if self.note:
             out["note"] = self.note
         return out
 
     def time(self, n: float) -> float:
         return float(sum(c * n**p for c, p in zip(self.coef, self.powers)))
+
+    @property
+    def speed(self) -> float:
+        """Time here over time on the fit's machine (:func:`.machine.speed_factor`)."""
+        from .machine import speed_factor
+
+        return speed_factor(self.workload, self.machine, self.here)
 
     def setup_time(self, scene) -> float:
         """Seconds of a one-off set-up still to pay on ``scene`` (none for a fit)."""
@@ -431,16 +447,17 @@ class CostFit:
                 terms["log_points"])
         else:
             memory = self.memory.get("fixed", 0.0)
-        return self.time(n), float(memory)
+        return self.time(n) * self.speed, float(memory)
 
 
 @dataclass
 class ScaledCost:
     """A variant of a measured model: its ``base`` fit's time times ``factor`` (one number,
     or one per regime with ``"default"``), the base's memory, plus a one-off ``setup``
-    (``{"kind": K, "time_s": t}``, :data:`.costs.SETUPS`: t seconds unless already paid on
-    the scene, e.g. the elastic pillar's compliance in the disk cache).  Written by hand where
-    a variant's own timings are a ratio measured against its base (``note`` says where)."""
+    (``{"kind": K, "time_s": t, "workload": {...}}``, :data:`.costs.SETUPS`: t seconds of
+    the base's machine, carried here by its own workload, unless already paid on the scene,
+    e.g. the elastic pillar's compliance in the disk cache).  Written by hand where a
+    variant's own timings are a ratio measured against its base (``note`` says where)."""
 
     key: str
     base_fit: CostFit
@@ -470,8 +487,12 @@ class ScaledCost:
 
         if not self.setup:
             return 0.0
+        from .machine import speed_factor
+
         paid = SETUPS[self.setup["kind"]](scene)
-        return 0.0 if paid else float(self.setup["time_s"])
+        speed = speed_factor(self.setup.get("workload", {}), self.base_fit.machine,
+                             self.base_fit.here)
+        return 0.0 if paid else float(self.setup["time_s"]) * speed
 
     def predict(self, scene, options: dict, regime: str | None = None) -> tuple[float, float]:
         """(wall time s, peak memory bytes): the base's, the time scaled, the set-up added."""
@@ -496,6 +517,38 @@ class PlannerData:
         return sorted(found, key=lambda t: -len(t.option))
 
 
+def _check_workload(workload: dict, what: str, folder: Path) -> None:
+    """A fit's workload shares: known workloads, shares in (0, 1] summing to 1."""
+    from .machine import WORKLOADS
+
+    if not workload:
+        return
+    bad = [w for w in workload if w not in WORKLOADS]
+    total = sum(workload.values()) if not bad else 0.0
+    if bad or not all(0.0 < s <= 1.0 for s in workload.values()) or abs(total - 1.0) > 1e-9:
+        raise InputError(f"planner data: {folder / 'cost_models.json'} {what} workload "
+                         f"{workload!r}: shares in (0, 1] of {', '.join(WORKLOADS)} "
+                         "summing to 1")
+
+
+def machine_data(data: "PlannerData", here: dict | None) -> "PlannerData":
+    """``data`` with this machine's seconds per workload (``here``, from
+    :func:`.machine.seconds_here`) given to every fit: its predictions carried here; the
+    same object where ``here`` is None."""
+    if here is None:
+        return data
+    from dataclasses import replace
+
+    costs = {}
+    for key, fit in data.costs.items():
+        if isinstance(fit, ScaledCost):
+            base = replace(fit.base_fit, here=here)
+            costs[key] = replace(fit, base_fit=base)
+        else:
+            costs[key] = replace(fit, here=here)
+    return replace(data, costs=costs)
+
+
 def data_dir() -> Path:
     return Path(str(resources.files("validation.planner") / "data"))
 
@@ -514,7 +567,12 @@ def load_data(folder: str | Path | None = None) -> PlannerData:
         if doc.get("format") != DATA_FORMAT:
             raise InputError(f"planner data: {folder / name} is not in the format "
                              f"{DATA_FORMAT!r}; regenerate it with make calibrate")
-    fits = {m: CostFit(**c) for m, c in costs["models"].items()}
+    fits = {m: CostFit(**{"machine": costs.get("machine", {}), **c})
+            for m, c in costs["models"].items()}
+    for name, fit in fits.items():
+        _check_workload(fit.workload, f"cost model {name!r}", folder)
+    for key, c in costs.get("variants", {}).items():
+        _check_workload(c.get("setup", {}).get("workload", {}), f"cost variant {key!r}", folder)
     for key, c in costs.get("variants", {}).items():
         if c["base"] not in fits:
             raise InputError(f"planner data: cost variant {key!r} names the base "

@@ -27,12 +27,15 @@ class CostLaw:
     """How a model's wall time grows (the planner's cost fit, measured by ``calibrate``):
     time = sum_k c_k n^powers[k], n = exp(terms[term]) of the size function ``size`` of
     :mod:`validation.planner.costs` at the ladder's option; ``memory`` says where the memory
-    estimate comes from (``{"kind": "estimate"}``: the size function's own), None: fitted."""
+    estimate comes from (``{"kind": "estimate"}``: the size function's own), None: fitted;
+    ``workload``: the reference workloads of :mod:`validation.planner.machine` its time
+    follows from one machine or thread count to another, as (name, share) pairs."""
 
     size: str
     term: str | None
     powers: tuple
     memory: dict | None = None
+    workload: tuple = (("assembly", 1.0),)
 
 
 @dataclass(frozen=True)

@@ -77,12 +77,12 @@ UNMEASURED_SECONDS = 1.0
 
 def estimate_seconds(case: Case) -> float:
     """The predicted wall time (s) of a case: the planner's cost fit of its model, measured
-    by ``pillar-xval calibrate`` on this machine (the model's default resolution where the
-    case gives none); :data:`UNMEASURED_SECONDS` without a fit."""
-    from ...planner.tables import load_data
+    by ``pillar-xval calibrate`` and carried to this machine (the model's default resolution
+    where the case gives none); :data:`UNMEASURED_SECONDS` without a fit."""
+    from ...planner.plan import default_data
     from ...registry import get_model
 
-    fit = load_data().costs.get(case.model)
+    fit = default_data().costs.get(case.model)
     if fit is None:
         return UNMEASURED_SECONDS
     options = dict(case.options)
