@@ -6,7 +6,7 @@ STAMP  := $(VENV)/.installed
 OUT    ?= out
 
 .PHONY: demo study-gecit study-lattice figures test test-slow bench-bem bench-fft bench-gpu bench-fem3d \
-	bench-elastic bench-engine bench-figures bench-startup clean calibrate validate-planner extremes \
+	bench-elastic bench-engine bench-figures bench-startup bench-threads clean calibrate validate-planner extremes \
 	regimes
 
 $(STAMP): pyproject.toml
@@ -94,6 +94,16 @@ bench-fem3d: $(STAMP)
 # the claims in $(OUT)/bench-elastic/elastic_fem3d.md (30-60 minutes; resumes).
 bench-elastic: $(STAMP)
 	$(PY) -m validation.bench.elastic_fem3d --out $(OUT)/bench-elastic
+
+# Thread scaling: bem-fft at 1e6 cells and the dense BEM on 1 up to the CPUs this process may
+# use (fresh interpreters, medians of 3 interleaved runs, answers compared with 1 thread's),
+# and the FFT iteration's CPU split against the float64 pair at 3e5 and 1e6 cells (a few
+# minutes; THREADS=1,2,4,8,16 and CASES=fft,dense,fem3d for a larger machine).
+THREADS ?=
+CASES ?= fft,dense
+bench-threads: $(STAMP)
+	$(PY) -m validation.bench.threads --out $(OUT)/bench-threads --cases $(CASES) \
+		$(if $(THREADS),--threads $(THREADS),)
 
 # CLI start-up: `pillar-xval --version` and `solve --help`, median of 5 fresh processes each.
 bench-startup: $(STAMP)
