@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -144,11 +145,29 @@ def threads_override(count: int | None):
             os.environ[THREADS_ENV] = before
 
 
+_CONTROLLERS: dict = {}
+
+
+def _controller():
+    """threadpoolctl's controller of the libraries loaded now.  Finding them takes 2-4 ms
+    (as long as a closed-form solve), so it is found again only when Python has imported
+    modules since (a BLAS or OpenMP runtime comes with a module that loads it; MKL, which
+    pypardiso loads later, is held by PARDISO's own :func:`limiter`)."""
+    from threadpoolctl import ThreadpoolController
+
+    key = (os.getpid(), len(sys.modules))
+    found = _CONTROLLERS.get(key)
+    if found is None:
+        _CONTROLLERS.clear()
+        found = _CONTROLLERS[key] = ThreadpoolController()
+    return found
+
+
 def limiter(count: int | None = None):
     """A function that returns a context holding the BLAS, MKL and OpenMP libraries loaded
-    now to ``count`` threads (default :func:`thread_count`).  Finding the libraries takes a
-    few ms, each use of the context some 0.1 ms: a caller that enters it often (PARDISO's
-    solves) keeps the function; a library loaded later is not held by it."""
+    now to ``count`` threads (default :func:`thread_count`), some 0.1 ms a use: a caller
+    that enters it often (PARDISO's solves) keeps the function; a library loaded later is not
+    held by it."""
     from threadpoolctl import ThreadpoolController
 
     n = thread_count() if count is None else int(count)
@@ -159,4 +178,4 @@ def limiter(count: int | None = None):
 def limited(count: int | None = None):
     """A context holding the BLAS, MKL and OpenMP libraries loaded now to ``count`` threads
     (default :func:`thread_count`); their previous counts come back on the way out."""
-    return limiter(count)()
+    return _controller().limit(limits=thread_count() if count is None else int(count))
