@@ -95,7 +95,7 @@ def _one_line_warnings(prog: str):
     from ._args import one_line
 
     def show(message, category, filename, lineno, file=None, line=None):
-        print(f"{prog}: warning: {category.__name__}: {one_line(message, 200)}",
+        print(f"{prog}: warning: {category.__name__}: {one_line(message, 400)}",
               file=file or sys.stderr)
 
     return show
