@@ -212,7 +212,7 @@ def pillar_halfspace_mesh(height_over_radius: float, mesh_size: float = 1.0,
     """(r, z) mesh in units of a: ``pillar`` [0, 1] x [-H, 0], ``collar`` [1, Rc] x [-H, 0] and
     ``substrate`` [0, L] x [-H - L, -H], conforming; boundaries ``top`` (the pillar top,
     z = 0, r <= 1), ``axis``, ``far`` (the substrate bottom) and ``pillar_base``."""
-    from meshes._session import gmsh_model
+    from meshes._session import gmsh_model, set_size_callback
 
     H, L = float(height_over_radius), float(block_factor)
     Rc = COLLAR_FACTOR * max(H, 1.0)
@@ -243,7 +243,7 @@ def pillar_halfspace_mesh(height_over_radius: float, mesh_size: float = 1.0,
             gmsh.option.setNumber(f"Mesh.{key}", 0)
         gmsh.option.setNumber("Mesh.Algorithm", 6)
         gmsh.option.setNumber("Mesh.ElementOrder", 1)
-        gmsh.model.mesh.setSizeCallback(lambda dim, tag, x, y, z, lc: size(x, y))
+        set_size_callback(gmsh, lambda dim, tag, x, y, z, lc: size(x, y))
         gmsh.model.mesh.generate(2)
         tags, xyz, _ = gmsh.model.mesh.getNodes()
         index = np.full(int(tags.max()) + 1, -1, dtype=np.int64)

@@ -1,4 +1,5 @@
-"""One gmsh session per mesh: both builders (axisymmetric and sector) open it here."""
+"""One gmsh session per mesh: every builder (axisymmetric, sector, the pillar compliance's)
+opens it here and hands gmsh its size rule through :func:`set_size_callback`."""
 
 from __future__ import annotations
 
@@ -6,14 +7,33 @@ from contextlib import contextmanager
 
 from ._common import MeshError
 
-__all__ = ["gmsh_model"]
+__all__ = ["gmsh_model", "set_size_callback"]
+
+# The sessions open now (innermost last): where a size callback leaves what it raised.
+_SESSIONS: list = []
+
+
+class _Session:
+    """What the size callback raised (a signal's KeyboardInterrupt or SIGTERM, or a bug of a
+    size rule): gmsh calls the rule through ctypes, which would print the exception as
+    "ignored" and hand gmsh an arbitrary size, so it is kept here and raised when gmsh
+    returns."""
+
+    def __init__(self):
+        self.raised: BaseException | None = None
+
+    def reraise(self) -> None:
+        if self.raised is not None:
+            exc, self.raised = self.raised, None
+            raise exc
 
 
 @contextmanager
 def gmsh_model(name: str, what: str):
     """A fresh gmsh model named ``name`` (gmsh initialised here unless a caller already did,
     and finalised, or the model removed, on the way out); a gmsh failure becomes a
-    MeshError naming ``what``."""
+    MeshError naming ``what``.  What a size callback raised (:func:`set_size_callback`) is
+    raised instead, unchanged, and the half-made mesh is dropped with the model."""
     import gmsh
 
     owner = not gmsh.isInitialized()
@@ -21,19 +41,46 @@ def gmsh_model(name: str, what: str):
         # interruptible=False: gmsh must not install a SIGINT handler (threads, pytest).
         gmsh.initialize(interruptible=False)
         _restore_python_handlers()
+    session = _Session()
+    _SESSIONS.append(session)
     try:
         gmsh.option.setNumber("General.Terminal", 0)
         gmsh.model.add(name)
         yield gmsh
+        session.reraise()
     except MeshError:
+        session.reraise()
         raise
     except Exception as exc:  # gmsh raises plain Exception with its own message
+        session.reraise()
         raise MeshError(f"gmsh could not mesh {what}: {exc}") from exc
     finally:
+        _SESSIONS.remove(session)
         if owner:
             gmsh.finalize()
         else:
             gmsh.model.remove()
+
+
+def set_size_callback(gmsh, size) -> None:
+    """Give gmsh the size rule ``size(dim, tag, x, y, z, lc)`` of the open session.
+
+    An exception inside the rule (Ctrl-C or SIGTERM arrives while gmsh meshes, since Python
+    runs its signal handlers in the callback) is kept by the session and the rule answers 0
+    from then on: gmsh stops meshing at once ("Wrong mesh element size lc = 0"), and
+    :func:`gmsh_model` raises the kept exception in place of gmsh's error."""
+    session = _SESSIONS[-1]
+
+    def guarded(dim, tag, x, y, z, lc):
+        if session.raised is not None:
+            return 0.0
+        try:
+            return size(dim, tag, x, y, z, lc)
+        except BaseException as exc:  # kept, and raised when gmsh returns
+            session.raised = exc
+            return 0.0
+
+    gmsh.model.mesh.setSizeCallback(guarded)
 
 
 def _restore_python_handlers() -> None:
