@@ -45,7 +45,8 @@ from pathlib import Path
 
 import numpy as np
 
-from pillar_xval.outcome import CacheWarning, FileLock, read_regular, write_atomic
+from pillar_xval.outcome import (CacheWarning, FileLock, UnusableFile, read_regular,
+                                 write_atomic)
 from pillar_xval.scenes import InputError
 
 from . import _pillar_compliance as _build
@@ -205,7 +206,9 @@ def _read(path: Path, key: str, limit: int) -> tuple[ModalCompliance | None, str
         data = read_regular(path, limit)
     except FileNotFoundError:
         return None, ""
-    except (OSError, ValueError) as exc:
+    except UnusableFile as exc:   # a FIFO, a device, a folder, too large
+        return None, str(exc)
+    except OSError as exc:
         return None, f"cannot be read ({exc})"
     try:
         op = _decode(data, key, limit)
