@@ -3,6 +3,7 @@ opens it here and hands gmsh its size rule through :func:`set_size_callback`."""
 
 from __future__ import annotations
 
+import sys
 from contextlib import contextmanager
 
 from ._common import MeshError
@@ -17,15 +18,36 @@ class _Session:
     """What the size callback raised (a signal's KeyboardInterrupt or SIGTERM, or a bug of a
     size rule): gmsh calls the rule through ctypes, which would print the exception as
     "ignored" and hand gmsh an arbitrary size, so it is kept here and raised when gmsh
-    returns."""
+    returns.
+
+    Python may run a signal's handler as soon as a callback's first frame starts (gmsh's
+    own wrapper of the rule), before any ``try`` of ours: ctypes then reports the exception
+    to ``sys.unraisablehook``, which the session holds while it is open (:meth:`hook`)."""
 
     def __init__(self):
         self.raised: BaseException | None = None
+        self._previous = None
 
     def reraise(self) -> None:
         if self.raised is not None:
             exc, self.raised = self.raised, None
             raise exc
+
+    def hook(self) -> None:
+        """Take ``sys.unraisablehook`` until :meth:`unhook`."""
+        self._previous = sys.unraisablehook
+        sys.unraisablehook = self._unraisable
+
+    def unhook(self) -> None:
+        if sys.unraisablehook == self._unraisable:
+            sys.unraisablehook = self._previous
+
+    def _unraisable(self, info) -> None:
+        if "ctypes callback" in (info.err_msg or "") and info.exc_value is not None:
+            if self.raised is None:
+                self.raised = info.exc_value
+            return
+        self._previous(info)
 
 
 @contextmanager
@@ -43,6 +65,7 @@ def gmsh_model(name: str, what: str):
         _restore_python_handlers()
     session = _Session()
     _SESSIONS.append(session)
+    session.hook()
     try:
         gmsh.option.setNumber("General.Terminal", 0)
         gmsh.model.add(name)
@@ -55,6 +78,7 @@ def gmsh_model(name: str, what: str):
         session.reraise()
         raise MeshError(f"gmsh could not mesh {what}: {exc}") from exc
     finally:
+        session.unhook()
         _SESSIONS.remove(session)
         if owner:
             gmsh.finalize()
@@ -65,10 +89,11 @@ def gmsh_model(name: str, what: str):
 def set_size_callback(gmsh, size) -> None:
     """Give gmsh the size rule ``size(dim, tag, x, y, z, lc)`` of the open session.
 
-    An exception inside the rule (Ctrl-C or SIGTERM arrives while gmsh meshes, since Python
-    runs its signal handlers in the callback) is kept by the session and the rule answers 0
-    from then on: gmsh stops meshing at once ("Wrong mesh element size lc = 0"), and
-    :func:`gmsh_model` raises the kept exception in place of gmsh's error."""
+    An exception inside the rule or on its way in (Ctrl-C or SIGTERM arrives while gmsh
+    meshes, since Python runs its signal handlers in the callback) is kept by the session
+    and the rule answers 0 from then on: gmsh stops meshing at its next size ("Wrong mesh
+    element size lc = 0"), and :func:`gmsh_model` raises the kept exception in place of
+    gmsh's error."""
     session = _SESSIONS[-1]
 
     def guarded(dim, tag, x, y, z, lc):
