@@ -203,3 +203,31 @@ def test_a_sigterm_ends_a_pool_and_its_workers(tmp_path):
     time.sleep(0.5)
     assert not [w for w in workers if Path(f"/proc/{w}").exists()
                 and "zombie" not in Path(f"/proc/{w}/status").read_text()]
+
+
+# A signal whose handler runs in a __del__ (here: the object that sends it), where Python
+# reports the exception as "ignored" and drops it.
+IN_A_DESTRUCTOR = """
+import pillar_xval.contact as contact
+real = contact.solve_active_set
+class Drop:
+    def __del__(self):
+        mark()
+        os.kill(os.getpid(), SIG)
+        sum(range(10))   # bytecode: the handler runs here, inside __del__
+def solve(*args, **kwargs):
+    Drop()
+    return real(*args, **kwargs)
+contact.solve_active_set = solve
+import bem_solver._dense as dense
+dense.solve_contact = solve
+"""
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_signal_taken_where_python_cannot_raise_is_not_lost(tmp_path, signum):
+    """Once dropped with "Exception ignored" (a __del__, a ctypes callback): the command ran
+    on and exited 0."""
+    proc = _start(tmp_path, IN_A_DESTRUCTOR.replace("SIG", str(int(signum))),
+                  ["solve", "--scene", "hertz", "--elements-per-diameter", "5"])
+    _ended(proc, tmp_path, signum)

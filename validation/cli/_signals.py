@@ -11,12 +11,18 @@ taken the signal within :data:`GRACE_S`, it prints the same line and ends the pr
 the same status.  Nothing is lost by that: case records and caches are written atomically
 (a reader sees the old file or the new one), locks are ``flock`` locks that the kernel frees,
 and pool workers die with their parent (``PR_SET_PDEATHSIG``).
+
+A handler that runs where Python cannot raise (a ``__del__``, a ctypes callback outside a
+gmsh session, which keeps its own: :mod:`meshes._session`) has its exception reported to
+``sys.unraisablehook`` and dropped; the watchdog holds that hook and counts such a signal as
+not taken, so it ends the process itself instead of the signal being lost.
 """
 
 from __future__ import annotations
 
 import os
 import signal
+import sys
 import threading
 
 from ._exit import EXIT_INTERRUPTED, EXIT_TERMINATED
@@ -53,6 +59,8 @@ class Watchdog:
         self._previous = {}
         self._wakeup = None
         self._thread = None
+        self._hook = sys.unraisablehook
+        sys.unraisablehook = self._unraisable
         for signum, handler in ((signal.SIGTERM, self._on_term), (signal.SIGINT, self._on_int)):
             try:
                 self._previous[signum] = signal.signal(signum, handler)
@@ -80,6 +88,17 @@ class Watchdog:
         self._taken.release()
         raise KeyboardInterrupt()
 
+    def _unraisable(self, info) -> None:
+        if isinstance(info.exc_value, KeyboardInterrupt) and self._thread is not None:
+            # A handler's exception, dropped: not taken after all.  Take back what the
+            # handler gave the watchdog, or, when it has counted it already, tell it again.
+            if not self._taken.acquire(blocking=False):
+                signum = signal.SIGTERM if isinstance(info.exc_value, Terminated) \
+                    else signal.SIGINT
+                os.write(self._write, bytes([signum]))
+            return
+        self._hook(info)
+
     def _watch(self) -> None:
         while True:
             try:
@@ -98,7 +117,9 @@ class Watchdog:
                         os._exit(status)
 
     def stop(self) -> None:
-        """Put back the previous handlers and wakeup descriptor, and end the thread."""
+        """Put back the previous handlers, hook and wakeup descriptor; end the thread."""
+        if sys.unraisablehook == self._unraisable:
+            sys.unraisablehook = self._hook
         if self._thread is not None:
             try:
                 signal.set_wakeup_fd(self._wakeup)
