@@ -6,8 +6,8 @@ STAMP  := $(VENV)/.installed
 OUT    ?= out
 
 .PHONY: demo study-gecit study-lattice figures test test-slow bench-bem bench-fft bench-gpu bench-fem3d \
-	bench-elastic bench-engine bench-figures bench-startup bench-threads clean calibrate validate-planner extremes \
-	regimes
+	bench-elastic bench-engine bench-figures bench-startup bench-sweep bench-threads clean \
+	calibrate validate-planner extremes regimes
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -108,6 +108,11 @@ bench-threads: $(STAMP)
 # CLI start-up: `pillar-xval --version` and `solve --help`, median of 5 fresh processes each.
 bench-startup: $(STAMP)
 	$(PY) -m validation.bench.startup --out $(OUT)/bench-startup
+
+# Sweep grids before any solve: the dry run's time at 1e4 and 1e5 points, the memory per axis
+# value and per case of a run (the sizes a grid is checked against; seconds).
+bench-sweep: $(STAMP)
+	$(PY) -m validation.bench.sweep --out $(OUT)/bench-sweep
 
 bench-engine: $(STAMP)
 	$(PY) -m validation.bench.engine --out $(OUT)/bench-engine

@@ -21,8 +21,8 @@ from pillar_xval.threads import thread_count
 from ._cells import VARIANTS, cell_pattern
 from ._discretise import Discretisation, discretise, overlap_radius
 from ._elastic_pillar import (cached_excess_block, check_pillars, coupling_block, image_cells,
-                              reduced_block, representative_rows, scene_compliance,
-                              uses_coupling, uses_elastic_block)
+                              operator_records, reduced_block, representative_rows,
+                              scene_compliance, uses_coupling, uses_elastic_block)
 from ._operator import BYTES_PER_THREAD, reduced_operator
 
 MAX_UNKNOWNS = 12_000  # dense reduced operator: 1.2 GB at this size
@@ -147,7 +147,8 @@ def solve_dense(scene: Scene, elements_per_diameter: int = 11, cells: str = "cov
                                         4 * disc.cell_side))
     if elastic is not None:
         extra = {**extra, "pillars": "elastic",
-                 "pillar_compliance": _compliance_summary(elastic["modal"])}
+                 "pillar_compliance": _compliance_summary(elastic["modal"]),
+                 "operators": operator_records(elastic["modal"].diagnostics)}
     return _result(scene, disc, sol, P, cells, contact, rounds, extra,
                    time.perf_counter() - t0)
 

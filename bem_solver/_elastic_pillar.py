@@ -85,6 +85,20 @@ def scene_compliance(scene: Scene, compliance=None, modes: int | None = None,
                             progress=say)
 
 
+def operator_records(*diagnostics: dict) -> list[dict]:
+    """The records of the cached operators behind a result, each once: from a compliance's
+    ``diagnostics["operator"]`` or a result's ``diagnostics["operators"]`` (its store, key and
+    content hash; a compliance passed in by the caller and never stored has none).  A result
+    keeps them in ``diagnostics["operators"]``: a study reuses its cached case only while the
+    cache still holds them."""
+    out = []
+    for d in diagnostics:
+        for record in [d.get("operator")] + list(d.get("operators", [])):
+            if isinstance(record, dict) and record not in out:
+                out.append(record)
+    return out
+
+
 def _constants(scene: Scene, compliance):
     """(1 / (E_p* a), gamma_p* - gamma_s): E_p* the modelled pillar modulus."""
     p, s = scene.pillars, scene.substrate
@@ -290,7 +304,7 @@ def full_block(disc, X: np.ndarray, img_cell: np.ndarray) -> np.ndarray:
 
 __all__ = ["FFTPillarTerm", "PILLAR_MODELS", "cached_excess_block", "check_pillars",
            "coupling_block", "coupling_kernel", "coupling_moments", "excess_block",
-           "full_block", "image_cells", "reduced_block", "representative_rows",
+           "full_block", "image_cells", "operator_records", "reduced_block", "representative_rows",
            "scene_compliance", "uses_coupling", "uses_elastic_block"]
 
 

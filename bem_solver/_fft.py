@@ -63,7 +63,7 @@ from pillar_xval.scenes import InputError, Scene, ScopeError
 
 from ._dense import _smooth_edge_radius
 from ._fft_grid import CellGrid, build_grid, candidate_side, estimate_host_memory
-from ._elastic_pillar import (FFTPillarTerm, check_pillars, scene_compliance,
+from ._elastic_pillar import (FFTPillarTerm, check_pillars, operator_records, scene_compliance,
                               uses_elastic_block)
 from ._fft_operator import CirculantPreconditioner, CompliancePlan, near_field_correction
 from ._limits import PRECISIONS
@@ -248,6 +248,7 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
         " + elastic pillars" if elastic else "")
     if elastic:
         result.diagnostics["pillars"] = "elastic"
+        result.diagnostics["operators"] = operator_records(compliance.diagnostics)
         result.discretisation["pillars"] = "elastic"
     result.diagnostics["timings_s"] = timings
     return result

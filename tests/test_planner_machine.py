@@ -75,10 +75,13 @@ def test_bad_workloads_are_refused(tmp_path):
     for name in ("error_models.json", "cost_models.json"):
         (tmp_path / name).write_text((data_dir() / name).read_text())
     doc = json.loads((tmp_path / "cost_models.json").read_text())
-    doc["models"]["bem"]["workload"] = {"fft": 0.5, "gpu": 0.5}
-    (tmp_path / "cost_models.json").write_text(json.dumps(doc))
-    with pytest.raises(InputError, match="'bem' workload"):
-        load_data(tmp_path)
+    for workload, message in (({"fft": 0.5, "gpu": 0.5}, r"models\.bem\.workload\.gpu: unknown"),
+                              ({"fft": 0.5, "assembly": 0.4}, r"models\.bem\.workload: shares "
+                                                              r"sum to 0\.9, not 1")):
+        doc["models"]["bem"]["workload"] = workload
+        (tmp_path / "cost_models.json").write_text(json.dumps(doc))
+        with pytest.raises(InputError, match=message):
+            load_data(tmp_path)
 
 
 def test_the_calibration_is_cached_and_verified_when_read(here, monkeypatch):

@@ -58,6 +58,10 @@ def _die_with_parent(parent_pid: int) -> None:
     """End this process when ``parent_pid`` ends."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)  # not the CLI's handler, if forked from it
+    try:  # nor the CLI's signal watchdog's descriptor (its signals are not the parent's)
+        signal.set_wakeup_fd(-1)
+    except ValueError:
+        pass
     armed = False
     if sys.platform.startswith("linux"):
         try:

@@ -39,7 +39,7 @@ import statistics
 import time
 from pathlib import Path
 
-from pillar_xval.outcome import write_atomic
+from pillar_xval.outcome import cache_root, write_atomic
 from pillar_xval.scenes import InputError
 from pillar_xval.threads import cpu_count, limited, thread_count, threads_override
 
@@ -181,8 +181,7 @@ def identity(threads: int) -> dict:
 
 
 def cache_folder() -> Path:
-    root = os.environ.get("PILLAR_XVAL_CACHE")
-    return (Path(root) if root else Path.home() / ".cache" / "pillar-xval") / "machine"
+    return cache_root("machine")
 
 
 def _digest(body: dict) -> str:

@@ -35,7 +35,6 @@ discretisation error and a model error with their signs (:func:`.plan.combined_e
 
 from __future__ import annotations
 
-import json
 import math
 import threading
 from collections import OrderedDict
@@ -45,8 +44,6 @@ from importlib import resources
 from pathlib import Path
 
 import numpy as np
-
-from pillar_xval.scenes import InputError
 
 __all__ = ["CostFit", "DATA_FORMAT", "ErrorTable", "PlannerData", "ScaledCost", "load_data",
            "machine_data"]
@@ -517,20 +514,6 @@ class PlannerData:
         return sorted(found, key=lambda t: -len(t.option))
 
 
-def _check_workload(workload: dict, what: str, folder: Path) -> None:
-    """A fit's workload shares: known workloads, shares in (0, 1] summing to 1."""
-    from .machine import WORKLOADS
-
-    if not workload:
-        return
-    bad = [w for w in workload if w not in WORKLOADS]
-    total = sum(workload.values()) if not bad else 0.0
-    if bad or not all(0.0 < s <= 1.0 for s in workload.values()) or abs(total - 1.0) > 1e-9:
-        raise InputError(f"planner data: {folder / 'cost_models.json'} {what} workload "
-                         f"{workload!r}: shares in (0, 1] of {', '.join(WORKLOADS)} "
-                         "summing to 1")
-
-
 def machine_data(data: "PlannerData", here: dict | None) -> "PlannerData":
     """``data`` with this machine's seconds per workload (``here``, from
     :func:`.machine.seconds_here`) given to every fit: its predictions carried here; the
@@ -554,40 +537,25 @@ def data_dir() -> Path:
 
 
 def load_data(folder: str | Path | None = None) -> PlannerData:
-    """Read ``error_models.json`` and ``cost_models.json`` (default: the shipped ones)."""
+    """Read ``error_models.json`` and ``cost_models.json`` (default: the shipped ones),
+    every entry checked first (:mod:`.data_checks`: a damaged file is one line naming it and
+    the entry)."""
+    from .data_checks import check_cost_models, check_error_models, read_json
+
     folder = Path(folder) if folder is not None else data_dir()
-    try:
-        errors = json.loads((folder / "error_models.json").read_text())
-        costs = json.loads((folder / "cost_models.json").read_text())
-    except FileNotFoundError as exc:
-        raise InputError(f"planner data: {exc.filename} is missing; run "
-                         "`pillar-xval calibrate --out validation/planner/data` (make calibrate)") \
-            from None
-    for doc, name in ((errors, "error_models.json"), (costs, "cost_models.json")):
-        if doc.get("format") != DATA_FORMAT:
-            raise InputError(f"planner data: {folder / name} is not in the format "
-                             f"{DATA_FORMAT!r}; regenerate it with make calibrate")
+    errors = read_json(folder / "error_models.json")
+    costs = read_json(folder / "cost_models.json")
+    check_error_models(errors, folder / "error_models.json")
+    check_cost_models(costs, folder / "cost_models.json")
     fits = {m: CostFit(**{"machine": costs.get("machine", {}), **c})
             for m, c in costs["models"].items()}
-    for name, fit in fits.items():
-        _check_workload(fit.workload, f"cost model {name!r}", folder)
     for key, c in costs.get("variants", {}).items():
-        _check_workload(c.get("setup", {}).get("workload", {}), f"cost variant {key!r}", folder)
-    for key, c in costs.get("variants", {}).items():
-        if c["base"] not in fits:
-            raise InputError(f"planner data: cost variant {key!r} names the base "
-                             f"{c['base']!r}, which {folder / 'cost_models.json'} lacks")
         fits[key] = ScaledCost(key, fits[c["base"]], c.get("factor", 1.0), c.get("setup", {}),
                                c.get("note", ""))
-    policy = {**DEFAULT_POLICY, **errors.get("policy", {})}
-    share = policy["sign_share"]
-    if not (isinstance(share, (int, float)) and 0.5 < share <= 1.0):
-        raise InputError(f"planner data: {folder / 'error_models.json'} policy sign_share "
-                         f"{share!r}: must be in (0.5, 1] (a share of a table's points)")
     return PlannerData(
         candidates=errors["candidates"],
         tables=[ErrorTable(**t) for t in errors["tables"]],
         costs=fits,
         provenance={"errors": errors.get("provenance", {}),
                     "costs": costs.get("provenance", {})},
-        policy=policy)
+        policy={**DEFAULT_POLICY, **errors.get("policy", {})})
