@@ -156,8 +156,8 @@ def plot_fig3(panels: list[dict], path: Path, pixels: int = 520, dpi: int = 120,
 
 # --- Fig. 4 -----------------------------------------------------------------------------
 def plot_fig4(curves: dict, area_rows: dict, path: Path, dpi: int = 120) -> Path:
-    """(a) sigma_0(Phi) at zeta = 0.3 um per E_p/E_l with the fitted master curves;
-    (b) A against pi a^2 at E_p = E_l per Phi, with A = Phi pi a^2.  ``curves`` and
+    """Fig. 4: (a) sigma_0(Phi) at zeta = 0.3 um per E_p/E_l with the fitted master
+    curves; (b) A against pi a^2 at E_p = E_l per Phi, with A = Phi pi a^2.  ``curves`` and
     ``area_rows`` per pillar model."""
     plt = _pyplot()
     variants = list(curves)
