@@ -7,7 +7,8 @@
 - autodoc documents only the project's own objects (not, e.g., scipy's ``cKDTree`` imported
   into a module), and skips a package's re-export that shares its name with a submodule
   (``validation.planner.plan``, the function and the module), which it would describe twice.
-- The scene-file keys, the presets and the result schema are tables generated from the code
+- The scene-file keys, the presets, the result schema and the kept benchmark records are
+  tables generated from the code and its data
   (``docs/_tables/*.md``, included by their pages), so a new key or field appears without
   editing the docs; a result field without a description fails the build.
 """
@@ -203,11 +204,27 @@ def presets_md() -> str:
     return "\n".join(out)
 
 
+def bench_records_md() -> str:
+    """Each kept benchmark record: its command's settings and its table."""
+    import json
+
+    folder = Path(importlib.util.find_spec("validation.bench").origin).parent / "measured"
+    out = []
+    for path in sorted(folder.glob("*.json")):
+        record = json.loads(path.read_text(encoding="utf-8"))
+        meta = record.get("meta", {})
+        settings = ", ".join(f"{k} = {v}" for k, v in meta.items() if not isinstance(v, dict))
+        table = record.get("table", "")
+        out += [f"### `{path.name}`", "", settings, "", "```", str(table).rstrip(), "```", ""]
+    return "\n".join(out)
+
+
 def _write_generated(app):
     folder = Path(app.srcdir) / "_tables"
     folder.mkdir(exist_ok=True)
     for name, make in (("result_schema.md", result_schema_md), ("scene_keys.md", scene_keys_md),
-                       ("presets.md", presets_md)):
+                       ("presets.md", presets_md),
+                       ("bench_records.md", bench_records_md)):
         path = folder / name
         text = make()
         if not path.exists() or path.read_text(encoding="utf-8") != text:
