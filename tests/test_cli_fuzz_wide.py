@@ -159,7 +159,7 @@ def test_fuzz_plan(tmp_path, cli):
 def test_fuzz_figures_inputs(tmp_path, cli, monkeypatch):
     """figures' options: every input is accepted or refused before any work (the study is
     replaced by a stub: an accepted input would start minutes of solves)."""
-    import validation.studies.figures as figures
+    from validation.studies import figures
 
     started = []
 

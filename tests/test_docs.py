@@ -7,6 +7,7 @@ import shutil
 import subprocess
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
@@ -58,7 +59,8 @@ def test_bars_escaped_outside_literals():
 def test_bars_escaped_across_a_line_and_not_in_literal_blocks():
     lines = ["misfit (|predicted -", "measured| for model tables)", "Example::", "",
              "    |x| stays", "back |y|"]
-    pillar_docs._process_docstring(_App(), "function", "f", None, None, lines)
+    app = SimpleNamespace(env=SimpleNamespace(temp_data={}))
+    pillar_docs._process_docstring(app, "function", "f", None, None, lines)
     assert lines == [r"misfit (\|predicted -", r"measured\| for model tables)", "Example::",
                      "", "    |x| stays", r"back \|y\|"]
 
@@ -81,8 +83,3 @@ def test_scene_keys_table_follows_the_parser():
     for section, keys in KEYS.items():
         for key in keys:
             assert f"`[{section}] {key}`" in table
-
-
-class _App:
-    class env:  # noqa: N801
-        temp_data: dict = {}

@@ -73,7 +73,7 @@ def _solve(A, b, scale, weights, groups, initial, tol, max_iterations) -> Contac
     s = 1.0 / np.sqrt(np.diag(A))
     bs = b * s
     active = bs < 0 if initial is None else (np.asarray(initial, bool) & (bs < 0))
-    seen = set()
+    seen: set = set()
     p = np.zeros(n)
     method = "active-set"
     # Sets that conjugate gradients solve are first solved to CG_RTOL_SEARCH (the next set
@@ -164,7 +164,8 @@ def _spd_solve(A, s, idx, rhs, x0, groups=None, rtol=CG_RTOL) -> tuple[np.ndarra
     # the next power of two of their size and applied by one batched product per size
     # (27 blocks a CG iteration on the largest paper scene: one LAPACK call per block cost
     # more than the products); larger blocks are scaled by their diagonal.
-    by_width, large = {}, []
+    by_width: dict = {}
+    large = []
     for g in np.unique(groups):
         sel = np.nonzero(groups == g)[0]
         if len(sel) > CHOLESKY_MAX:

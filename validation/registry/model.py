@@ -5,7 +5,7 @@ from __future__ import annotations
 import importlib
 import inspect
 from dataclasses import dataclass, field
-from typing import Callable
+from collections.abc import Callable
 
 from pillar_xval.outcome import ContactResult
 from pillar_xval.scenes import Scene
