@@ -83,3 +83,13 @@ def test_scene_keys_table_follows_the_parser():
     for section, keys in KEYS.items():
         for key in keys:
             assert f"`[{section}] {key}`" in table
+
+
+def test_readme_front_page_is_short_and_its_example_runs(capsys):
+    text = (ROOT / "README.md").read_text()
+    assert len(text.splitlines()) <= 150
+    blocks = text.split("```python\n")[1:]
+    assert len(blocks) == 1
+    exec(compile(blocks[0].split("```")[0], "README.md", "exec"), {})
+    forces = capsys.readouterr().out.split()[:3]
+    assert len(forces) == 3 and all(float(f) > 0 for f in forces)
