@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import time
 
-from pillar_xval.contact import approach_for_force
+from pillar_xval.contact import solve_at_force
 from pillar_xval.outcome import ContactResult
 from pillar_xval.scenes import Scene, analytic
 
@@ -78,19 +78,10 @@ def solve_under_force(scene: Scene, P: int, cells: str, contact: str, pillars: s
 def _paper_search(scene: Scene, P: int, cells: str, pillars: str, compliance, progress,
                   t0: float) -> ContactResult:
     """The paper's radius search at the approach where it carries the force."""
-    def force_at(zeta):
-        result = solve_dense(scene.designed(zeta), P, cells, "paper", pillars=pillars,
-                             compliance=compliance, progress=progress)
-        return result.total_force_N, result
-
-    zeta, result, met = approach_for_force(force_at, scene.force_N,
-                                           guess=analytic.indentation_estimate(scene),
-                                           rtol=RTOL_COMPLEMENTARITY, max_solves=MAX_SEARCHES)
-    scene.implied(zeta, f"bem at P = {P}, the paper's search")
+    result = solve_at_force(
+        lambda at: solve_dense(at, P, cells, "paper", pillars=pillars, compliance=compliance,
+                               progress=progress),
+        scene, guess=analytic.indentation_estimate(scene), how=f"bem at P = {P}, the paper's "
+        "search", rtol=RTOL_COMPLEMENTARITY, max_solves=MAX_SEARCHES)
     result.wall_time_s = time.perf_counter() - t0
-    if not met:
-        result.converged = False
-        result.diagnostics["message"] = (
-            f"the paper's search carried {result.total_force_N:.6g} N at its last approach, "
-            f"not the given {scene.force_N:.6g} N within {RTOL_COMPLEMENTARITY:g}")
-    return result.for_force(scene.to_dict(), zeta, force_control="secant over searches")
+    return result

@@ -47,6 +47,8 @@ MODEL = "fem-3d"
 # contact of radius a_c; the grading makes the large block cost a few shells of elements.
 BLOCK_FACTOR = 1e4
 MAX_CG_ITERATIONS = 2000
+# Under a force, meshes for successive indentations before the solve gives up settling them.
+MAX_MESHINGS = 4
 # Element size on the centre pillar's top over the contact element size (see _setup).
 CENTRE_RATIO = 0.25
 # Smallest gap between neighbouring pillars, in diameters: at Phi = 0.9 (gap 0.0038 d) the
@@ -170,16 +172,39 @@ def solve(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None, progress=None,
         ``diagnostics["message"]``.
     """
     _check_options(mesh_size, sector_angle, block_factor, reach_factor, tol)
-    _refuse_if_too_large(scene, mesh_size, sector_angle, reach_factor)
     clock = PhaseClock(progress)
-    setup = _setup(scene, mesh_size, sector_angle, block_factor, reach_factor, grading or {})
-    mesh, skmesh, system, faces = _mesh_and_factorise(setup, mesh_size, sector_angle, clock)
-    contact = _contact(scene, setup, system, faces, tol, clock)
-    result = _result(scene, setup, mesh, system, faces, contact, mesh_size, sector_angle,
+    # Under a force the mesh follows the solved indentation (the pillars in reach, a flat
+    # mesh's unit): meshed again until it is the one of the indentation it solves for.
+    force, rounds = scene.force_N, []
+    solved = scene if force is None else scene.designed(analytic.indentation_estimate(scene))
+    while True:
+        _refuse_if_too_large(solved, mesh_size, sector_angle, reach_factor)
+        setup = _setup(solved, mesh_size, sector_angle, block_factor, reach_factor,
+                       grading or {})
+        mesh, skmesh, system, faces = _mesh_and_factorise(setup, mesh_size, sector_angle, clock)
+        contact = _contact(solved, setup, system, faces, tol, clock,
+                           None if force is None else force * sector_angle / (2.0 * math.pi))
+        if force is None:
+            break
+        again = scene.designed(contact["zeta"])
+        rounds.append({"design_indentation_m": solved.indentation_m,
+                       "indentation_m": contact["zeta"]})
+        alike = _meshed_alike(setup, _setup(again, mesh_size, sector_angle, block_factor,
+                                            reach_factor, grading or {}))
+        if alike or len(rounds) == MAX_MESHINGS:
+            solved = scene.implied(contact["zeta"], f"fem-3d at mesh_size {mesh_size:g}")
+            break
+        solved = again
+    result = _result(solved, setup, mesh, system, faces, contact, mesh_size, sector_angle,
                      reach_factor, clock)
+    if force is not None:
+        result.for_force(scene.to_dict(), contact["zeta"], design_rounds=rounds)
+        if not alike:
+            result.converged = False
+            result.diagnostics["message"] = f"the mesh did not settle in {MAX_MESHINGS} rounds"
     if vtu_path is not None:
         clock.say(f"writing {vtu_path}")
-        _write_fields(vtu_path, scene, setup, mesh, skmesh, system, contact["x"], result)
+        _write_fields(vtu_path, solved, setup, mesh, skmesh, system, contact["x"], result)
     clock.say(f"done: F_T = {result.total_force_N:.6g} N, {contact['sol'].iterations} contact "
               "iterations")
     return result
@@ -208,10 +233,12 @@ def _mesh_and_factorise(setup: dict, mesh_size: float, sector_angle: float,
     return mesh, skmesh, system, faces
 
 
-def _contact(scene: Scene, setup: dict, system, faces, tol: float, clock: PhaseClock) -> dict:
+def _contact(scene: Scene, setup: dict, system, faces, tol: float, clock: PhaseClock,
+             force: float | None = None) -> dict:
     """The mortar contact by constrained CG on the condensed operator D^T G K^-1 G^T D (one
     back-substitution per iteration); then the displacement ``x`` under the contact load,
-    its residual, the pointwise gaps ``w`` and the operator's asymmetry."""
+    its residual, the pointwise gaps ``w``, the operator's asymmetry and the indentation
+    ``zeta`` (m; with ``force``, the sector's force in N, the one found for it)."""
     ell, E_ref = setup["ell"], setup["E_ref"]
     R, zeta = scene.lens.radius_m, scene.indentation_m
     r_pts = np.hypot(*faces.points) * ell
@@ -231,9 +258,17 @@ def _contact(scene: Scene, setup: dict, system, faces, tol: float, clock: PhaseC
             clock.say(f"contact iteration {it}: residual {err:.3g}")
 
     clock.say(f"contact: {faces.n_vertices} pressure unknowns")
-    sol = constrained_cg(apply, D.T @ gap0, np.zeros(faces.n_vertices), scale=zeta / ell,
+    b, q0, target = D.T @ gap0, np.zeros(faces.n_vertices), None
+    if force is not None:  # Polonsky-Keer's force control; the weighted gap moves by weights
+        b, q0 = b + faces.weights * (zeta / ell), np.maximum(-b, 0.0)
+        target = force / (E_ref * ell**2)
+    sol = constrained_cg(apply, b, q0, scale=zeta / ell,
                          tol=tol, max_iterations=MAX_CG_ITERATIONS, precondition=precondition,
-                         inverse_diagonal=inv_d, weights=faces.weights, callback=report)
+                         inverse_diagonal=inv_d, weights=faces.weights, callback=report,
+                         force=target, load=None if force is None else faces.weights)
+    if force is not None:
+        zeta = sol.approach * ell
+        gap0 = (analytic.lens_gap(R, r_pts) - zeta) / ell
     lam = sol.pressure
     clock.done("contact")
     load = G.T @ (D @ lam)
@@ -241,7 +276,8 @@ def _contact(scene: Scene, setup: dict, system, faces, tol: float, clock: PhaseC
     w = G @ x + gap0
     asym = _asymmetry(apply, faces.n_vertices)
     clock.done("post")
-    return {"sol": sol, "lam": lam, "x": x, "residual": residual, "w": w, "asymmetry": asym}
+    return {"sol": sol, "lam": lam, "x": x, "residual": residual, "w": w, "asymmetry": asym,
+            "zeta": zeta}
 
 
 def _result(scene: Scene, setup: dict, mesh, system, faces, contact: dict, mesh_size: float,
@@ -315,7 +351,8 @@ def _write_fields(vtu_path, scene: Scene, setup: dict, mesh, skmesh, system, x,
     nv = skmesh.p.shape[1]
     disp = u[:3 * nv].reshape(-1, 3).T * ell  # vertex dofs come first (3 s + c)
     write_vtu3d(vtu_path, mesh.points, mesh.tets, disp, cells,
-                {"model": MODEL, "scene": result.scene, "discretisation": result.discretisation})
+                {"model": MODEL, "scene": result.scene, "discretisation": result.discretisation,
+                 "indentation_m": result.indentation_m})
 
 
 def _setup(scene: Scene, mesh_size, sector_angle, block_factor, reach_factor, grading) -> dict:
@@ -380,6 +417,13 @@ def _check_options(mesh_size, sector_angle, block_factor, reach_factor, tol) -> 
     if not any(math.isclose(sector_angle, s, rel_tol=1e-12) for s in SECTORS):
         raise InputError(f"sector_angle = {sector_angle!r}: allowed values are pi/6, pi/3 "
                          "and pi/2 (both planes must be mirror planes of the lattice)")
+
+
+def _meshed_alike(a: dict, b: dict) -> bool:
+    """Whether two set-ups mesh alike: the same pillars, in the same unit (a flat mesh's
+    Hertz radius, within 5e-7: the element sizes, to the round-off of a solve)."""
+    return ([p.name for p in a["geometry"].pillars] == [p.name for p in b["geometry"].pillars]
+            and abs(b["ell"] / a["ell"] - 1.0) <= 5e-7)
 
 
 def _reach(R: float, gap: float) -> float:

@@ -33,12 +33,12 @@ misses its tolerance returns ``converged = False`` and a message; it never raise
   as a function (FFT half-space, or an FEM compliance applied by back-substitution).
 - :func:`approach_for_force`: the approach at which a solver under a given indentation
   carries a given force (a bracketing secant over whole solves), where force control cannot
-  be native.
+  be native; :func:`solve_at_force`: a model's answer to a force-controlled scene that way.
 """
 
 from ._active_set import solve_active_set
 from ._cg import constrained_cg, diagonal_preconditioner
-from ._load import approach_for_force
+from ._load import approach_for_force, solve_at_force
 from ._solution import ContactSolution, evaluate, min_map_residual
 
 __all__ = [
@@ -49,4 +49,5 @@ __all__ = [
     "evaluate",
     "min_map_residual",
     "solve_active_set",
+    "solve_at_force",
 ]

@@ -9,8 +9,9 @@ Lawson-Hanson NNLS on the Cholesky form finishes: 1/2 p.A p + b.p = 1/2 |L^T p +
 Under force control (``force``, ``load``: :mod:`pillar_xval.contact`) the approach zeta is one
 more unknown of each equality system, A_II p_I = zeta l_I - b_I with l_I.p_I = F: two solves
 with the same matrix (one factorisation), p_I = v + zeta u, zeta = (F - l.v) / (l.u) (the
-Schur complement of the bordered system).  The steps are those of the semismooth Newton
-method on the bordered problem, so the same active-set iteration converges; a cycle finishes
+Schur complement of the bordered system), or for large active sets one conjugate-gradient
+sequence projected onto the constraint (:func:`_bordered_solve`).  The steps are those of the
+semismooth Newton method on the bordered problem, so the same active-set iteration converges; a cycle finishes
 by a safeguarded secant on zeta over indentation-controlled solves, whose force grows
 monotonically with zeta.
 
@@ -105,7 +106,6 @@ def _solve(A, b, scale, weights, groups, initial, tol, max_iterations, force=Non
             active = touch <= touch.min()
     seen = set()
     p = np.zeros(n)
-    u = np.zeros(n)  # force control: the active system's response to the approach
     zeta = None
     method = "active-set"
     # Sets that conjugate gradients solve are first solved to CG_RTOL_SEARCH (the next set
@@ -119,11 +119,11 @@ def _solve(A, b, scale, weights, groups, initial, tol, max_iterations, force=Non
             if active.any():
                 idx = np.nonzero(active)[0]
                 grp = None if groups is None else groups[idx]
-                sub, ok = _spd_solve(A, s, idx, -bs[idx], p_prev[idx], grp, rtol)
-                if ok and ls is not None:  # p_I = v + zeta u, l.p = F
-                    u[idx], ok = _spd_solve(A, s, idx, ls[idx], u[idx], grp, rtol)
-                    zeta = (force - ls[idx] @ sub) / (ls[idx] @ u[idx])
-                    sub = sub + zeta * u[idx]
+                if ls is None:
+                    sub, ok = _spd_solve(A, s, idx, -bs[idx], p_prev[idx], grp, rtol)
+                else:  # p_I = v + zeta u with l.p = F: the bordered system
+                    sub, zeta, ok = _bordered_solve(A, s, idx, -bs[idx], ls[idx], force,
+                                                    p_prev[idx], grp, rtol)
                 if not ok:
                     return _finish(A, b, p_prev * s, scale, weights, tol, it, method,
                                    f"conjugate gradients missed {rtol:g} on an active set of "
@@ -218,47 +218,7 @@ def _spd_solve(A, s, idx, rhs, x0, groups=None, rtol=CG_RTOL) -> tuple[np.ndarra
     submatrix."""
     if len(rhs) <= CHOLESKY_MAX:
         return cho_solve(cho_factor(_scaled(A, s, idx, idx)), rhs), True
-    if groups is None:
-        groups = np.zeros(len(rhs), int)
-    si = s[idx]
-    diag = A[idx, idx] * si * si
-    # Block Jacobi on the groups: the inverses of the blocks that can be factored, padded to
-    # the next power of two of their size and applied by one batched product per size
-    # (27 blocks a CG iteration on the largest paper scene: one LAPACK call per block cost
-    # more than the products); larger blocks are scaled by their diagonal.
-    by_width, large = {}, []
-    for g in np.unique(groups):
-        sel = np.nonzero(groups == g)[0]
-        if len(sel) > CHOLESKY_MAX:
-            large.append(sel)
-        else:
-            by_width.setdefault(1 << (len(sel) - 1).bit_length(), []).append(sel)
-    jacobi = np.concatenate(large) if large else np.zeros(0, int)
-    batches = []
-    for width, sels in by_width.items():
-        gather = np.full((len(sels), width), len(rhs))  # the padding reads a zero
-        inverse = np.zeros((len(sels), width, width))
-        for k, sel in enumerate(sels):
-            gather[k, :len(sel)] = sel
-            block = _scaled(A, s, idx[sel], idx[sel])
-            inverse[k, :len(sel), :len(sel)] = cho_solve(cho_factor(block), np.eye(len(sel)))
-        valid = gather < len(rhs)
-        batches.append((gather, inverse, valid, gather[valid]))
-    padded = np.zeros(len(s))
-    r_ext = np.zeros(len(rhs) + 1)
-
-    def product(d):
-        padded[idx] = si * d
-        return si * _symmetric_product(A, padded)[idx]
-
-    def precondition(r):
-        z = np.empty_like(r)
-        r_ext[:-1] = r
-        for gather, inverse, valid, target in batches:
-            z[target] = np.matmul(inverse, r_ext[gather][:, :, None])[:, :, 0][valid]
-        z[jacobi] = r[jacobi] / diag[jacobi]
-        return z
-
+    product, precondition = _krylov_tools(A, s, idx, groups)
     x = x0.copy()
     r = rhs - product(x)
     z = precondition(r)
@@ -276,3 +236,101 @@ def _spd_solve(A, s, idx, rhs, x0, groups=None, rtol=CG_RTOL) -> tuple[np.ndarra
         rz, rz_old = r @ z, rz
         d = z + (rz / rz_old) * d
     return x, False
+
+
+def _bordered_solve(A, s, idx, rhs, load, force, x0, groups=None,
+                    rtol=CG_RTOL) -> tuple[np.ndarray, float, bool]:
+    """Solve (S A S)[idx, idx] x = rhs + zeta l, l.x = F for x and zeta.
+
+    Small systems: one Cholesky factorisation, two solves (x = v + zeta u).  Large ones:
+    conjugate gradients projected onto l.x = F (Gould, Hribar and Nocedal, SIAM J. Sci.
+    Comput. 23 (2001) 1376), preconditioned by the same blocks, from ``x0`` moved onto the
+    constraint: one Krylov sequence, as many products as one indentation-controlled solve,
+    where solving for v and u apart took two; zeta, the constraint's multiplier, is the
+    residual's component along l, taken out of it at each step."""
+    if len(rhs) <= CHOLESKY_MAX:
+        factor = cho_factor(_scaled(A, s, idx, idx))
+        v, u = cho_solve(factor, rhs), cho_solve(factor, load)
+        zeta = (force - load @ v) / (load @ u)
+        return v + zeta * u, zeta, True
+    product, precondition = _krylov_tools(A, s, idx, groups)
+    m_load = precondition(load)
+    norm = load @ m_load
+    x = x0 + ((force - load @ x0) / norm) * m_load
+    r = product(x) - rhs
+    zeta = 0.0
+
+    def shift(r):
+        """The residual less its component along l (the multiplier's, accumulated in
+        zeta), and its projected preconditioned form: the shift keeps the residual small,
+        so the projection's round-off stays small with it (Gould et al.'s residual update;
+        without it the iteration stalled near 1e-8 and diverged)."""
+        nonlocal zeta
+        z = precondition(r)
+        lam = (load @ z) / norm
+        zeta += lam
+        return r - lam * load, z - lam * m_load
+
+    r, g = shift(r)
+    d = -g
+    rg = r @ g
+    stop = rtol * np.linalg.norm(rhs)
+    for _ in range(10 * len(rhs)):
+        if np.linalg.norm(r) <= stop:
+            return x, zeta, True
+        Ad = product(d)
+        alpha = rg / (d @ Ad)
+        x += alpha * d
+        r, g = shift(r + alpha * Ad)
+        rg, rg_old = r @ g, rg
+        d = -g + (rg / rg_old) * d
+    return x, zeta, False
+
+
+def _krylov_tools(A, s, idx, groups):
+    """(product, precondition) of conjugate gradients on (S A S)[idx, idx]: the product by
+    the whole of A (a zero-padded vector) instead of a copy of the submatrix, and the block
+    Jacobi preconditioner of the groups (a pillar's unknowns)."""
+    if groups is None:
+        groups = np.zeros(len(idx), int)
+    si = s[idx]
+    diag = A[idx, idx] * si * si
+    # Block Jacobi on the groups: the inverses of the blocks that can be factored, padded to
+    # the next power of two of their size and applied by one batched product per size
+    # (27 blocks a CG iteration on the largest paper scene: one LAPACK call per block cost
+    # more than the products); larger blocks are scaled by their diagonal.
+    by_width, large = {}, []
+    for g in np.unique(groups):
+        sel = np.nonzero(groups == g)[0]
+        if len(sel) > CHOLESKY_MAX:
+            large.append(sel)
+        else:
+            by_width.setdefault(1 << (len(sel) - 1).bit_length(), []).append(sel)
+    jacobi = np.concatenate(large) if large else np.zeros(0, int)
+    batches = []
+    m = len(idx)
+    for width, sels in by_width.items():
+        gather = np.full((len(sels), width), m)  # the padding reads a zero
+        inverse = np.zeros((len(sels), width, width))
+        for k, sel in enumerate(sels):
+            gather[k, :len(sel)] = sel
+            block = _scaled(A, s, idx[sel], idx[sel])
+            inverse[k, :len(sel), :len(sel)] = cho_solve(cho_factor(block), np.eye(len(sel)))
+        valid = gather < m
+        batches.append((gather, inverse, valid, gather[valid]))
+    padded = np.zeros(len(s))
+    r_ext = np.zeros(m + 1)
+
+    def product(d):
+        padded[idx] = si * d
+        return si * _symmetric_product(A, padded)[idx]
+
+    def precondition(r):
+        z = np.empty_like(r)
+        r_ext[:-1] = r
+        for gather, inverse, valid, target in batches:
+            z[target] = np.matmul(inverse, r_ext[gather][:, :, None])[:, :, 0][valid]
+        z[jacobi] = r[jacobi] / diag[jacobi]
+        return z
+
+    return product, precondition

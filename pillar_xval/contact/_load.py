@@ -19,7 +19,7 @@ References
 
 from __future__ import annotations
 
-__all__ = ["approach_for_force"]
+__all__ = ["approach_for_force", "solve_at_force"]
 
 
 def approach_for_force(force_at, force: float, *, guess: float, floor: float = 0.0,
@@ -72,3 +72,28 @@ def approach_for_force(force_at, force: float, *, guess: float, floor: float = 0
         if hi is not None and not lo < zeta < hi:  # round-off at a closed bracket: bisect
             zeta = 0.5 * (lo + hi)
     return zeta, answer, False
+
+
+def solve_at_force(solve, scene, *, guess: float, how: str, rtol: float = 1e-8,
+                   max_solves: int = 60):
+    """A model's answer to the force-controlled ``scene`` by whole solves under indentations
+    (:func:`approach_for_force`): ``solve(scene at an indentation)`` -> its result.
+
+    ``guess`` (m) is the first indentation tried, ``how`` names the solve in a refusal (the
+    indentation found beyond the scene's scope: ``scene.implied``).  The result is that of
+    the last solve, at the indentation found, as the answer to ``scene``; it says when the
+    force was not met within ``rtol`` (``converged`` False, the reason in its message).
+    """
+    def force_at(zeta):
+        result = solve(scene.designed(zeta))
+        return result.total_force_N, result
+
+    zeta, result, met = approach_for_force(force_at, scene.force_N, guess=guess, rtol=rtol,
+                                           max_solves=max_solves)
+    scene.implied(zeta, how)
+    if not met:
+        result.converged = False
+        result.diagnostics["message"] = (
+            f"{how} carried {result.total_force_N:.6g} N at its last indentation, not the "
+            f"given {scene.force_N:.6g} N within {rtol:g} (after {max_solves} solves)")
+    return result.for_force(scene.to_dict(), zeta, force_control="secant over solves")

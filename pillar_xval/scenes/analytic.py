@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._checks import rigid_flat_indentation
 from ._scene import PHI_CLOSE_PACKING, Scene, SceneError
 
 
@@ -135,6 +136,14 @@ def spring_model(scene: Scene) -> FlatPunch:
     """The paper's soft-flat-punch model: one Hooke pillar between two half-spaces."""
     p = _single_pillar(scene)
     return FlatPunch(p.diameter_m, scene.indentation_m, effective_compliance(scene))
+
+
+def least_indentation(scene: Scene) -> float:
+    """A lower bound (m) of the indentation at which any model carries a force-controlled
+    scene's force: where the lens pressed on a rigid flat carries it (any substrate, pillar
+    or partial contact deflects more); 0 for a rigid lens."""
+    return rigid_flat_indentation(scene.force_N, scene.lens.radius_m,
+                                  scene.lens.material.compliance)
 
 
 def indentation_estimate(scene: Scene) -> float:
