@@ -176,7 +176,8 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     if scene.force_N is not None:
         from ._fft_force import solve_under_force
 
-        return solve_under_force(scene, cells_per_diameter, opts, be, start, _nested)
+        return solve_under_force(scene, cells_per_diameter, opts, be, start, _nested,
+                                 _workspace)
     setup = _prepare(scene, cells_per_diameter, opts, be, _workspace, start)
     b = be.asarray(setup.grid.gap0, dtype=be.xp.float64)
     coarse = cells_per_diameter // 2

@@ -49,10 +49,11 @@ MAX_DESIGN_ROUNDS = 6
 
 
 def solve_under_force(scene: Scene, cells_per_diameter: int, opts, be, start: float,
-                      nested: bool) -> ContactResult:
-    """:func:`bem_solver.solve_fft` on a force-controlled ``scene`` (module docstring)."""
+                      nested: bool, workspace=None) -> ContactResult:
+    """:func:`bem_solver.solve_fft` on a force-controlled ``scene`` (module docstring);
+    ``workspace``: the transforms' work arrays, shared by the levels (coarsest first)."""
     force = scene.force_N
-    workspace = TransformWorkspace()  # the levels, coarsest first, share their arrays
+    workspace = workspace if workspace is not None else TransformWorkspace()
     coarse = cells_per_diameter // 2
     rough, levels = None, []
     lap = time.perf_counter()

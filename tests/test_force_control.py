@@ -24,8 +24,7 @@ import numpy as np
 import pytest
 
 from pillar_xval.contact import approach_for_force, constrained_cg, solve_active_set
-from pillar_xval.scenes import InputError, Scene, SceneError, ScopeError, analytic, load_scene
-from pillar_xval.scenes import scene_to_toml
+from pillar_xval.scenes import Scene, SceneError, ScopeError, analytic, load_scene, scene_to_toml
 from validation.engine import case_key
 from validation.registry import run_model
 

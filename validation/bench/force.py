@@ -22,6 +22,7 @@ import argparse
 import json
 import os
 import statistics
+import sys
 import time
 from pathlib import Path
 
@@ -130,17 +131,25 @@ def main(argv=None) -> int:
         print(f"  indentation {r['median_indentation_s']:.3g} s, force {r['median_force_s']:.3g}"
               f" s, ratio {r['ratio_of_medians']:.2f}, round trip {r['round_trip']:+.1e}",
               flush=True)
+        _write(args.out, rows, load_start, argv)  # each case kept as it finishes
+    print(_write(args.out, rows, load_start, argv))
+    return 0
+
+
+def _write(out: Path, rows: list, load_start: list, argv) -> str:
+    """bench_force.json and bench_force.md of the cases so far; the table's text."""
+    from pillar_xval.outcome import write_atomic
+
     doc = {"rows": rows, "load_average_start": load_start,
            "load_average_end": [round(v, 2) for v in os.getloadavg()],
            "cpus": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else None,
-           "command": "python -m validation.bench.force " + " ".join(argv or [])}
-    text = table(rows)
-    print(text)
-    print(f"load average {doc['load_average_start']} -> {doc['load_average_end']}")
-    (args.out / "bench_force.json").write_text(json.dumps(doc, indent=2))
-    (args.out / "bench_force.md").write_text(
-        f"{text}\n\nload average {doc['load_average_start']} -> {doc['load_average_end']}\n")
-    return 0
+           "command": "python -m validation.bench.force " + " ".join(
+               sys.argv[1:] if argv is None else argv)}
+    text = (f"{table(rows)}\n\nload average {doc['load_average_start']} -> "
+            f"{doc['load_average_end']} on {doc['cpus']} CPUs")
+    write_atomic(out / "bench_force.json", json.dumps(doc, indent=2))
+    write_atomic(out / "bench_force.md", text + "\n")
+    return text
 
 
 if __name__ == "__main__":

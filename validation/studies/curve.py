@@ -36,7 +36,7 @@ from pillar_xval.scenes import InputError, Scene, analytic
 
 from ..analysis.verification import study
 from ..engine import Case, Engine
-from ..registry import MODELS, flag, ladder_for
+from ..registry import MODELS, ladder_for
 from .converge import check_ladder
 
 __all__ = ["CSV_COLUMNS", "DATA_COLUMNS", "OUTPUTS", "closed_form_curves", "curve_study",
