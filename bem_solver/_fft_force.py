@@ -30,8 +30,8 @@ import time
 from pillar_xval.outcome import ContactResult
 from pillar_xval.scenes import Scene, analytic
 
-from ._fft import (WARM_START_MIN_CELLS, WARM_START_TOL, _initial_pressure, _interpolate,
-                   _prepare, finish, run_cg, solve_fft, warm_levels)
+from ._fft import (WARM_START_MIN_CELLS, _coarser, _initial_pressure, _interpolate, _prepare,
+                   finish, run_cg, warm_levels)
 from ._fft_operator import TransformWorkspace
 
 __all__ = ["DESIGN_MARGIN", "FLAT_DESIGN_RTOL", "solve_under_force"]
@@ -58,12 +58,7 @@ def solve_under_force(scene: Scene, cells_per_diameter: int, opts, be, start: fl
     rough, levels = None, []
     lap = time.perf_counter()
     if opts.warm_start and coarse >= WARM_START_MIN_CELLS:
-        rough = solve_fft(scene, coarse, tol=max(opts.tol, WARM_START_TOL),
-                          workers=opts.workers, warm_start=True,
-                          edge_correction=opts.edge_correction, backend=be,
-                          preconditioner=opts.preconditioner, pillars=opts.pillars,
-                          compliance=opts.compliance, precision=opts.precision,
-                          _nested=True, _workspace=workspace)
+        rough = _coarser(scene, coarse, opts, be, workspace)
         levels = warm_levels(rough, coarse)
         guess = rough.indentation_m
     else:

@@ -83,6 +83,22 @@ def test_round_trip(case):
     assert back.scene["load"] == {"force_N": given.total_force_N}
 
 
+def test_round_trip_with_elastic_pillars(compliance_cache):
+    """Both BEMs with the elastic pillar (a coarse compliance: the round trip holds for any)."""
+    from bem_solver import solve_dense, solve_fft
+    from fem_reference import PillarKind, modal_compliance
+
+    scene = load_scene(*LATTICE)
+    modal = modal_compliance(PillarKind.of_scene(scene), 0, mesh_size=4.0)
+    for solve, options in ((solve_fft, {"cells_per_diameter": 12}),
+                           (solve_dense, {"elements_per_diameter": 5})):
+        given = solve(scene, pillars="elastic", compliance=modal, **options)
+        back = solve(scene.at_force(given.total_force_N), pillars="elastic", compliance=modal,
+                     **options)
+        assert back.diagnostics["pillars"] == "elastic"
+        _same_answer(given, back)
+
+
 @pytest.mark.slow
 def test_round_trip_fem3d_on_a_lattice():
     scene = load_scene("paper-fig3-sparse", ["pillars.surface_fraction=0.1",
