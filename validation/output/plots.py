@@ -10,7 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from matplotlib.ticker import NullFormatter
+from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
 from ..registry import QUANTITIES
 from .report import KPA, legend_outside, scene_label, pyplot, save_figure, stamp_not_converged
@@ -368,6 +368,11 @@ def plot_curve(doc: dict, path: Path) -> Path:
     for ax, (xa, ya, xl, yl, fx, fy) in zip(axes.ravel(), _CURVE_PANELS):
         ax.set_xscale(scale)
         ax.set_yscale(scale)
+        if scale == "log":  # plain numbers at the decades and their 2 and 5, nothing between
+            for axis in (ax.xaxis, ax.yaxis):
+                axis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+                axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+                axis.set_minor_formatter(NullFormatter())
         for name, ref in doc["references"].items():
             colour, ls = styles.get(name, ("0.6", "-."))
             ax.plot([v * fx for v in ref[xa]], [v * fy for v in ref[ya]], color=colour, ls=ls,
