@@ -11,9 +11,9 @@ more unknown of each equality system, A_II p_I = zeta l_I - b_I with l_I.p_I = F
 with the same matrix (one factorisation), p_I = v + zeta u, zeta = (F - l.v) / (l.u) (the
 Schur complement of the bordered system), or for large active sets one conjugate-gradient
 sequence projected onto the constraint (:func:`_bordered_solve`).  The steps are those of the
-semismooth Newton method on the bordered problem, so the same active-set iteration converges; a cycle finishes
-by a safeguarded secant on zeta over indentation-controlled solves, whose force grows
-monotonically with zeta.
+semismooth Newton method on the bordered problem, so the same active-set iteration
+converges; a cycle finishes by a safeguarded secant on zeta over indentation-controlled
+solves, whose force grows monotonically with zeta.
 
 References
 ----------

@@ -43,10 +43,10 @@ class ContactResult:
     the model's solver tolerance); both fields are on every result, filled from the scene when
     a model leaves them out.  ``centre_pressure_Pa`` is the contact pressure at r = 0
     (sigma_0); ``contact_radius_m`` the radius of the outermost point of contact;
-    ``real_contact_area_m2`` the area where the pressure is positive; ``pillar_top_profile`` the pressure across the central pillar top
-    (``r_m`` from its centre, ``pressure_Pa``).  ``diagnostics`` holds model-specific
-    numbers (residuals, complementarity errors); ``fields`` holds arrays for plots and CSV
-    files and is not part of the JSON document.
+    ``real_contact_area_m2`` the area where the pressure is positive; ``pillar_top_profile``
+    the pressure across the central pillar top (``r_m`` from its centre, ``pressure_Pa``).
+    ``diagnostics`` holds model-specific numbers (residuals, complementarity errors);
+    ``fields`` holds arrays for plots and CSV files and is not part of the JSON document.
     """
 
     model: str
