@@ -143,3 +143,14 @@ def test_pytest_fixture_accepts_force_controlled_scenes(xval):
     assert result.load_control == "force"
     assert_matches_closed_form(result, "spring", quantities=("zeta",), rtol=0.006,
                                source="spring model against the extrapolated BEM: +0.05 %")
+
+
+def test_studies_take_force_controlled_scenes(tmp_path, capsys):
+    """A study that reads a scene takes a force-controlled one: its levels under the force,
+    the force itself at round-off, the indentation solved on each."""
+    code, out, _ = run(["converge", "--scene", "hertz", "--set", "load.force_uN=5",
+                        "--levels", "2", "--elements-per-diameter", "5", "--executor",
+                        "serial", "--out", str(tmp_path / "o"), "--json"], capsys)
+    doc = json.loads(out)
+    assert code == 0 and all(lv["F_T"] == pytest.approx(5e-6, rel=1e-8)
+                             for lv in doc["levels"])

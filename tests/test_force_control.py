@@ -154,6 +154,13 @@ def test_hertz_under_a_force(model, value):
                                                       rel=band_s)
 
 
+def test_closed_forms_carry_a_scene_force():
+    """scenes.analytic reads a force-controlled scene's closed forms at its force."""
+    scene = load_scene("single-pillar", ["load.force_uN=1"])
+    for form in (analytic.hertz, analytic.spring_model, analytic.rigid_punch):
+        assert form(scene).force == pytest.approx(1e-6, rel=1e-12)
+
+
 def test_hertz_model_inverts_exactly():
     scene = load_scene("hertz", ["load.force_uN=5"])
     result = run_model("hertz", scene)

@@ -254,29 +254,21 @@ def assert_order(study: Mapping, expected: float, *, atol: float = 0.1,
 
 
 def _closed_form_values(result: ContactResult, form: str) -> dict:
-    """The closed form's quantities on the result's scene; under a given force, at the
-    indentation at which the closed form carries it (each inverts exactly)."""
+    """The closed form's quantities on the result's scene (under a given force, the closed
+    form that carries it: each inverts exactly)."""
     from pillar_xval.scenes import Scene, analytic
 
     scene = Scene.from_dict(result.scene)
-    if scene.force_N is not None:
-        force, R = scene.force_N, scene.lens.radius_m
-        zeta = (analytic.Hertz.indentation_for_force(force, R, scene.half_space_compliance)
-                if form == "hertz" else force / scene.pillars.diameter_m * (
-                    scene.lens.material.compliance if form == "punch"
-                    else analytic.effective_compliance(scene)))
-        scene = scene.at_indentation(zeta)
     if form == "hertz":
         h = analytic.hertz(scene)
         return {"F_T": h.force, "sigma0": h.centre_pressure, "a": h.contact_radius,
-                "A": h.contact_area, "zeta": scene.indentation_m}, \
-            "Hertz (Johnson 1985, sec. 4.2)"
+                "A": h.contact_area, "zeta": h.indentation}, "Hertz (Johnson 1985, sec. 4.2)"
     punch = analytic.rigid_punch(scene) if form == "punch" else analytic.spring_model(scene)
     d = scene.pillars.diameter_m
     what = ("rigid flat punch (Johnson 1985, sec. 3.8)" if form == "punch"
             else "the paper's spring model (one Hooke pillar)")
     return {"F_T": punch.force, "sigma0": punch.centre_pressure, "a": d / 2.0,
-            "A": math.pi * d * d / 4.0, "zeta": scene.indentation_m}, what
+            "A": math.pi * d * d / 4.0, "zeta": punch.indentation}, what
 
 
 def assert_matches_closed_form(result: ContactResult, form: str, *, rtol: float,

@@ -72,7 +72,12 @@ class Hertz:
 
 
 def hertz(scene: Scene) -> Hertz:
-    return Hertz(scene.lens.radius_m, scene.indentation_m, scene.half_space_compliance)
+    """Hertz on the scene's load: its indentation, or the one that carries its force."""
+    R, gamma = scene.lens.radius_m, scene.half_space_compliance
+    zeta = scene.indentation_m
+    if scene.force_N is not None:
+        zeta = Hertz.indentation_for_force(scene.force_N, R, gamma)
+    return Hertz(R, zeta, gamma)
 
 
 # --- flat punches ----------------------------------------------------------------------
@@ -121,7 +126,7 @@ def rigid_punch(scene: Scene) -> FlatPunch:
     gamma = scene.lens.material.compliance
     if gamma == 0.0:
         raise SceneError("rigid punch limit needs an elastic lens (lens.rigid is true)")
-    return FlatPunch(p.diameter_m, scene.indentation_m, gamma)
+    return FlatPunch(p.diameter_m, _punch_indentation(scene, gamma), gamma)
 
 
 def effective_compliance(scene: Scene) -> float:
@@ -135,7 +140,22 @@ def effective_compliance(scene: Scene) -> float:
 def spring_model(scene: Scene) -> FlatPunch:
     """The paper's soft-flat-punch model: one Hooke pillar between two half-spaces."""
     p = _single_pillar(scene)
-    return FlatPunch(p.diameter_m, scene.indentation_m, effective_compliance(scene))
+    gamma = effective_compliance(scene)
+    return FlatPunch(p.diameter_m, _punch_indentation(scene, gamma), gamma)
+
+
+def _punch_indentation(scene: Scene, compliance: float) -> float:
+    """A punch's indentation on the scene's load: given, or the one that carries its force
+    (F = d zeta / gamma, inverted)."""
+    if scene.force_N is None:
+        return scene.indentation_m
+    return scene.force_N * compliance / scene.pillars.diameter_m
+
+
+def _indentation(scene: Scene) -> float:
+    """The indentation a threshold is read at: the scene's, or under a force the guess
+    (:func:`indentation_estimate`)."""
+    return scene.indentation_m if scene.force_N is None else indentation_estimate(scene)
 
 
 def least_indentation(scene: Scene) -> float:
@@ -215,7 +235,7 @@ def _punch_gap(scene: Scene):
     """(gap, hi): the gap of [P] eq. rSzeta at radius r (m; vectorised), the undeformed lens
     less the indentation plus the centre punch's lift (2/Pi) zeta arcsin(d / 2r) ([J] eq.
     3.37), and the radius from which the threshold scans inwards (where it is open)."""
-    R, d, zeta = scene.lens.radius_m, _single_pillar(scene).diameter_m, scene.indentation_m
+    R, d, zeta = scene.lens.radius_m, _single_pillar(scene).diameter_m, _indentation(scene)
     big_pi = stiffness_number(scene)
 
     def gap(r):
@@ -273,7 +293,7 @@ def single_pillar_threshold_large_indentation(scene: Scene) -> float:
     """Large-zeta limit Phi_S ~ pi d^2 / (4 sqrt 3 R zeta), valid for
     zeta >> (d / Pi)^2 / (2 R) (the paper's stated criterion is dimensionally wrong)."""
     d = _single_pillar(scene).diameter_m
-    return math.pi * d**2 / (4.0 * math.sqrt(3.0) * scene.lens.radius_m * scene.indentation_m)
+    return math.pi * d**2 / (4.0 * math.sqrt(3.0) * scene.lens.radius_m * _indentation(scene))
 
 
 def threshold_indentation(scene: Scene) -> float:
