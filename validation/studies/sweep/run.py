@@ -82,7 +82,9 @@ UNMEASURED_SECONDS = 1.0
 def estimate_seconds(case: Case) -> float:
     """The predicted wall time (s) of a case: the planner's cost fit of its model, measured
     by ``pillar-xval calibrate`` on this machine (the model's default resolution where the
-    case gives none); :data:`UNMEASURED_SECONDS` without a fit."""
+    case gives none; a force-controlled scene at its estimated indentation, as the planner
+    reads it); :data:`UNMEASURED_SECONDS` without a fit."""
+    from ...planner.plan import planning_scene
     from ...planner.tables import load_data
     from ...registry import get_model
 
@@ -93,7 +95,7 @@ def estimate_seconds(case: Case) -> float:
     if fit.option and options.get(fit.option) is None:
         options[fit.option] = get_model(case.model).default(fit.option)
     try:
-        return fit.predict(case.scene, options)[0]
+        return fit.predict(planning_scene(case.scene), options)[0]
     except (InputError, ValueError, TypeError):
         return UNMEASURED_SECONDS
 
