@@ -65,6 +65,7 @@ def solve_under_force(scene: Scene, cells_per_diameter: int, opts, be, start: fl
         guess = analytic.indentation_estimate(scene)
     warm = time.perf_counter() - lap
     design = guess if scene.is_flat else guess * DESIGN_MARGIN
+    only_starts = nested and rough is not None  # a level between the coarsest and the finest
     rounds = []
     for _ in range(MAX_DESIGN_ROUNDS):
         geometry = scene.designed(design)
@@ -81,8 +82,7 @@ def solve_under_force(scene: Scene, cells_per_diameter: int, opts, be, start: fl
                        "indentation_m": zeta, "iterations": outcome.iterations})
         # A coarser level only starts the next: it is solved once on its design, unless it
         # is the coarsest, whose design, from the closed-form guess, may be far off.
-        if (nested and rough is not None) or _designed_for(scene, geometry.indentation_m,
-                                                            zeta):
+        if only_starts or _designed_for(scene, geometry.indentation_m, zeta):
             break
         design = zeta if scene.is_flat else zeta * DESIGN_MARGIN
         rough = finish(geometry, setup, outcome, cells_per_diameter, opts, be, levels, start)
