@@ -223,8 +223,8 @@ def _contact(scene: Scene, setup: dict, system, faces, tol: float, clock: PhaseC
         return D.T @ (G @ x)
 
     springs = _springs(scene, setup, faces, E_ref, ell)
-    precondition, inv_d = preconditioner(faces.weights, faces.pillar_of_vertex, springs,
-                                         setup["face_compliance"] * E_ref)
+    precondition, inv_d, precondition_name = preconditioner(
+        faces, springs, setup["face_compliance"] * E_ref, setup["geometry"].sector_angle)
 
     def report(it, err):
         if it % 10 == 0:
@@ -241,7 +241,8 @@ def _contact(scene: Scene, setup: dict, system, faces, tol: float, clock: PhaseC
     w = G @ x + gap0
     asym = _asymmetry(apply, faces.n_vertices)
     clock.done("post")
-    return {"sol": sol, "lam": lam, "x": x, "residual": residual, "w": w, "asymmetry": asym}
+    return {"sol": sol, "lam": lam, "x": x, "residual": residual, "w": w, "asymmetry": asym,
+            "preconditioner": precondition_name}
 
 
 def _result(scene: Scene, setup: dict, mesh, system, faces, contact: dict, mesh_size: float,
@@ -282,7 +283,7 @@ def _result(scene: Scene, setup: dict, mesh, system, faces, contact: dict, mesh_
                        "contact reached the end of the candidate zone" if reaches_end else "")
     diagnostics = {
         "cg_iterations": int(sol.iterations), "cg_reentries": int(sol.reentries),
-        "operator_asymmetry": contact["asymmetry"],
+        "operator_asymmetry": contact["asymmetry"], "preconditioner": contact["preconditioner"],
         "contact_vertices": int(faces.n_vertices), "vertices_in_contact": int(np.sum(lam > 0)),
         "pillars_meshed": [p.name for p in geo.pillars], "reach_factor": reach_factor,
         "factor_nonzeros": system.factor.factor_nonzeros,
