@@ -193,7 +193,9 @@ class WedgeGeometry:
             # coordinates, checked with its eight index neighbours, or a scan of all pillars
             # when none of those is meshed.  Only the nearest pillar matters: pillars do not
             # overlap, so the nearest centre is also nearest to every top, rim and base
-            # feature (and each size grows with distance).
+            # feature (and each size grows with distance).  Comparisons spell out min, max
+            # and abs (the first of equal values wins, as with them), and hypot takes signed
+            # arguments: the same values, without the builtins' calls.
             candidates = centres
             if e > 0.0:
                 m0 = round(2.0 * y / row)
@@ -208,11 +210,20 @@ class WedgeGeometry:
                 d2 = (p[0] - x) ** 2 + (p[1] - y) ** 2
                 if d2 < best:
                     best, (cx, cy) = d2, p
-            rho = hypot(x - cx, y - cy)
-            s = min(cap, h_c + g * hypot(max(rho - 1.0, 0.0), z),
-                    h_e + g * hypot(rho - 1.0, min(abs(z), abs(z + H))))
+            rim = hypot(x - cx, y - cy) - 1.0
+            s = cap
+            t = h_c + g * hypot(rim if rim > 0.0 else 0.0, z)
+            if t < s:
+                s = t
+            top, base = (z if z >= 0.0 else -z), (z + H if z + H >= 0.0 else -(z + H))
+            t = h_e + g * hypot(rim, base if base < top else top)
+            if t < s:
+                s = t
             if centred:  # the centre pillar's top: the disk r <= 1 at z = 0
-                s = min(s, h_0 + g * hypot(max(hypot(x, y) - 1.0, 0.0), z))
+                r0 = hypot(x, y) - 1.0
+                t = h_0 + g * hypot(r0 if r0 > 0.0 else 0.0, z)
+                if t < s:
+                    s = t
             return scale * s
 
         object.__setattr__(self, "_size_callback", size)
