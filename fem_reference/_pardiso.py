@@ -27,6 +27,7 @@ factor is always one without perturbed pivots where the default one has none.
 from __future__ import annotations
 
 import ctypes
+import functools
 
 import numpy as np
 import scipy.sparse as sp
@@ -46,28 +47,27 @@ _MATCHING = {10: 1, 12: 1}
 
 class Pardiso:
     """Factorisation of the symmetric indefinite ``A`` (its upper triangle is used);
-    ``solve(b)`` for one or several right-hand sides; ``factor_nonzeros``,
-    ``perturbed_pivots`` and ``ordering`` ("nodes" or "matching") reported."""
+    ``solve(b)`` for one or several right-hand sides (float64 in and out);
+    ``factor_nonzeros``, ``perturbed_pivots``, ``ordering`` ("nodes" or "matching") and
+    ``single`` (the factor is float32) reported."""
 
-    def __init__(self, A: sp.csr_matrix, solver=None, nodes: np.ndarray | None = None):
-        """``solver``: a ``PyPardisoSolver(mtype=-2)`` to reuse (its construction searches
-        the file system for MKL, ~1 s); it then holds one factorisation at a time.
+    def __init__(self, A: sp.csr_matrix, solver=None, nodes: np.ndarray | None = None,
+                 single: bool = False):
+        """``solver``: a ``PyPardisoSolver(mtype=-2)`` to reuse; it then holds one
+        factorisation at a time (default: a handle of its own, MKL found once per process).
         ``nodes``: the mesh node of each unknown (any integer labels; unknowns of one node
         are eliminated together, in their order in ``A``), for the node ordering of the
-        module docstring; None: METIS after a weighted matching."""
-        if solver is None:
-            try:
-                from pypardiso import PyPardisoSolver
-            except ImportError as exc:
-                raise SolveError(f"pypardiso is not installed ({exc}); it is a dependency "
-                                 "of the 3D FEM") from None
-            solver = PyPardisoSolver(mtype=-2)
-        self._solver = solver
+        module docstring; None: METIS after a weighted matching.  ``single``: factorise and
+        solve in float32 (MKL's iparm[27]; half the factor's memory, its solves ~1e-6 of
+        the exact ones: the caller refines them against ``A``)."""
+        self._solver = _Handle() if solver is None else solver
         self._solver.msglvl = 0
         upper = sp.triu(A, format="csr")
         upper.sort_indices()
         self.n = A.shape[0]
-        self._a = np.ascontiguousarray(upper.data, dtype=float)
+        self.single = bool(single)
+        self._dtype = np.float32 if self.single else np.float64
+        self._a = np.ascontiguousarray(upper.data, dtype=self._dtype)
         self._ia = (upper.indptr + 1).astype(np.int32)
         self._ja = (upper.indices + 1).astype(np.int32)
         self._perm = np.zeros(self.n, dtype=np.int32)
@@ -75,7 +75,7 @@ class Pardiso:
         self._factorised = False
         self.ordering = "matching"
         if nodes is not None:
-            self._perm = node_ordering(solver, upper, np.asarray(nodes))
+            self._perm = node_ordering(self._solver, upper, np.asarray(nodes))
             self._factorise(user_ordering=True)
             if self.perturbed_pivots == 0:
                 self.ordering = "nodes"
@@ -89,19 +89,20 @@ class Pardiso:
         iparm[:] = 0
         for k, v in _IPARM.items():
             iparm[k] = v
+        iparm[27] = int(self.single)
         if user_ordering:
             iparm[4] = 1  # our permutation, in perm
         else:
             for k, v in _MATCHING.items():
                 iparm[k] = v
-        self._call(12, np.zeros((self.n, 1), order="F"))
+        self._call(12, np.zeros((self.n, 1), dtype=self._dtype, order="F"))
         self._factorised = True
         self.factor_nonzeros = int(iparm[17])
         self.perturbed_pivots = int(iparm[13])
 
     def solve(self, b: np.ndarray) -> np.ndarray:
-        b2 = np.asfortranarray(b.reshape(self.n, -1))
-        return self._call(33, b2).reshape(b.shape)
+        b2 = np.asfortranarray(b.reshape(self.n, -1), dtype=self._dtype)
+        return self._call(33, b2).astype(float, copy=False).reshape(b.shape)
 
     def _call(self, phase: int, b: np.ndarray) -> np.ndarray:
         return _pardiso(self._solver, self._mtype, phase, self._a, self._ia, self._ja,
@@ -110,13 +111,36 @@ class Pardiso:
     def _release(self) -> None:
         if self._factorised:
             self._factorised = False
-            self._call(-1, np.zeros((self.n, 1), order="F"))
+            self._call(-1, np.zeros((self.n, 1), dtype=self._dtype, order="F"))
 
     def __del__(self):
         try:
             self._release()
         except Exception:
             pass
+
+
+class _Handle:
+    """One factorisation's PARDISO handle (``pt``) and parameters (``iparm``), with MKL's
+    ``pardiso`` found once per process (pypardiso's search of the file system takes ~1 s)."""
+
+    def __init__(self):
+        library = _library()
+        self._mkl_pardiso, self._pt_type = library._mkl_pardiso, library._pt_type
+        self.pt = np.zeros(64, dtype=self._pt_type[1])
+        self.iparm = np.zeros(64, dtype=np.int32)
+        self.msglvl = 0
+
+
+@functools.lru_cache(maxsize=1)
+def _library():
+    """pypardiso's solver object, for its handle on MKL's pardiso (found once)."""
+    try:
+        from pypardiso import PyPardisoSolver
+    except ImportError as exc:
+        raise SolveError(f"pypardiso is not installed ({exc}); it is a dependency of the "
+                         "3D FEM") from None
+    return PyPardisoSolver(mtype=-2)
 
 
 def node_ordering(solver, upper: sp.csr_matrix, nodes: np.ndarray) -> np.ndarray:
@@ -158,15 +182,15 @@ def _pardiso(solver, mtype: int, phase: int, a, ia, ja, perm, b: np.ndarray) -> 
     x = np.zeros_like(b, order="F")
     err = ctypes.c_int32(0)
     i32 = ctypes.POINTER(ctypes.c_int32)
-    f64 = ctypes.POINTER(ctypes.c_double)
+    real = ctypes.POINTER(ctypes.c_float if b.dtype == np.float32 else ctypes.c_double)
     s._mkl_pardiso(s.pt.ctypes.data_as(ctypes.POINTER(s._pt_type[0])),
                    ctypes.byref(ctypes.c_int32(1)), ctypes.byref(ctypes.c_int32(1)),
                    ctypes.byref(ctypes.c_int32(mtype)), ctypes.byref(ctypes.c_int32(phase)),
-                   ctypes.byref(ctypes.c_int32(n)), a.ctypes.data_as(f64),
+                   ctypes.byref(ctypes.c_int32(n)), a.ctypes.data_as(real),
                    ia.ctypes.data_as(i32), ja.ctypes.data_as(i32),
                    perm.ctypes.data_as(i32), ctypes.byref(ctypes.c_int32(b.shape[1])),
                    s.iparm.ctypes.data_as(i32), ctypes.byref(ctypes.c_int32(0)),
-                   b.ctypes.data_as(f64), x.ctypes.data_as(f64), ctypes.byref(err))
+                   b.ctypes.data_as(real), x.ctypes.data_as(real), ctypes.byref(err))
     if err.value != 0:
         raise SolveError(f"MKL PARDISO failed in phase {phase} with error {err.value} "
                          f"({n} unknowns)")

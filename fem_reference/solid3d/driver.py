@@ -47,6 +47,9 @@ MODEL = "fem-3d"
 # contact of radius a_c; the grading makes the large block cost a few shells of elements.
 BLOCK_FACTOR = 1e4
 MAX_CG_ITERATIONS = 2000
+# Most steps of iterative refinement of the solution reported (float32 factor: each gains
+# four digits or more, see system.SINGLE_MAX_ERROR), stopping at a residual of 1e-12.
+EXACT_REFINE = 4
 # Element size on the centre pillar's top over the contact element size (see _setup).
 CENTRE_RATIO = 0.25
 # Smallest gap between neighbouring pillars, in diameters: at Phi = 0.9 (gap 0.0038 d) the
@@ -210,17 +213,38 @@ def _mesh_and_factorise(setup: dict, mesh_size: float, sector_angle: float,
 
 def _contact(scene: Scene, setup: dict, system, faces, tol: float, clock: PhaseClock) -> dict:
     """The mortar contact by constrained CG on the condensed operator D^T G K^-1 G^T D (one
-    back-substitution per iteration); then the displacement ``x`` under the contact load,
-    its residual, the pointwise gaps ``w`` and the operator's asymmetry."""
+    back-substitution per application); then the displacement ``x`` under the contact load,
+    its residual, the pointwise gaps ``w`` and the operator's asymmetry.
+
+    With a float32 factor (:meth:`.system.SectorSystem.factorise`) the CG's steps and its
+    clipping updates apply the operator by one float32 back-substitution, and the gap it
+    accepts is recomputed with the refined solve (the CG's mixed precision, as the FFT BEM's
+    float32 transforms: :func:`pillar_xval.contact.constrained_cg`)."""
     ell, E_ref = setup["ell"], setup["E_ref"]
     R, zeta = scene.lens.radius_m, scene.indentation_m
     r_pts = np.hypot(*faces.points) * ell
     gap0 = (analytic.lens_gap(R, r_pts) - zeta) / ell
     D, G = faces.D, faces.G
+    single = system.single_error > 0.0
 
-    def apply(lam):
-        x, _ = system.solve(G.T @ (D @ lam), refine=0)
-        return D.T @ (G @ x)
+    def apply(lam):  # columns allowed
+        return D.T @ (G @ system.exact(G.T @ (D @ lam)))
+
+    if single:
+        def approximate(lam):
+            x, _ = system.solve(G.T @ (D @ lam), refine=0)
+            return D.T @ (G @ x)
+
+        apply.approximate = approximate
+        # its error bound for the CG's bookkeeping (the accepted gap is always exact)
+        apply.approximate_error = 10.0 * system.single_error
+
+        def apply_few(index, values, single=False):
+            lam = np.zeros(faces.n_vertices)
+            lam[index] = values
+            return (apply.approximate if single else apply)(lam)
+
+        apply.apply_few = apply_few
 
     springs = _springs(scene, setup, faces, E_ref, ell)
     precondition, inv_d, precondition_name = preconditioner(
@@ -236,10 +260,10 @@ def _contact(scene: Scene, setup: dict, system, faces, tol: float, clock: PhaseC
                          inverse_diagonal=inv_d, weights=faces.weights, callback=report)
     lam = sol.pressure
     clock.done("contact")
-    load = G.T @ (D @ lam)
-    x, residual = system.solve(load)
+    x, residual = system.solve(G.T @ (D @ lam), refine=EXACT_REFINE)
     w = G @ x + gap0
-    asym = _asymmetry(apply, faces.n_vertices)
+    probes = np.random.default_rng(12345).random((faces.n_vertices, 2))
+    asym = _asymmetry(probes, apply(probes))
     clock.done("post")
     return {"sol": sol, "lam": lam, "x": x, "residual": residual, "w": w, "asymmetry": asym,
             "preconditioner": precondition_name}
@@ -287,6 +311,9 @@ def _result(scene: Scene, setup: dict, mesh, system, faces, contact: dict, mesh_
         "contact_vertices": int(faces.n_vertices), "vertices_in_contact": int(np.sum(lam > 0)),
         "pillars_meshed": [p.name for p in geo.pillars], "reach_factor": reach_factor,
         "factor_nonzeros": system.factor.factor_nonzeros,
+        "factor": {"ordering": system.factor.ordering,
+                   "precision": "single" if system.factor.single else "double",
+                   "single_solve_error": system.single_error},
         "peak_rss_GiB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20,
         "pillar_top_profile_alpha": {"theta_rad": float(sector_angle),
                                      "r_m": (r1 * ell).tolist(), "pressure_Pa": p1.tolist()},
@@ -398,12 +425,12 @@ def _springs(scene, setup, faces, E_ref, ell):
     return [c / share[name] for name in faces.pillar_names]
 
 
-def _asymmetry(apply, n: int) -> float:
-    """|x.Ay - y.Ax| / (|x| |Ay|) for two seeded random vectors: the condensed operator's
-    symmetry as applied (two back-substitutions)."""
-    rng = np.random.default_rng(12345)
-    x, y = rng.random(n), rng.random(n)
-    ax, ay = apply(x), apply(y)
+def _asymmetry(probes: np.ndarray, applied: np.ndarray) -> float:
+    """|x.Ay - y.Ax| / (|x| |Ay|) for two seeded random vectors x, y (``probes``' columns)
+    and the condensed operator applied to them (``applied``, as the CG applies it when it
+    takes a gap as exact): its symmetry."""
+    x, y = probes.T
+    ax, ay = applied.T
     return float(abs(x @ ay - y @ ax) / max(np.linalg.norm(x) * np.linalg.norm(ay), 1e-300))
 
 

@@ -36,6 +36,13 @@ from ..forms.solid3d import mixed_coefficients
 
 # Quadrature: P2 gradients are P1, their products P2: degree 2 is exact on straight tets.
 INTORDER = 2
+# The largest relative error of a float32 solve for which the factor stays in float32: each
+# step of refinement then gains at least four digits (measured 2.6e-6 at Phi = 0.82, mesh_size
+# 2.83, residual 2.9e-10 after one step); beyond it the matrix is factorised in float64.
+SINGLE_MAX_ERROR = 1e-4
+# The relative error of a solve the contact iterations take as exact: a tenth of their
+# tolerance, 1e-8 of the indentation on gaps of the order of the indentation.
+EXACT_ERROR = 1e-9
 E_Z = np.array([0.0, 0.0, 1.0])
 
 
@@ -104,6 +111,8 @@ class SectorSystem(ReducedSystem):
     rigid: list
     nodes: np.ndarray = None
     factor: object = None
+    single_error: float = 0.0
+    exact_steps: int = 0
     _basis_u: object = field(default=None, repr=False)
 
     @property
@@ -114,20 +123,52 @@ class SectorSystem(ReducedSystem):
         return self._basis_u
 
     def factorise(self) -> None:
-        """PARDISO's factorisation of the scaled matrix, ordered node by node (``nodes``:
-        the mesh node of every reduced unknown, see :mod:`.._pardiso`)."""
-        S = sp.diags(self.scale)
-        self._Ks = (S @ self.K @ S).tocsr()
-        self.factor = Pardiso(self._Ks, nodes=self.nodes)
+        """PARDISO's factorisation of the scaled matrix: in float32, ordered node by node
+        (``nodes``: the mesh node of every reduced unknown, see :mod:`.._pardiso`), where
+        that is accurate (:data:`SINGLE_MAX_ERROR`), else PARDISO's default ordering after a
+        weighted matching in float64 (where the moduli differ by 1e6, the node-ordered
+        factor without the matching's pivots loses accuracy too: a refined solve's
+        residual stalled at 3e-11, the condensed operator's asymmetry was 4e-9).
 
-    def solve(self, rhs: np.ndarray, refine: int = 2) -> tuple[np.ndarray, float]:
-        """Solve K x = rhs (columns allowed) with iterative refinement; returns x and the
-        relative scaled residual max_j ||S (K x_j - b_j)|| / ||S b_j|| (NaN, not computed,
-        with ``refine=0``: one back-substitution and nothing else)."""
+        ``single_error``: the relative error of one float32 solve of a random right-hand side
+        (max norm, measured by one step of refinement; 0 for a float64 factor)."""
+        Ks = self.K.copy()
+        Ks.data *= self.scale[np.repeat(np.arange(Ks.shape[0]), np.diff(Ks.indptr))]
+        Ks.data *= self.scale[Ks.indices]
+        self._Ks = Ks
+        self.factor = Pardiso(Ks, nodes=self.nodes, single=True)
+        b = np.random.default_rng(0).standard_normal(Ks.shape[0])
+        y = self.factor.solve(b)
+        self.single_error = float(np.max(np.abs(self.factor.solve(b - Ks @ y)))
+                                  / np.max(np.abs(y)))
+        if not self.single_error <= SINGLE_MAX_ERROR:
+            self.factor = None  # its memory first
+            self.factor = Pardiso(Ks)
+            self.single_error = 0.0
+        # Refinement steps for an error below EXACT_ERROR: each multiplies it by single_error.
+        self.exact_steps = 0 if self.single_error == 0.0 else int(math.ceil(
+            math.log(EXACT_ERROR) / math.log(self.single_error) - 1.0 - 1e-9))
+
+    def exact(self, rhs: np.ndarray) -> np.ndarray:
+        """K^-1 rhs to a relative error below :data:`EXACT_ERROR` (``exact_steps`` steps of
+        refinement, no residual computed); one back-substitution with a float64 factor."""
+        x, _ = self.solve(rhs, refine=self.exact_steps, check=False)
+        return x
+
+    def solve(self, rhs: np.ndarray, refine: int = 2,
+              check: bool = True) -> tuple[np.ndarray, float]:
+        """Solve K x = rhs (columns allowed) with up to ``refine`` steps of iterative
+        refinement against the float64 matrix, until the residual is below 1e-12; returns x
+        and the relative scaled residual max_j ||S (K x_j - b_j)|| / ||S b_j|| (NaN, not
+        computed, with ``refine=0``: one back-substitution and nothing else, of relative
+        error ``single_error`` for a float32 factor; ``check=False``: ``refine`` steps and
+        no residual)."""
         rhs = np.asarray(rhs, dtype=float)
         b = self.scale[:, None] * rhs.reshape(rhs.shape[0], -1)
         y = self.factor.solve(b)
-        if refine == 0:  # inside the contact iterations: the caller checks at the end
+        if refine == 0 or not check:  # inside the contact iterations
+            for _ in range(refine):
+                y += self.factor.solve(b - self._Ks @ y)
             return (self.scale[:, None] * y).reshape(rhs.shape), float("nan")
         rel = relative_residual(b - self._Ks @ y, b)
         for _ in range(refine):
@@ -136,7 +177,6 @@ class SectorSystem(ReducedSystem):
             y += self.factor.solve(b - self._Ks @ y)
             rel = relative_residual(b - self._Ks @ y, b)
         return (self.scale[:, None] * y).reshape(rhs.shape), rel
-
 
 
 def assemble_sector(mesh, materials: dict, *, sector_angle: float, clamp_pillar_base: bool,
@@ -220,11 +260,8 @@ def assemble_blocks(mesh, sb, pressures: list):
     first = np.cumsum([0] + [len(e) for e in bodies])  # body k: elements[first[k]:first[k+1]]
     mu = np.concatenate([np.full(len(e), ps.mu) for ps, e in zip(pressures, bodies)])
     nodes = sb.element_dofs[:, elements].T  # (E, 10)
-    pairs = (nodes[:, :, None].astype(np.int64) * N + nodes[:, None, :]).reshape(len(nodes), -1)
-    keys, where = np.unique(pairs, return_inverse=True)
-    where = where.reshape(pairs.shape)
-    del pairs
-    blocks = np.zeros(9 * len(keys))
+    row, col, where = _pair_pattern(nodes, N)
+    blocks = np.zeros(9 * len(row))
     grad, volume = tet_p2.barycentric_gradients(mesh.p, mesh.t[:, elements])
     divergence = np.empty((len(elements), 4, 10, 3))
     for lo in range(0, len(elements), CHUNK):
@@ -235,7 +272,7 @@ def assemble_blocks(mesh, sb, pressures: list):
         blocks += np.bincount(index, weights=V.ravel(), minlength=len(blocks))
         divergence[sl] = tet_p2.divergence_blocks(dphi, volume[sl])
     del where, grad
-    A = _vector_csr(keys // N, keys % N, blocks.reshape(-1, 3, 3), N)
+    A = _vector_csr(row, col, blocks.reshape(-1, 3, 3), N)
     B, M = [], []
     for k, ps in enumerate(pressures):
         sl = slice(first[k], first[k + 1])
@@ -249,6 +286,21 @@ def assemble_blocks(mesh, sb, pressures: list):
         r, c = np.broadcast_to(row[:, :, None], m.shape), np.broadcast_to(row[:, None, :], m.shape)
         M.append(sp.csr_matrix((m.ravel(), (r.ravel(), c.ravel())), shape=(n_p, n_p)))
     return A, B, M
+
+
+def _pair_pattern(nodes: np.ndarray, N: int):
+    """(row, col) of the node pairs that share an element, sorted by row then column, and
+    where[e, 10 t + s]: the index of the pair (nodes[e, t], nodes[e, s])."""
+    k = nodes.shape[1]
+    pattern = sp.csr_matrix((np.ones(nodes.size * k, dtype=np.float32),
+                             (np.repeat(nodes, k, axis=1).ravel(), np.tile(nodes, k).ravel())),
+                            shape=(N, N))
+    pattern.sum_duplicates()
+    pattern.sort_indices()
+    row = np.repeat(np.arange(N, dtype=np.int64), np.diff(pattern.indptr))
+    keys = row * N + pattern.indices
+    pairs = (nodes[:, :, None].astype(np.int64) * N + nodes[:, None, :]).reshape(len(nodes), -1)
+    return row, pattern.indices.astype(np.int64), np.searchsorted(keys, pairs)
 
 
 def _vector_csr(row, col, blocks, N) -> sp.csr_matrix:
