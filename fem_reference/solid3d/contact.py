@@ -28,9 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.linalg import cho_factor, cho_solve
 from scipy.spatial import cKDTree
-from scipy.spatial.distance import cdist
 from skfem import Basis, BilinearForm, ElementTriP1, ElementTriP2, MeshTri
 
 from .._reduced import SolveError
@@ -48,7 +46,8 @@ class ContactFaces:
     ``points`` (2, n) are the P2 points of the contact faces, ``vertices`` their vertex
     subset carrying lam (indices into ``points``), ``D`` (n x n_v) the mortar matrix,
     ``weights`` w_j = integral of psi_j, ``G`` (n x n_reduced) the gap change per reduced
-    unknown, ``pillar_of_vertex`` the index into ``pillar_names`` (-1 for a flat scene).
+    unknown, ``pillar_of_vertex`` the index into ``pillar_names`` (-1 for a flat scene),
+    ``triangles`` (3, m) the face triangles' vertices.
     """
 
     points: np.ndarray
@@ -58,6 +57,7 @@ class ContactFaces:
     G: sp.csr_matrix
     pillar_of_vertex: np.ndarray
     pillar_names: list
+    triangles: np.ndarray
 
     @property
     def n_vertices(self) -> int:
@@ -152,7 +152,7 @@ def contact_faces(mesh, system, *, lens_meshed: bool, lower: str) -> ContactFace
     if G.nnz == 0:
         raise SolveError("no elastic body carries the contact faces")
     return ContactFaces(points, b1.doflocs, D, weights, G.tocsr(), pillar_of_vertex,
-                        pillar_names)
+                        pillar_names, local)
 
 
 def _rigid_rows(system, points, pillar_names, b2, owner):
@@ -175,120 +175,6 @@ def _rigid_rows(system, points, pillar_names, b2, owner):
             vals.append(-uz[:, j])
     return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                          shape=(points.shape[1], system.T.shape[1]))
-
-
-# Rows of the half-space model computed at a time (bounds its temporaries to ROWS x n).
-ROWS = 512
-
-
-def preconditioner(faces, springs, compliance: float, sector_angle: float):
-    """Approximate inverse of the condensed operator on the free set: the half-space model of
-    the contact faces (:func:`half_space_compliance`), inverted once and restricted to the
-    free set F as the FFT BEM restricts its circulant inverse, z = I_F H^-1 I_F r.
-
-    ``springs``: each sector pillar's Hooke compliance per unit sector force, or None;
-    ``compliance``: (1 - nu^2) / E of the two faces (units of the condensed operator).
-    Returns (precondition(r, free), 1 / diag H, name).  Where the lumped H is not positive
-    definite (not met), the diagonal preconditioner with the springs' Sherman-Morrison term
-    is returned instead, and its name says so.
-
-    Measured on the lattice study's scene at mesh_size 2.83 (the condensed operator formed
-    column by column, the CG run on it): the operator's applications fell from 115 to 56 at
-    Phi = 0.82, from 196 to 50 at Phi = 0.2 with E_p = 1e6 E_l, from 211 to 58 at Phi = 0.4,
-    E_p = 10 E_l, from 95 to 46 (E_p = E_s = 1e-3 E_l) and from 85 to 40 (E_p = 0.1 E_l);
-    the spread of the eigenvalues of H^-1 C was 25 against 1.3e3 for C's own diagonal.
-    """
-    H = half_space_compliance(faces.vertex_points, faces.weights, compliance, sector_angle)
-    pillar = faces.pillar_of_vertex
-    if springs is not None and pillar.min() >= 0:
-        for k, c in enumerate(springs):  # the Hooke term c_k W_k W_k^T of each pillar
-            idx = np.nonzero(pillar == k)[0]
-            H[np.ix_(idx, idx)] += c * np.outer(faces.weights[idx], faces.weights[idx])
-    inv_d = 1.0 / np.diag(H).copy()
-    try:
-        factor = cho_factor(H, lower=True, overwrite_a=True, check_finite=False)
-    except np.linalg.LinAlgError:
-        return (_diagonal(faces.weights, pillar, springs, inv_d), inv_d,
-                "diagonal (the half-space model was not positive definite)")
-
-    def apply(r, free):
-        mask = free.astype(float)
-        return mask * cho_solve(factor, mask * r, check_finite=False)
-
-    return apply, inv_d, "half-space"
-
-
-def half_space_compliance(vertex_points, weights, compliance: float,
-                          sector_angle: float) -> np.ndarray:
-    """The contact faces' compliance as a half-space's, lumped at the vertices (mesh units):
-
-        H[i, j] = compliance / pi  w_i w_j  sum_g 1 / |x_i - g x_j|,
-
-    the hat function psi_j as a point force w_j at its vertex and at its images under the
-    sector's mirror group (D6 for the wedge: a sector load stands for its symmetric
-    extension), Boussinesq's response gamma / (pi r) (Johnson 1985, sec. 3.2).  An image that
-    falls on the vertex itself (a vertex on a mirror plane, or the centre) joins its hat: the
-    diagonal adds the mean deflection of a uniform pressure on a disk of the whole hat's area
-    m_i w_i, 16 gamma rho / (3 pi) with rho = sqrt(m_i w_i / pi), times w_i, to the other
-    images' terms.  The lens and
-    the lower bodies both enter through ``compliance``, the sum of the faces' (1 - nu^2) / E;
-    a pillar's own compression is the caller's (:func:`preconditioner`).
-    """
-    x = np.asarray(vertex_points, dtype=float).T  # (n, 2)
-    w = np.asarray(weights, dtype=float)
-    n = len(w)
-    tol = 1e-9 * max(1.0, float(np.max(np.abs(x))) if n else 1.0)
-    S = np.zeros((n, n))
-    merged = np.zeros(n)
-    images = [x @ g.T for g in mirror_group(sector_angle)]
-    for lo in range(0, n, ROWS):  # a block of rows at a time: n^2 temporaries would double H
-        rows = slice(lo, lo + ROWS)
-        for gx in images:
-            d = cdist(x[rows], gx)
-            same = d <= tol
-            merged[rows] += same.sum(axis=1)  # only the vertex itself can coincide
-            d[same] = np.inf
-            np.reciprocal(d, out=d)
-            S[rows] += d
-    S *= compliance / math.pi
-    S *= w[:, None]
-    S *= w[None, :]
-    S[np.diag_indices(n)] += 16.0 / (3.0 * math.pi) * compliance * w * np.sqrt(
-        merged * w / math.pi)
-    return S
-
-
-def mirror_group(sector_angle: float) -> list:
-    """The 2 x 2 matrices of the group generated by the mirrors theta = 0 and theta =
-    ``sector_angle`` (pi / sector_angle rotations by multiples of twice the angle, and as many
-    reflections): 12 for the D6 wedge."""
-    k = int(round(math.pi / sector_angle))
-    out = []
-    for j in range(k):
-        c, s = math.cos(2 * j * sector_angle), math.sin(2 * j * sector_angle)
-        rotation = np.array([[c, -s], [s, c]])
-        out += [rotation, rotation @ np.diag([1.0, -1.0])]
-    return out
-
-
-def _diagonal(weights, pillar_of_vertex, springs, inv_d):
-    """Jacobi on H's diagonal with each pillar's Hooke term c_k W_k W_k^T added by
-    Sherman-Morrison (the soft pillars' uniform mode)."""
-    if springs is None or pillar_of_vertex.min() < 0:
-        return lambda r, active: r * inv_d * active
-    w = np.asarray(weights, dtype=float)
-    springs = np.asarray(springs, dtype=float)
-    npil, pil = len(springs), pillar_of_vertex
-    inv_0 = 1.0 / (1.0 / inv_d - springs[pil] * w * w)  # the diagonal without the springs
-
-    def apply(r, active):
-        z = r * inv_0 * active
-        wa = w * active
-        denom = 1.0 / springs + np.bincount(pil, weights=wa * wa * inv_0, minlength=npil)
-        coef = np.bincount(pil, weights=wa * z, minlength=npil) / denom
-        return (z - coef[pil] * wa * inv_0) * active
-
-    return apply
 
 
 def contact_area_share(weights, lam) -> float:

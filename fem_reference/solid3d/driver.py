@@ -17,8 +17,10 @@ estimate at L = 1e2); the graded far field itself moves F_T by <= 0.08 % from L 
 
 Solution.  One PARDISO factorisation of the reduced saddle-point matrix; the contact problem
 on the P1 mortar multiplier is solved by constrained conjugate gradients with the condensed
-operator D^T G K^-1 G^T D applied by one back-substitution per iteration.  Linear residual
-and complementarity residual are checked and reported.
+operator D^T G K^-1 G^T D applied by one back-substitution per iteration, preconditioned by
+the contact faces' half-space model and started from that model's solution
+(:mod:`.half_space`).  Linear residual and complementarity residual are checked and
+reported.
 """
 
 from __future__ import annotations
@@ -38,7 +40,8 @@ from pillar_xval.scenes.lattice import lattice_indices
 
 from .._driver import (RTOL_COMPLEMENTARITY, PhaseClock, contact_radius, fem_result,
                        flat_candidate, refuse_rigid_pair, scaled_materials, verdict)
-from .contact import contact_area_share, contact_faces, line_profile, preconditioner
+from .contact import contact_area_share, contact_faces, line_profile
+from .half_space import HalfSpaceModel, serial_dense_algebra
 from .fields import cell_stresses, write_vtu3d
 from .system import assemble_sector
 
@@ -246,18 +249,21 @@ def _contact(scene: Scene, setup: dict, system, faces, tol: float, clock: PhaseC
 
         apply.apply_few = apply_few
 
-    springs = _springs(scene, setup, faces, E_ref, ell)
-    precondition, inv_d, precondition_name = preconditioner(
-        faces, springs, setup["face_compliance"] * E_ref, setup["geometry"].sector_angle)
-
     def report(it, err):
         if it % 10 == 0:
             clock.say(f"contact iteration {it}: residual {err:.3g}")
 
     clock.say(f"contact: {faces.n_vertices} pressure unknowns")
-    sol = constrained_cg(apply, D.T @ gap0, np.zeros(faces.n_vertices), scale=zeta / ell,
-                         tol=tol, max_iterations=MAX_CG_ITERATIONS, precondition=precondition,
-                         inverse_diagonal=inv_d, weights=faces.weights, callback=report)
+    b = D.T @ gap0
+    with serial_dense_algebra():
+        model = HalfSpaceModel(faces, _springs(scene, setup, faces, E_ref, ell),
+                               setup["face_compliance"] * E_ref,
+                               setup["geometry"].sector_angle)
+        sol = constrained_cg(apply, b, model.warm_start(b, zeta / ell), scale=zeta / ell,
+                             tol=tol, max_iterations=MAX_CG_ITERATIONS,
+                             precondition=model.precondition,
+                             inverse_diagonal=model.inverse_diagonal, weights=faces.weights,
+                             callback=report)
     lam = sol.pressure
     clock.done("contact")
     x, residual = system.solve(G.T @ (D @ lam), refine=EXACT_REFINE)
@@ -266,7 +272,7 @@ def _contact(scene: Scene, setup: dict, system, faces, tol: float, clock: PhaseC
     asym = _asymmetry(probes, apply(probes))
     clock.done("post")
     return {"sol": sol, "lam": lam, "x": x, "residual": residual, "w": w, "asymmetry": asym,
-            "preconditioner": precondition_name}
+            "preconditioner": model.name}
 
 
 def _result(scene: Scene, setup: dict, mesh, system, faces, contact: dict, mesh_size: float,
