@@ -17,7 +17,8 @@ restricted to the motions that the mirror planes through its centre leave invari
 1 unknowns).
 
 Solver.  MKL PARDISO (:mod:`._pardiso`) on the diagonally scaled symmetric indefinite
-matrix, factorised once, with iterative refinement against the scaled matrix.
+matrix, factorised once (node by node in float32 where that is accurate, else after a
+weighted matching in float64), with iterative refinement against the scaled matrix.
 """
 
 from __future__ import annotations
