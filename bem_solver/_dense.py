@@ -20,6 +20,7 @@ from pillar_xval.outcome.memory import memory_short
 from ._cells import VARIANTS, cell_pattern
 from ._discretise import Discretisation, discretise, overlap_radius
 from ._elastic_pillar import (cached_excess_block, check_pillars, coupling_block, image_cells,
+                              pillar_record,
                               reduced_block, representative_rows, scene_compliance,
                               uses_coupling, uses_elastic_block)
 from ._operator import reduced_operator
@@ -86,7 +87,7 @@ def solve_dense(scene: Scene, elements_per_diameter: int = 11, cells: str = "cov
         ``progress(text)`` hears of a compliance build (once per pillar kind, then cached).
     """
     _check_options(elements_per_diameter, cells, contact)
-    check_pillars(pillars)
+    check_pillars(pillars, scene)
     t0 = time.perf_counter()
     P = int(elements_per_diameter)
     _refuse_if_too_large(scene, P, cells, contact)
@@ -143,9 +144,10 @@ def solve_dense(scene: Scene, elements_per_diameter: int = 11, cells: str = "cov
             break
         radius = min(r_max, violated + (scene.pillars.diameter_m if scene.pillars else
                                         4 * disc.cell_side))
+    extra = {**extra, **pillar_record(scene, pillars,
+                                      None if elastic is None else elastic["modal"].kind)}
     if elastic is not None:
-        extra = {**extra, "pillars": "elastic",
-                 "pillar_compliance": _compliance_summary(elastic["modal"])}
+        extra["pillar_compliance"] = _compliance_summary(elastic["modal"])
     return _result(scene, disc, sol, P, cells, contact, rounds, extra,
                    time.perf_counter() - t0)
 

@@ -63,7 +63,7 @@ from pillar_xval.scenes import InputError, Scene, ScopeError
 
 from ._dense import _smooth_edge_radius
 from ._fft_grid import CellGrid, build_grid, candidate_side, estimate_host_memory
-from ._elastic_pillar import (FFTPillarTerm, check_pillars, scene_compliance,
+from ._elastic_pillar import (FFTPillarTerm, check_pillars, pillar_record, scene_compliance,
                               uses_elastic_block)
 from ._fft_operator import CirculantPreconditioner, CompliancePlan, near_field_correction
 from ._limits import PRECISIONS
@@ -160,7 +160,7 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     .. [1] I. A. Polonsky, L. M. Keer, Wear 231 (1999) 206-219.
     """
     start = time.perf_counter()
-    check_pillars(pillars)
+    check_pillars(pillars, scene)
     if precision not in PRECISIONS:
         raise InputError(f"precision = {precision!r}: choose one of {', '.join(PRECISIONS)}")
     be = select_backend(device, workers) if backend is None else backend
@@ -245,8 +245,9 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     result.diagnostics["preconditioner"] = _PRECONDITIONERS[preconditioner] + (
         " + pillar springs" if plan.has_spring else
         " + elastic pillars" if elastic else "")
+    result.diagnostics.update(pillar_record(scene, pillars,
+                                            compliance.kind if elastic else None))
     if elastic:
-        result.diagnostics["pillars"] = "elastic"
         result.discretisation["pillars"] = "elastic"
     result.diagnostics["timings_s"] = timings
     return result

@@ -270,8 +270,8 @@ def _setup(scene: Scene, mesh_size: float, block_factor: float) -> dict:
             raise ScopeError(
                 f"pillars.surface_fraction = {p.surface_fraction:.4g} >= Phi_S = {phi_s:.4g}: "
                 "the lens, pushed by the centre pillar's flat-punch field, reaches the rim of "
-                "the next ring; the axisymmetric FEM holds the centre pillar only (use the "
-                "BEM, or lower Phi)")
+                "the next ring; the axisymmetric FEM holds the centre pillar only (use fem-3d, "
+                "the lattice's 3D FEM, or the BEM, or lower Phi)")
         pillar = p.material
         refuse_rigid_pair(lens, pillar, "a rigid pillar")
         ell = 0.5 * p.diameter_m

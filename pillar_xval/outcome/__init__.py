@@ -6,7 +6,8 @@ every other package stands on it.
 """
 
 from ._files import atomic_path, write_atomic
-from ._schema import SCHEMA_VERSION, ContactResult, PillarForce, package_version
+from ._schema import (PILLAR_LABELS, SCHEMA_VERSION, ContactResult, PillarForce, model_label,
+                      package_version)
 
-__all__ = ["SCHEMA_VERSION", "ContactResult", "PillarForce", "atomic_path", "package_version",
-           "write_atomic"]
+__all__ = ["PILLAR_LABELS", "SCHEMA_VERSION", "ContactResult", "PillarForce", "atomic_path",
+           "model_label", "package_version", "write_atomic"]

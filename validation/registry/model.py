@@ -63,7 +63,10 @@ class Model:
       (mortar) sense, so the pointwise gap may dip by up to the FEMs' own limit;
     - ``expensive``: ``tradeoff`` runs it only when named (minutes per rung);
     - ``code``: packages beyond the engine's ``COMPUTING_PACKAGES`` whose source and data
-      decide its results; the case key hashes them (:mod:`validation.engine._case`).
+      decide its results; the case key hashes them (:mod:`validation.engine._case`);
+    - ``request``: ``"module:function"`` that checks its options together where a spec
+      cannot (``auto``: the planner's request, ``function(**options)`` raising InputError),
+      imported on first use; "" for none.
     """
 
     name: str
@@ -83,6 +86,7 @@ class Model:
     weak_contact: bool = False
     expensive: bool = False
     code: tuple[str, ...] = ()
+    request: str = ""
 
     @property
     def function(self) -> Callable[..., ContactResult]:
@@ -94,6 +98,12 @@ class Model:
     def candidate(self) -> bool:
         """Whether the planner may choose it."""
         return bool(self.scopes)
+
+    def check_request(self, options: dict) -> None:
+        """Check the options together with the model's ``request`` function, if any."""
+        if self.request:
+            module, name = self.request.split(":")
+            getattr(importlib.import_module(module), name)(**options)
 
     def takes(self, argument: str) -> bool:
         """Whether the solver's signature has ``argument`` (False when it cannot be read)."""

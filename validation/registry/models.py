@@ -71,7 +71,8 @@ DECLARED = (
         ladder=Ladder("mesh_size", 1.0, 0.5, "float", 1.0, (4.0, 2.0, 1.0, 0.5), {},
                       "mesh_size (relative)"),
         physics="elastic-pillar",
-        scopes=("flat", "single"), scope_note="refuses scenes where a second pillar touches",
+        scopes=("flat", "single"), scope_note="refuses scenes where a second pillar touches "
+                                                "(fem-3d holds them)",
         # A sparse LU.
         cost=CostLaw("fem-dofs", "log_dofs", (0, 1, 1.5), {"kind": "estimate"}),
         reference_rungs={"single": (2.0, 1.0, 0.5), "flat": (2.0, 1.0, 0.5)},
@@ -108,5 +109,5 @@ DECLARED = (
         "the planner's choice for the scene (pillar-xval plan)",
         options={"tolerance": PLANNED, "quantities": PLANNED, "budget": PLANNED},
         # The plan comes from the planner's code and its data (validation/planner/data).
-        code=("validation.planner",)),
+        code=("validation.planner",), request="validation.planner.plan:check_request"),
 )
