@@ -123,7 +123,8 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
         phases of an elastic pillar's compliance build.
     device : {"cpu", "gpu", "auto"}
         Where to solve: numpy on the CPU (default), cupy on a CUDA GPU (``InputError`` saying
-        what to install when none is usable), or the GPU when cupy finds one.
+        what to install when none is usable), or the GPU when cupy finds one ("auto"; the
+        CPU for the elastic pillar, which runs there only).
     backend : optional
         An array backend object (:mod:`bem_solver._xp`) used instead of ``device``: another
         array library, or a strict one in the tests.
@@ -163,12 +164,15 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     check_pillars(pillars, scene)
     if precision not in PRECISIONS:
         raise InputError(f"precision = {precision!r}: choose one of {', '.join(PRECISIONS)}")
-    be = select_backend(device, workers) if backend is None else backend
-    xp = be.xp
     elastic = uses_elastic_block(scene, pillars)
+    # The elastic pillar runs on the CPU only: 'auto' takes the CPU for it, 'gpu' is refused.
+    be = select_backend("cpu" if elastic and device == "auto" else device, workers) \
+        if backend is None else backend
+    xp = be.xp
     if elastic:
         if not isinstance(be, NumpyDevice):
-            raise InputError(f"pillars = 'elastic' runs on the CPU only (device = {device!r})")
+            raise InputError(f"pillars = 'elastic' runs on the CPU only (device = {device!r}); "
+                             "pillars = 'hooke' runs on the GPU")
         compliance = scene_compliance(scene, compliance, progress=progress)
     # A grid beyond the FFT size limit is refused by build_grid, by its size; one within it
     # is refused here, before any array is built, when it would not fit in memory.

@@ -164,6 +164,7 @@ def test_cli_sweep_dry_run_run_and_resume(tmp_path, capsys):
         [[models]]
         name = "bem"
         elements_per_diameter = 3
+        pillars = "hooke"
     """)
     out = tmp_path / "out"
     assert main(["sweep", str(spec), "--out", str(out), "--dry-run"]) == 0
@@ -194,7 +195,7 @@ def test_example_spec_is_valid():
 def test_sweep_cases_give_results_and_pressure_maps(tmp_path):
     """What a figure needs: each case's result and, on request, its arrays."""
     sweep = Sweep("paper-fig3-sparse", axes=(crossed("pillars.surface_fraction", [0.03, 0.1]),),
-                  models=(ModelSpec("bem", {"elements_per_diameter": 3}),))
+                  models=(ModelSpec("bem", {"elements_per_diameter": 3, "pillars": "hooke"}),))
     pairs = run_sweep_cases(sweep, tmp_path, engine=Engine("serial", quiet=True), fields=True)
     assert [c.point for c, _ in pairs] == [{"pillars.surface_fraction": 0.03},
                                            {"pillars.surface_fraction": 0.1}]

@@ -63,11 +63,14 @@ def default_pillars(scene: Scene) -> str | None:
 
 def scene_defaults(model: str, scene: Scene, options: dict) -> dict:
     """``options`` with the defaults that follow the scene: ``pillars`` (:func:`default_pillars`)
-    for a model that takes it, where the options do not give it.  The commands, the spec files
-    and the pytest fixture apply it (so a case's key and its table row name the pillar model);
-    the solvers themselves keep the paper's Hooke spring as their default."""
+    for a model that takes it, where the options do not give it; the Hooke spring on
+    ``device = "gpu"``, since the elastic pillar runs on the CPU only.  The commands, the spec
+    files and the pytest fixture apply it (so a case's key and its table row name the pillar
+    model); the solvers themselves keep the paper's Hooke spring as their default."""
     entry = MODELS.get(model)
     pillars = default_pillars(scene)
+    if pillars and options.get("device") == "gpu":
+        pillars = "hooke"
     if entry is None or "pillars" not in entry.options or pillars is None \
             or options.get("pillars") is not None:
         return dict(options)
