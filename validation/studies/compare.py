@@ -288,8 +288,9 @@ def _tolerance(r: dict) -> str:
 def verdict_notes(rows: list[dict], kinds) -> list[str]:
     """The lines under a table that say what its verdicts judge: the tolerance and its
     source, the expected model error of each BEM that has one, and '>U'."""
-    lines = [f"verdict: pass when |X-FEM| is within tol (the elastic-pillar BEM's targets: "
-             f"F_T {100 * TARGETS['F_T']:g} %, sigma0 {100 * TARGETS['sigma0']:g} %, the top "
+    lines = [f"verdict: pass when |BEM - FEM| / |FEM| is within tol (the elastic-pillar "
+             f"BEM's targets: F_T {100 * TARGETS['F_T']:g} %, sigma0 "
+             f"{100 * TARGETS['sigma0']:g} %, the top "
              f"pressure {100 * TARGETS['profile']:g} % for r < 0.9 d/2), or within both U "
              "bands where they are wider; '-': no tolerance stated."]
     for p in kinds:
