@@ -169,11 +169,9 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     be = select_backend("cpu" if elastic and device == "auto" else device, workers) \
         if backend is None else backend
     xp = be.xp
-    if elastic:
-        if not isinstance(be, NumpyDevice):
-            raise InputError(f"pillars = 'elastic' runs on the CPU only (device = {device!r}); "
-                             "pillars = 'hooke' runs on the GPU")
-        compliance = scene_compliance(scene, compliance, progress=progress)
+    if elastic and not isinstance(be, NumpyDevice):
+        raise InputError(f"pillars = 'elastic' runs on the CPU only (device = {device!r}); "
+                         "pillars = 'hooke' runs on the GPU")
     # A grid beyond the FFT size limit is refused by build_grid, by its size; one within it
     # is refused here, before any array is built, when it would not fit in memory.
     need = estimate_host_memory(scene, cells_per_diameter, isinstance(be, NumpyDevice))
@@ -188,6 +186,8 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     L = grid.cell_size
     spring = 0.0 if grid.flat or elastic else scene.pillar_spring_compliance
     timings = {"grid": time.perf_counter() - start}
+    if elastic:  # after the grid's refusals: a refused grid never waits for a build
+        compliance = scene_compliance(scene, compliance, progress=progress)
     lap = time.perf_counter()
     correction = near_field_correction(grid, scene.half_space_compliance, backend=be) \
         if edge_correction else None
