@@ -69,15 +69,33 @@ def legend_outside(ax, fontsize: float = 8, **kw):
                      borderaxespad=0.0, **kw)
 
 
-def _display_points(line, step_px: float = 2.0) -> np.ndarray:
-    """The drawn path of ``line`` in display pixels, a point every ``step_px`` or so."""
+# At most this many points stand for a curve when its coverage is judged: the cost of
+# merge_hidden stays bounded (a fuzzed scene drew a profile 1e12 px long).
+MAX_COVER_POINTS = 2000
+
+
+def _display_path(line, box) -> np.ndarray:
+    """The vertices of ``line`` in display pixels, clipped to ``box`` widened by 10 px (what
+    lies beyond is not drawn, and an off-screen vertex 1e12 px away would make a segment of
+    that length)."""
     xy = np.column_stack([np.asarray(v, dtype=float) for v in line.get_data()])
     xy = line.get_transform().transform(xy[np.all(np.isfinite(xy), axis=1)])
+    if len(xy) == 0:
+        return xy.reshape(0, 2)
+    return np.column_stack([np.clip(xy[:, 0], box.x0 - 10, box.x1 + 10),
+                            np.clip(xy[:, 1], box.y0 - 10, box.y1 + 10)])
+
+
+def _densified(xy: np.ndarray, step_px: float = 2.0) -> np.ndarray:
+    """Points along the polyline ``xy`` every ``step_px`` or so, at most
+    :data:`MAX_COVER_POINTS` of them."""
     if len(xy) < 2:
         return xy
+    lengths = np.hypot(*np.diff(xy, axis=0).T)
+    step = max(step_px, float(lengths.sum()) / MAX_COVER_POINTS)
     out = [xy[:1]]
-    for a, b in zip(xy[:-1], xy[1:]):
-        n = max(1, int(np.hypot(*(b - a)) / step_px))
+    for a, b, length in zip(xy[:-1], xy[1:], lengths):
+        n = max(1, int(length / step))
         out.append(a + np.outer(np.arange(1, n + 1) / n, b - a))
     return np.concatenate(out)
 
@@ -90,11 +108,12 @@ def _distance_to_path(points: np.ndarray, path: np.ndarray) -> np.ndarray:
     d = b - a
     length2 = np.maximum((d * d).sum(axis=1), 1e-12)
     best = np.full(len(points), np.inf)
-    for start in range(0, len(points), 2048):  # bounded memory: points x segments
-        p = points[start:start + 2048, None, :]
+    chunk = max(1, 500_000 // len(a))  # bounded memory: points x segments, ~50 MB at most
+    for start in range(0, len(points), chunk):
+        p = points[start:start + chunk, None, :]
         t = np.clip(((p - a) * d).sum(axis=2) / length2, 0.0, 1.0)
         gap = p - (a + t[..., None] * d)
-        best[start:start + 2048] = np.sqrt((gap * gap).sum(axis=2)).min(axis=1)
+        best[start:start + chunk] = np.sqrt((gap * gap).sum(axis=2)).min(axis=1)
     return best
 
 
@@ -108,12 +127,12 @@ def merge_hidden(ax, slack_px: float = 1.0) -> list[str]:
     lines = sorted((ln for ln in ax.get_lines() if ln.get_visible()), key=lambda ln: ln.zorder)
     scale = ax.figure.dpi / 72.0
     clip = ax.get_window_extent()
-    paths = [_display_points(ln) for ln in lines]
+    paths = [_display_path(ln, clip) for ln in lines]
     hidden_by = {}
     for i, line in enumerate(lines):
         if line.get_label().startswith("_") or line.get_marker() not in ("None", None, "", " "):
             continue
-        pts = paths[i]
+        pts = _densified(paths[i])
         inside = pts[(pts[:, 0] >= clip.x0) & (pts[:, 0] <= clip.x1)
                      & (pts[:, 1] >= clip.y0) & (pts[:, 1] <= clip.y1)] if len(pts) else pts
         if len(inside) == 0:
