@@ -63,8 +63,8 @@ from pillar_xval.scenes import InputError, Scene, ScopeError
 
 from ._dense import _smooth_edge_radius
 from ._fft_grid import CellGrid, build_grid, candidate_side, estimate_host_memory
-from ._elastic_pillar import (FFTPillarTerm, check_pillars, pillar_record, scene_compliance,
-                              uses_elastic_block)
+from ._elastic_pillar import (FFTPillarTerm, check_pillars, operator_records, pillar_record,
+                              scene_compliance, uses_elastic_block)
 from ._fft_operator import CirculantPreconditioner, CompliancePlan, near_field_correction
 from ._limits import PRECISIONS
 from ._xp import NumpyDevice, select_backend
@@ -88,7 +88,7 @@ MIN_CELLS_ACROSS_CONTACT = 5
 
 
 def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAULT_TOLERANCE,
-              max_iterations: int | None = None, workers: int = 2,
+              max_iterations: int | None = None, workers: int | None = None,
               warm_start: bool = True, edge_correction: bool = True, progress=None,
               device: str = "cpu", backend=None, preconditioner: str = "circulant",
               pillars: str = "hooke", compliance=None, precision: str = "mixed",
@@ -108,8 +108,9 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     max_iterations : int, optional
         Iteration cap; default 20 sqrt(n_cells) + 500.  Reaching it returns
         ``converged = False`` with the reason in ``diagnostics["message"]``.
-    workers : int
-        Threads for the FFTs.
+    workers : int, optional
+        Threads for the FFTs (default: :func:`pillar_xval.threads.thread_count`, the CPUs the
+        process may use or ``PILLAR_XVAL_THREADS``).
     warm_start : bool
         Start from the solution at N // 2 cells per diameter (recursively, down to
         ``WARM_START_MIN_CELLS``), interpolated bilinearly (nested iteration).
@@ -194,7 +195,7 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     term = None
     if elastic:
         term = FFTPillarTerm(scene, grid, compliance, lambda gamma: near_field_correction(
-            grid, gamma, backend=be) if edge_correction else None)
+            grid, gamma, backend=be) if edge_correction else None, workers=be.workers)
     plan = CompliancePlan(grid.shape, grid.flat_index, L, scene.half_space_compliance,
                           pillar=grid.pillar, spring_compliance=spring, workers=workers,
                           correction=correction, backend=be, pillar_term=term,
@@ -252,6 +253,7 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     result.diagnostics.update(pillar_record(scene, pillars,
                                             compliance.kind if elastic else None))
     if elastic:
+        result.diagnostics["operators"] = operator_records(compliance.diagnostics)
         result.discretisation["pillars"] = "elastic"
     result.diagnostics["timings_s"] = timings
     return result
