@@ -18,6 +18,16 @@ from pillar_xval.scenes import InputError, ScopeError, load_scene
 
 
 # --- helpers ------------------------------------------------------------------------------
+@pytest.fixture(autouse=True)
+def _close_figures():
+    """Close the figures a test leaves open (captured ones, pressure_plot's): a worker
+    holding more than 20 warns, and their memory adds up."""
+    yield
+    import matplotlib.pyplot as plt
+
+    plt.close("all")
+
+
 def _capture(monkeypatch, module) -> list:
     """Figures that ``module.save_figure`` would have written (they stay open)."""
     figures = []

@@ -230,7 +230,8 @@ def plan(scene: Scene, tolerance: float = DEFAULT_TOLERANCE, quantities=DEFAULT_
     """
     tolerance, quantities, budget = check_request(tolerance, quantities, budget)
     say = progress or (lambda text: None)
-    say("reading the planner's error and cost tables")
+    say("reading the planner's error and cost tables (and, once per machine and thread "
+        "count, timing this machine: a few seconds)")
     data = _data(data)
     reg = regime(scene)
     x = features(scene, reg)
