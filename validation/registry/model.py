@@ -72,7 +72,10 @@ class Model:
       takes one itself (and says how in its module); ``"outer"`` (the default, for a model
       registered without a thought for it), :meth:`run` finds the indentation that carries
       the force by whole solves under indentations
-      (:func:`pillar_xval.contact.solve_at_force`).
+      (:func:`pillar_xval.contact.solve_at_force`);
+    - ``request``: ``"module:function"`` that checks its options together where a spec
+      cannot (``auto``: the planner's request, ``function(**options)`` raising InputError),
+      imported on first use; "" for none.
     """
 
     name: str
@@ -93,6 +96,7 @@ class Model:
     expensive: bool = False
     code: tuple[str, ...] = ()
     force_control: str = "outer"
+    request: str = ""
 
     @property
     def function(self) -> Callable[..., ContactResult]:
@@ -104,6 +108,12 @@ class Model:
     def candidate(self) -> bool:
         """Whether the planner may choose it."""
         return bool(self.scopes)
+
+    def check_request(self, options: dict) -> None:
+        """Check the options together with the model's ``request`` function, if any."""
+        if self.request:
+            module, name = self.request.split(":")
+            getattr(importlib.import_module(module), name)(**options)
 
     def takes(self, argument: str) -> bool:
         """Whether the solver's signature has ``argument`` (False when it cannot be read)."""
