@@ -100,14 +100,16 @@ def solve_dense(scene: Scene, elements_per_diameter: int = 11, cells: str = "cov
     _refuse_if_too_large(scene, P, cells, contact)
     elastic = elastic_setup(scene, P, cells, pillars, compliance, progress)
     level = solve_rounds(scene, P, cells, contact, elastic)
-    return level_result(scene, level, time.perf_counter() - t0)
+    return level_result(scene, level, time.perf_counter() - t0, pillars)
 
 
-def level_result(scene: Scene, level: "Level", wall: float) -> ContactResult:
+def level_result(scene: Scene, level: "Level", wall: float, pillars: str) -> ContactResult:
     """The result of ``level`` for ``scene`` (indentation-controlled: the given indentation,
-    or the one a force-controlled solve found); ``wall``: its time (s)."""
+    or the one a force-controlled solve found); ``wall``: its time (s); ``pillars``: the
+    pillar model asked for, recorded with the notes on its moduli."""
+    kind = None if level.elastic is None else level.elastic["modal"].kind
     return _result(scene, level.disc, level.sol, level.P, level.cells, level.contact,
-                   level.rounds, level.extra, wall)
+                   level.rounds, {**level.extra, **pillar_record(scene, pillars, kind)}, wall)
 
 
 def elastic_setup(scene: Scene, P: int, cells: str, pillars: str, compliance=None,
@@ -198,8 +200,6 @@ def solve_rounds(scene: Scene, P: int, cells: str, contact: str, elastic: dict |
             break
         radius = min(r_max, violated + (scene.pillars.diameter_m if scene.pillars else
                                         4 * disc.cell_side))
-    extra = {**extra, **pillar_record(scene, pillars,
-                                      None if elastic is None else elastic["modal"].kind)}
     if elastic is not None:
         extra = {**extra, "pillar_compliance": _compliance_summary(elastic["modal"]),
                  "operators": operator_records(elastic["modal"].diagnostics)}

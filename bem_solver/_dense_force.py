@@ -71,7 +71,7 @@ def solve_under_force(scene: Scene, P: int, cells: str, contact: str, pillars: s
                              f"{MAX_DESIGN_ROUNDS} rounds ({rounds[-2]['indentation_m']:.6g} "
                              f"then {zeta:.6g} m)")
     solved = scene.implied(zeta, f"bem at P = {P}")
-    result = level_result(solved, level, time.perf_counter() - t0)
+    result = level_result(solved, level, time.perf_counter() - t0, pillars)
     return result.for_force(scene.to_dict(), zeta, design_rounds=rounds)
 
 
