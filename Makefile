@@ -6,8 +6,8 @@ STAMP  := $(VENV)/.installed
 OUT    ?= out
 
 .PHONY: demo study-gecit study-lattice figures test test-slow bench-bem bench-fft bench-gpu bench-fem3d \
-	bench-elastic bench-engine bench-figures bench-startup bench-sweep bench-threads clean \
-	calibrate validate-planner extremes regimes docs lint
+	bench-elastic bench-engine bench-figures bench-startup bench-force bench-sweep bench-threads \
+	clean calibrate validate-planner extremes regimes docs lint
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -15,12 +15,13 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e '.[dev]'
 	touch $(STAMP)
 
-# The main job: BEM (Hooke pillars) against FEM (elastic pillars) on the single-pillar and
-# Hertz scenes (axisymmetric FEM), then a three-way comparison on a lattice of 43 pillars
-# (Phi = 0.2): the Hooke BEM and the elastic-pillar BEM (its pillar compliance built once,
-# ~20 s, then cached) against one fem-3d run (mesh_size 2.83, 2, 1.41), about 3 minutes; the
-# table in compare-lattice/summary.md, the centre pillar's profiles in its profiles.png;
-# then the paper's Fig. 3 scenes with the BEM.
+# The main job: the BEM (elastic pillars, its default there: the pillar compliance of the
+# presets' one pillar kind built once, ~20 s, then cached) against the FEM on the
+# single-pillar and Hertz scenes (axisymmetric FEM), then a three-way comparison on a lattice
+# of 43 pillars (Phi = 0.2): the Hooke BEM and the elastic-pillar BEM against one fem-3d run
+# (mesh_size 2.83, 2, 1.41), about 3 minutes; the table with its verdicts in
+# compare-lattice/summary.md, the centre pillar's profiles in its profiles.png; then the
+# paper's Fig. 3 scenes with the BEM (elastic pillars).
 demo: $(STAMP)
 	$(VENV)/bin/pillar-xval compare --scene single-pillar --out $(OUT)/compare-single-pillar
 	$(VENV)/bin/pillar-xval compare --scene hertz --out $(OUT)/compare-hertz
@@ -105,6 +106,13 @@ bench-fem3d: $(STAMP)
 # the claims in $(OUT)/bench-elastic/elastic_fem3d.md (30-60 minutes; resumes).
 bench-elastic: $(STAMP)
 	$(PY) -m validation.bench.elastic_fem3d --out $(OUT)/bench-elastic
+
+# Force control against indentation control at the same resolution, timed alternately in one
+# run: paper-fig3-dense with bem-fft (N = 32, 64), bem (P = 11) and fem-3d (mesh_size 2.83, 2,
+# 1.41), single-pillar with fem-axisym (mesh_size 2, 1, 0.5); the table in
+# $(OUT)/bench-force/bench_force.md (about 30 minutes, most of it fem-3d at 1.41).
+bench-force: $(STAMP)
+	$(PY) -m validation.bench.force --out $(OUT)/bench-force
 
 # Thread scaling: bem-fft at 1e6 cells and the dense BEM on 1 up to the CPUs this process may
 # use (fresh interpreters, medians of 3 interleaved runs, answers compared with 1 thread's),

@@ -100,6 +100,14 @@ RESULT_FIELDS = {
                           "centre (m), `pressure_Pa` (Pa)",
     "diagnostics": "model-specific numbers: residuals, complementarity errors, the planner's "
                    "plan, `message` when not converged",
+    "load_control": "`indentation` or `force`: which load the scene gave",
+    "indentation_m": "zeta, the indentation (m): the one given, or the one solved under a "
+                     "given force",
+    "floor_force_N": "the force the floor between the pillars carries (N; 0 while the lens is "
+                     "suspended on the pillar tops)",
+    "floor_contact_area_m2": "the floor's area in contact (m^2)",
+    "floor_contact_radius_m": "the outer radius of the floor's contact (m; 0 when none)",
+    "regime": "`flat`, `single-pillar`, `multi-pillar` or `mixed` (pillar tops and floor)",
     "version": "the toolkit's version that computed it",
     "schema_version": "the version of this schema",
     "fields": "arrays for plots and CSV files; not written to `result.json`",

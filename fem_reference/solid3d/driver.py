@@ -17,12 +17,15 @@ estimate at L = 1e2); the graded far field itself moves F_T by <= 0.08 % from L 
 
 Solution.  One PARDISO factorisation of the reduced saddle-point matrix; the contact problem
 on the P1 mortar multiplier is solved by constrained conjugate gradients with the condensed
-operator D^T G K^-1 G^T D applied by one back-substitution per iteration.  Linear residual
-and complementarity residual are checked and reported.
+operator D^T G K^-1 G^T D applied by one back-substitution per iteration, preconditioned by
+the contact faces' half-space model and started from that model's solution
+(:mod:`.half_space`).  Linear residual and complementarity residual are checked and
+reported.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import resource
 
@@ -38,7 +41,8 @@ from pillar_xval.scenes.lattice import lattice_indices
 
 from .._driver import (RTOL_COMPLEMENTARITY, PhaseClock, contact_radius, fem_result,
                        flat_candidate, refuse_rigid_pair, scaled_materials, verdict)
-from .contact import contact_area_share, contact_faces, line_profile, preconditioner
+from .contact import contact_area_share, contact_faces, line_profile
+from .half_space import HalfSpaceModel, serial_dense_algebra
 from .fields import cell_stresses, write_vtu3d
 from .system import assemble_sector
 
@@ -47,6 +51,15 @@ MODEL = "fem-3d"
 # contact of radius a_c; the grading makes the large block cost a few shells of elements.
 BLOCK_FACTOR = 1e4
 MAX_CG_ITERATIONS = 2000
+# Most steps of iterative refinement of the solution reported (float32 factor: each gains
+# four digits or more, see system.SINGLE_MAX_ERROR), stopping at a residual of 1e-12.
+EXACT_REFINE = 4
+# Under a force: the tolerance of the first solve on a mesh built for a guess (it decides
+# whether the mesh is the solved indentation's: a zeta to ~1e-5, where the pillars' reach
+# changes every 0.2-2 % of zeta on the paper's scenes), and the meshes for successive
+# indentations before the solve gives up settling them.
+LOOSE_TOL = 1e-5
+MAX_MESHINGS = 4
 # Element size on the centre pillar's top over the contact element size (see _setup).
 CENTRE_RATIO = 0.25
 # Smallest gap between neighbouring pillars, in diameters: at Phi = 0.9 (gap 0.0038 d) the
@@ -170,16 +183,53 @@ def solve(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None, progress=None,
         ``diagnostics["message"]``.
     """
     _check_options(mesh_size, sector_angle, block_factor, reach_factor, tol)
-    _refuse_if_too_large(scene, mesh_size, sector_angle, reach_factor)
     clock = PhaseClock(progress)
-    setup = _setup(scene, mesh_size, sector_angle, block_factor, reach_factor, grading or {})
-    mesh, skmesh, system, faces = _mesh_and_factorise(setup, mesh_size, sector_angle, clock)
-    contact = _contact(scene, setup, system, faces, tol, clock)
-    result = _result(scene, setup, mesh, system, faces, contact, mesh_size, sector_angle,
+    # Under a force the mesh is the one of the solved indentation (the pillars in its reach;
+    # a flat mesh's unit, the Hertz radius, follows it without meshing again).  A mesh built
+    # for a guess is first solved loosely, to learn whether it is that mesh: if so the solve
+    # goes on from there, else the mesh is built again for the solved indentation.
+    force, rounds, held = scene.force_N, [], True
+    solved = scene if force is None else scene.designed(analytic.indentation_estimate(scene))
+    while True:
+        _refuse_if_too_large(solved, mesh_size, sector_angle, reach_factor)
+        setup = _setup(solved, mesh_size, sector_angle, block_factor, reach_factor,
+                       grading or {})
+        if not rounds or not scene.is_flat:
+            mesh, skmesh, system, faces = _mesh_and_factorise(setup, mesh_size, sector_angle,
+                                                              clock)
+        else:
+            mesh = dataclasses.replace(mesh, points=mesh.points * (setup["ell"] / ell))
+        ell = setup["ell"]
+        sector_force = None if force is None else force * sector_angle / (2.0 * math.pi)
+        loose = sector_force is not None and not scene.is_flat
+        contact = _contact(solved, setup, system, faces, max(tol, LOOSE_TOL) if loose else tol,
+                           clock, sector_force)
+        if force is None:
+            break
+        zeta = contact["zeta"]
+        rounds.append({"design_indentation_m": solved.indentation_m, "indentation_m": zeta})
+        held = _meshed_alike(setup, _setup(scene.designed(zeta), mesh_size, sector_angle,
+                                           block_factor, reach_factor, grading or {}))
+        if held and loose:  # the mesh is the solved one's: on to the tolerance from here
+            contact = _contact(solved, setup, system, faces, tol, clock, sector_force,
+                               start=contact["lam"])
+            zeta = rounds[-1]["indentation_m"] = contact["zeta"]
+            held = _meshed_alike(setup, _setup(scene.designed(zeta), mesh_size, sector_angle,
+                                               block_factor, reach_factor, grading or {}))
+        if held or len(rounds) == MAX_MESHINGS:
+            solved = scene.implied(zeta, f"fem-3d at mesh_size {mesh_size:g}")
+            break
+        solved = scene.designed(zeta)
+    result = _result(solved, setup, mesh, system, faces, contact, mesh_size, sector_angle,
                      reach_factor, clock)
+    if force is not None:
+        result.for_force(scene.to_dict(), zeta, design_rounds=rounds)
+        if not held:
+            result.converged = False
+            result.diagnostics["message"] = f"the mesh did not settle in {MAX_MESHINGS} rounds"
     if vtu_path is not None:
         clock.say(f"writing {vtu_path}")
-        _write_fields(vtu_path, scene, setup, mesh, skmesh, system, contact["x"], result)
+        _write_fields(vtu_path, solved, setup, mesh, skmesh, system, contact["x"], result)
     clock.say(f"done: F_T = {result.total_force_N:.6g} N, {contact['sol'].iterations} contact "
               "iterations")
     return result
@@ -208,40 +258,76 @@ def _mesh_and_factorise(setup: dict, mesh_size: float, sector_angle: float,
     return mesh, skmesh, system, faces
 
 
-def _contact(scene: Scene, setup: dict, system, faces, tol: float, clock: PhaseClock) -> dict:
+def _contact(scene: Scene, setup: dict, system, faces, tol: float, clock: PhaseClock,
+             force: float | None = None, start=None) -> dict:
     """The mortar contact by constrained CG on the condensed operator D^T G K^-1 G^T D (one
-    back-substitution per iteration); then the displacement ``x`` under the contact load,
-    its residual, the pointwise gaps ``w`` and the operator's asymmetry."""
+    back-substitution per application); then the displacement ``x`` under the contact load,
+    its residual, the pointwise gaps ``w``, the operator's asymmetry and the indentation
+    ``zeta`` (m; with ``force``, the sector's force in N, the one found for it).  ``start``:
+    the multipliers to start from.
+
+    With a float32 factor (:meth:`.system.SectorSystem.factorise`) the CG's steps and its
+    clipping updates apply the operator by one float32 back-substitution, and the gap it
+    accepts is recomputed with the refined solve (the CG's mixed precision, as the FFT BEM's
+    float32 transforms: :func:`pillar_xval.contact.constrained_cg`)."""
     ell, E_ref = setup["ell"], setup["E_ref"]
     R, zeta = scene.lens.radius_m, scene.indentation_m
     r_pts = np.hypot(*faces.points) * ell
     gap0 = (analytic.lens_gap(R, r_pts) - zeta) / ell
     D, G = faces.D, faces.G
+    single = system.single_error > 0.0
 
-    def apply(lam):
-        x, _ = system.solve(G.T @ (D @ lam), refine=0)
-        return D.T @ (G @ x)
+    def apply(lam):  # columns allowed
+        return D.T @ (G @ system.exact(G.T @ (D @ lam)))
 
-    springs = _springs(scene, setup, faces, E_ref, ell)
-    precondition, inv_d = preconditioner(faces.weights, faces.pillar_of_vertex, springs,
-                                         setup["face_compliance"] * E_ref)
+    if single:
+        def approximate(lam):
+            x, _ = system.solve(G.T @ (D @ lam), refine=0)
+            return D.T @ (G @ x)
+
+        apply.approximate = approximate
+        # its error bound for the CG's bookkeeping (the accepted gap is always exact)
+        apply.approximate_error = 10.0 * system.single_error
+
+        def apply_few(index, values, single=False):
+            lam = np.zeros(faces.n_vertices)
+            lam[index] = values
+            return (apply.approximate if single else apply)(lam)
+
+        apply.apply_few = apply_few
 
     def report(it, err):
         if it % 10 == 0:
             clock.say(f"contact iteration {it}: residual {err:.3g}")
 
     clock.say(f"contact: {faces.n_vertices} pressure unknowns")
-    sol = constrained_cg(apply, D.T @ gap0, np.zeros(faces.n_vertices), scale=zeta / ell,
-                         tol=tol, max_iterations=MAX_CG_ITERATIONS, precondition=precondition,
-                         inverse_diagonal=inv_d, weights=faces.weights, callback=report)
+    b, target = D.T @ gap0, None
+    with serial_dense_algebra():
+        model = HalfSpaceModel(faces, _springs(scene, setup, faces, E_ref, ell),
+                               setup["face_compliance"] * E_ref,
+                               setup["geometry"].sector_angle)
+        # under a force the model's contact at the guessed indentation, rescaled by the CG
+        q0 = model.warm_start(b, zeta / ell) if start is None else start
+        if force is not None:  # Polonsky-Keer's force control; the weighted gap moves by weights
+            b, target = b + faces.weights * (zeta / ell), force / (E_ref * ell**2)
+        sol = constrained_cg(apply, b, q0, scale=zeta / ell,
+                             tol=tol, max_iterations=MAX_CG_ITERATIONS,
+                             precondition=model.precondition,
+                             inverse_diagonal=model.inverse_diagonal, weights=faces.weights,
+                             callback=report, force=target,
+                             load=None if force is None else faces.weights)
+    if force is not None:
+        zeta = sol.approach * ell
+        gap0 = (analytic.lens_gap(R, r_pts) - zeta) / ell
     lam = sol.pressure
     clock.done("contact")
-    load = G.T @ (D @ lam)
-    x, residual = system.solve(load)
+    x, residual = system.solve(G.T @ (D @ lam), refine=EXACT_REFINE)
     w = G @ x + gap0
-    asym = _asymmetry(apply, faces.n_vertices)
+    probes = np.random.default_rng(12345).random((faces.n_vertices, 2))
+    asym = _asymmetry(probes, apply(probes))
     clock.done("post")
-    return {"sol": sol, "lam": lam, "x": x, "residual": residual, "w": w, "asymmetry": asym}
+    return {"sol": sol, "lam": lam, "x": x, "residual": residual, "w": w, "asymmetry": asym,
+            "preconditioner": model.name, "zeta": zeta}
 
 
 def _result(scene: Scene, setup: dict, mesh, system, faces, contact: dict, mesh_size: float,
@@ -282,10 +368,13 @@ def _result(scene: Scene, setup: dict, mesh, system, faces, contact: dict, mesh_
                        "contact reached the end of the candidate zone" if reaches_end else "")
     diagnostics = {
         "cg_iterations": int(sol.iterations), "cg_reentries": int(sol.reentries),
-        "operator_asymmetry": contact["asymmetry"],
+        "operator_asymmetry": contact["asymmetry"], "preconditioner": contact["preconditioner"],
         "contact_vertices": int(faces.n_vertices), "vertices_in_contact": int(np.sum(lam > 0)),
         "pillars_meshed": [p.name for p in geo.pillars], "reach_factor": reach_factor,
         "factor_nonzeros": system.factor.factor_nonzeros,
+        "factor": {"ordering": system.factor.ordering,
+                   "precision": "single" if system.factor.single else "double",
+                   "single_solve_error": system.single_error},
         "peak_rss_GiB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20,
         "pillar_top_profile_alpha": {"theta_rad": float(sector_angle),
                                      "r_m": (r1 * ell).tolist(), "pressure_Pa": p1.tolist()},
@@ -315,7 +404,8 @@ def _write_fields(vtu_path, scene: Scene, setup: dict, mesh, skmesh, system, x,
     nv = skmesh.p.shape[1]
     disp = u[:3 * nv].reshape(-1, 3).T * ell  # vertex dofs come first (3 s + c)
     write_vtu3d(vtu_path, mesh.points, mesh.tets, disp, cells,
-                {"model": MODEL, "scene": result.scene, "discretisation": result.discretisation})
+                {"model": MODEL, "scene": result.scene, "discretisation": result.discretisation,
+                 "indentation_m": result.indentation_m})
 
 
 def _setup(scene: Scene, mesh_size, sector_angle, block_factor, reach_factor, grading) -> dict:
@@ -382,6 +472,13 @@ def _check_options(mesh_size, sector_angle, block_factor, reach_factor, tol) -> 
                          "and pi/2 (both planes must be mirror planes of the lattice)")
 
 
+def _meshed_alike(a: dict, b: dict) -> bool:
+    """Whether two set-ups mesh alike: the same pillars, in the same unit (a flat mesh's
+    Hertz radius, within 5e-7: the element sizes, to the round-off of a solve)."""
+    return ([p.name for p in a["geometry"].pillars] == [p.name for p in b["geometry"].pillars]
+            and abs(b["ell"] / a["ell"] - 1.0) <= 5e-7)
+
+
 def _reach(R: float, gap: float) -> float:
     """Radius where the undeformed lens gap R - sqrt(R^2 - r^2) equals ``gap``."""
     return math.sqrt(max(0.0, 2.0 * R * gap - gap * gap))
@@ -397,12 +494,12 @@ def _springs(scene, setup, faces, E_ref, ell):
     return [c / share[name] for name in faces.pillar_names]
 
 
-def _asymmetry(apply, n: int) -> float:
-    """|x.Ay - y.Ax| / (|x| |Ay|) for two seeded random vectors: the condensed operator's
-    symmetry as applied (two back-substitutions)."""
-    rng = np.random.default_rng(12345)
-    x, y = rng.random(n), rng.random(n)
-    ax, ay = apply(x), apply(y)
+def _asymmetry(probes: np.ndarray, applied: np.ndarray) -> float:
+    """|x.Ay - y.Ax| / (|x| |Ay|) for two seeded random vectors x, y (``probes``' columns)
+    and the condensed operator applied to them (``applied``, as the CG applies it when it
+    takes a gap as exact): its symmetry."""
+    x, y = probes.T
+    ax, ay = applied.T
     return float(abs(x @ ay - y @ ax) / max(np.linalg.norm(x) * np.linalg.norm(ay), 1e-300))
 
 

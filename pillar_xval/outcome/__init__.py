@@ -8,8 +8,9 @@ every other package stands on it.
 
 from ._files import (CACHE_ENV, CacheWarning, FileLock, UnusableFile, atomic_path, cache_root,
                      read_regular, write_atomic)
-from ._schema import SCHEMA_VERSION, ContactResult, PillarForce, package_version
+from ._schema import (PILLAR_LABELS, SCHEMA_VERSION, ContactResult, PillarForce, model_label,
+                      package_version)
 
-__all__ = ["CACHE_ENV", "SCHEMA_VERSION", "CacheWarning", "ContactResult", "FileLock",
-           "PillarForce", "UnusableFile", "atomic_path", "cache_root", "package_version",
-           "read_regular", "write_atomic"]
+__all__ = ["CACHE_ENV", "PILLAR_LABELS", "SCHEMA_VERSION", "CacheWarning", "ContactResult",
+           "FileLock", "PillarForce", "UnusableFile", "atomic_path", "cache_root", "model_label",
+           "package_version", "read_regular", "write_atomic"]

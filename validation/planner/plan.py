@@ -40,7 +40,7 @@ from __future__ import annotations
 import math
 
 from pillar_xval.outcome.memory import memory_short
-from pillar_xval.scenes import InputError, Scene, ScopeError
+from pillar_xval.scenes import InputError, Scene, ScopeError, analytic
 from pillar_xval.threads import thread_count
 
 from ..registry import QUANTITIES
@@ -49,7 +49,7 @@ from .features import features, regime
 from .tables import PlannerData, load_data, machine_data
 
 __all__ = ["DEFAULT_QUANTITIES", "DEFAULT_TOLERANCE", "check_request", "combined_error",
-           "default_data", "hooke_error", "plan", "plan_text", "solve_auto"]
+           "default_data", "hooke_error", "hooke_note", "plan", "plan_text", "solve_auto"]
 
 DEFAULT_TOLERANCE = 0.01
 DEFAULT_QUANTITIES = ("F_T", "sigma0")
@@ -79,16 +79,22 @@ def _data(data: PlannerData | None) -> PlannerData:
     return default_data() if data is None else data
 
 
-def check_request(tolerance, quantities, budget=None) -> tuple[float, tuple, float | None]:
-    """Validated (tolerance, quantities, budget); InputError naming the option otherwise."""
+def check_request(tolerance=DEFAULT_TOLERANCE, quantities=DEFAULT_QUANTITIES,
+                  budget=None) -> tuple[float, tuple, float | None]:
+    """Validated (tolerance, quantities, budget); InputError naming the option otherwise.
+    ``quantities`` is a comma list or a sequence of names; an empty entry (``F_T,,sigma0``)
+    or an empty list is refused, not dropped."""
     known = [q.key for q in QUANTITIES]
-    if isinstance(quantities, str):
-        given = quantities
-        quantities = [q.strip() for q in quantities.split(",") if q.strip()]
-        if not quantities:
-            raise InputError(f"--quantities {given!r}: expected one or more of "
-                             f"{', '.join(known)}, comma-separated")
-    quantities = tuple(dict.fromkeys(quantities or DEFAULT_QUANTITIES))
+    tolerance = DEFAULT_TOLERANCE if tolerance is None else tolerance
+    quantities = DEFAULT_QUANTITIES if quantities is None else quantities
+    given = quantities if isinstance(quantities, str) else \
+        ",".join(map(str, quantities)) if isinstance(quantities, (list, tuple)) else quantities
+    names = ([q.strip() for q in quantities.split(",")] if isinstance(quantities, str)
+             else list(quantities) if isinstance(quantities, (list, tuple)) else None)
+    if not names or any(not isinstance(q, str) or not q for q in names):
+        raise InputError(f"--quantities {given!r}: expected one or more of "
+                         f"{', '.join(known)}, comma-separated, none empty")
+    quantities = tuple(dict.fromkeys(names))
     bad = [q for q in quantities if q not in known]
     if bad:
         raise InputError(f"--quantities {','.join(map(str, bad))}: unknown; allowed: "
@@ -200,7 +206,8 @@ def _candidate(scene, x, reg, cand, data, quantities) -> dict:
 
 
 def plan(scene: Scene, tolerance: float = DEFAULT_TOLERANCE, quantities=DEFAULT_QUANTITIES,
-         budget: float | None = None, data: PlannerData | None = None) -> dict:
+         budget: float | None = None, data: PlannerData | None = None,
+         progress=None) -> dict:
     """The plan for ``scene``: regime, every candidate's predicted errors, time and memory,
     and the choice with its reason (JSON-ready).
 
@@ -216,12 +223,25 @@ def plan(scene: Scene, tolerance: float = DEFAULT_TOLERANCE, quantities=DEFAULT_
     data : PlannerData, optional
         Error and cost models (default: the shipped ones, carried to this machine:
         :func:`default_data`).
+    progress : callable, optional
+        ``progress(text)`` hears of each step (reading the data, each candidate): a plan's
+        first call reads the tables and imports the FEMs' memory estimates (seconds on a
+        cold start).
     """
     tolerance, quantities, budget = check_request(tolerance, quantities, budget)
+    say = progress or (lambda text: None)
+    say("reading the planner's error and cost tables (and, once per machine and thread "
+        "count, timing this machine: a few seconds)")
     data = _data(data)
+    given = scene
+    scene = planning_scene(scene)
     reg = regime(scene)
     x = features(scene, reg)
-    cands = [_candidate(scene, x, reg, c, data, quantities) for c in data.candidates]
+    cands = []
+    for k, c in enumerate(data.candidates):
+        say(f"predicting candidate {k + 1} of {len(data.candidates)}: "
+            f"{c.get('label', c.get('model'))}")
+        cands.append(_candidate(scene, x, reg, c, data, quantities))
     over_budget = []
     for c in cands:
         if c["eligible"] and budget is not None and c["time_s"] > budget:
@@ -271,7 +291,9 @@ def plan(scene: Scene, tolerance: float = DEFAULT_TOLERANCE, quantities=DEFAULT_
     else:
         reason = "no candidate can run this scene: " + "; ".join(
             f"{c['label']}: {c['why']}" for c in cands)
-    return {"scene": scene.to_dict(), "regime": reg, "features": x, "tolerance": tolerance,
+    return {"scene": given.to_dict(), "load_control": given.load_control,
+            "indentation_m": scene.indentation_m, "regime": reg, "features": x,
+            "tolerance": tolerance,
             "quantities": list(quantities), "budget_s": budget, "candidates": cands,
             "unavoidable_error": floor,
             "choice": None if choice is None else {
@@ -291,6 +313,16 @@ def _machine_note(data: PlannerData) -> dict | None:
     if not factors:
         return None
     return {"threads": thread_count(), "speed": factors}
+
+
+def planning_scene(scene: Scene) -> Scene:
+    """The scene the plan reads its regime, features, times and memory on: ``scene`` itself
+    under a given indentation; under a given force, the scene at the indentation estimated
+    for it (:func:`pillar_xval.scenes.analytic.indentation_estimate`, within 0.96-1.3 of the
+    models' own on the paper's family), since every table is measured against indentation."""
+    if scene.force_N is None:
+        return scene
+    return scene.designed(analytic.indentation_estimate(scene))
 
 
 def hooke_error(scene: Scene, quantity: str = "sigma0", data: PlannerData | None = None,
@@ -314,6 +346,24 @@ def hooke_error(scene: Scene, quantity: str = "sigma0", data: PlannerData | None
         if part is not None:
             return part
     return None
+
+
+def hooke_note(scene: Scene) -> str | None:
+    """The line a Hooke-pillar result carries on ``scene``: the planner's expected sigma0
+    error of the Hooke pillar there (:func:`hooke_error`) and the flag that removes it; None
+    on a flat scene."""
+    if scene.is_flat:
+        return None
+    try:
+        error = hooke_error(scene, "sigma0")
+    except InputError as exc:  # damaged planner data: the solve stands, the number is missing
+        return f"Hooke pillars: no expected error (the planner's data: {exc}); " \
+               "--pillars elastic removes the Hooke spring's model error"
+    if error is None:
+        return None
+    return (f"Hooke pillars: the planner expects sigma0 off by up to {100 * error:.2g} % on "
+            "this scene (the Hooke spring's model error against the elastic pillar); "
+            "--pillars elastic removes it")
 
 
 def _elastic_left_out(cands: list) -> str:
@@ -352,7 +402,10 @@ def plan_text(p: dict) -> str:
     """The plan as a readable table."""
     reg = p["regime"]
     qs = p["quantities"]
-    lines = [f"scene     {p['scene'].get('name', '?')}",
+    load = p["scene"]["load"]
+    lines = [f"scene     {p['scene'].get('name', '?')}"
+             + (f"  (F = {load['force_N'] * 1e6:.4g} uN: planned at its estimated indentation"
+                f" {p['indentation_m'] * 1e6:.3g} um)" if "force_N" in load else ""),
              f"regime    {reg['label']}: {reg['why']}",
              f"request   {', '.join(qs)} within {_pct(p['tolerance'])}"
              + (f", at most {p['budget_s']:g} s" if p["budget_s"] else ""), "",
@@ -394,15 +447,38 @@ def compact(p: dict) -> dict:
                            for c in p["candidates"]]}
 
 
+# Under a force: solves of successive choices before the plan settles (module docstring).
+MAX_FORCE_PLANS = 4
+
+
 def solve_auto(scene: Scene, tolerance: float = DEFAULT_TOLERANCE,
                quantities=DEFAULT_QUANTITIES, budget: float | None = None):
     """Run the planner's choice on ``scene``; the result records the plan in
-    ``diagnostics["plan"]``.  ScopeError when no candidate can run the scene."""
+    ``diagnostics["plan"]``.  ScopeError when no candidate can run the scene.
+
+    A force-controlled scene is planned at its estimated indentation and solved by the
+    choice; then planned again at the indentation that choice solved for, and solved by the
+    new choice where it differs (an estimate a little off, or another model's indentation,
+    can cross a candidate's predicted tolerance), until the plan of the solved indentation
+    chooses the model that solved it (at most :data:`MAX_FORCE_PLANS` solves; in all but
+    knife-edge cases one).  So the answer to a force is the plan's answer at its indentation,
+    and a force's round trip is exact."""
     from ..registry import run_model
 
     p = plan(scene, tolerance, quantities, budget)
-    if p["choice"] is None:
-        raise ScopeError(f"auto: {p['reason']}")
-    result = run_model(p["choice"]["model"], scene, **p["choice"]["options"])
+    tried = []
+    while True:
+        if p["choice"] is None:
+            raise ScopeError(f"auto: {p['reason']}")
+        result = run_model(p["choice"]["model"], scene, **p["choice"]["options"])
+        tried.append(p["choice"]["label"])
+        if scene.force_N is None or not result.converged or len(tried) == MAX_FORCE_PLANS:
+            break
+        again = plan(scene.designed(result.indentation_m), tolerance, quantities, budget)
+        if again["choice"] is None or again["choice"]["label"] == p["choice"]["label"]:
+            break
+        p = {**again, "scene": scene.to_dict(), "load_control": "force"}
     result.diagnostics["plan"] = compact(p)
+    if len(tried) > 1:
+        result.diagnostics["plan"]["solved_by_turns"] = tried
     return result

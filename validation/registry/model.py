@@ -67,7 +67,15 @@ class Model:
       (mortar) sense, so the pointwise gap may dip by up to the FEMs' own limit;
     - ``expensive``: ``tradeoff`` runs it only when named (minutes per rung);
     - ``code``: packages beyond the engine's ``COMPUTING_PACKAGES`` whose source and data
-      decide its results; the case key hashes them (:mod:`validation.engine._case`).
+      decide its results; the case key hashes them (:mod:`validation.engine._case`);
+    - ``force_control``: how it solves a force-controlled scene: ``"native"``, its solver
+      takes one itself (and says how in its module); ``"outer"`` (the default, for a model
+      registered without a thought for it), :meth:`run` finds the indentation that carries
+      the force by whole solves under indentations
+      (:func:`pillar_xval.contact.solve_at_force`);
+    - ``request``: ``"module:function"`` that checks its options together where a spec
+      cannot (``auto``: the planner's request, ``function(**options)`` raising InputError),
+      imported on first use; "" for none.
     """
 
     name: str
@@ -87,6 +95,8 @@ class Model:
     weak_contact: bool = False
     expensive: bool = False
     code: tuple[str, ...] = ()
+    force_control: str = "outer"
+    request: str = ""
 
     @property
     def function(self) -> Callable[..., ContactResult]:
@@ -98,6 +108,12 @@ class Model:
     def candidate(self) -> bool:
         """Whether the planner may choose it."""
         return bool(self.scopes)
+
+    def check_request(self, options: dict) -> None:
+        """Check the options together with the model's ``request`` function, if any."""
+        if self.request:
+            module, name = self.request.split(":")
+            getattr(importlib.import_module(module), name)(**options)
 
     def takes(self, argument: str) -> bool:
         """Whether the solver's signature has ``argument`` (False when it cannot be read)."""
@@ -140,5 +156,12 @@ class Model:
             if value is not None and self.takes(name):
                 kwargs[name] = value
         with limited():
+            if scene.force_N is not None and self.force_control != "native":
+                from pillar_xval.contact import solve_at_force
+                from pillar_xval.scenes import analytic
+
+                return solve_at_force(lambda at: self.function(at, **kwargs), scene,
+                                      guess=analytic.indentation_estimate(scene),
+                                      how=f"{self.name}, by solves under indentations")
             return self.function(scene, **kwargs)
 
