@@ -19,7 +19,7 @@ steepest-descent step tau D^-1 gap, each as if it were alone: on pillars much so
 substrate, where a pillar's cells share a Hooke compliance up to 1e3 times a cell's own, a
 ring of cells entering together so overloads the pillar (x 170 its force in one step, measured)
 that the iteration never recovers (3,800 iterations on paper-fig3-sparse with Phi = 0.1,
-E_s = 10 E_p; issue 9).  Through the preconditioner the entering cells see the Hooke term.
+E_s = 10 E_p).  Through the preconditioner the entering cells see the Hooke term.
 
 Conjugacy.  beta is Polak-Ribiere's, floored at zero (PR+): it restarts itself when the free
 set changes what the previous direction meant, where Fletcher-Reeves' beta kept stale
