@@ -134,8 +134,7 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     preconditioner : {"circulant", "jacobi"}
         The constrained CG's preconditioner: the inverse half-space kernel on the periodic
         box plus per-pillar uniform modes (default), or the diagonal with the pillar springs
-        by Sherman-Morrison (the model's preconditioner before issue 20; the answers agree
-        within the tolerance).
+        by Sherman-Morrison (slower to converge; the answers agree within the tolerance).
     pillars : {"hooke", "elastic"}
         The paper's uniformly shortening pillar (default), or the elastic pillar: a
         per-pillar excess compliance from the pillar's finite-element compliance

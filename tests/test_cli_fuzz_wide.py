@@ -1,4 +1,4 @@
-"""The CLI fuzz widened (issue 19): sweep specs, ``plan`` and ``figures`` inputs, odd
+"""The CLI fuzz widened: sweep specs, ``plan`` and ``figures`` inputs, odd
 ``--out`` paths, environment oddities and a real ``ulimit -v``, one folder shared by two
 commands, and edited case files.
 

@@ -71,7 +71,7 @@ def test_every_candidate_model_is_planned_and_auto_runs_the_choice(direct):
     for name, model in MODELS.items():
         assert name in planned or not model.candidate, name
     # beyond the declarations' candidates, only hand entries of the data (fem-3d, the
-    # elastic-pillar BEMs: issue 18) until a recalibration measures them
+    # elastic-pillar BEMs) until a recalibration measures them
     for c in load_data().candidates:
         if not MODELS[c["model"]].candidate or "pillars" in c["options"]:
             assert c["source"].startswith("hand"), c
