@@ -6,7 +6,9 @@ every other package stands on it.
 """
 
 from ._files import atomic_path, write_atomic
-from ._schema import SCHEMA_VERSION, ContactResult, PillarForce, package_version
+from ._schema import (REGIMES, SCHEMA_VERSION, ContactResult, PillarForce, package_version,
+                      regime_of)
 
-__all__ = ["SCHEMA_VERSION", "ContactResult", "PillarForce", "atomic_path", "package_version",
+__all__ = ["REGIMES", "SCHEMA_VERSION", "ContactResult", "PillarForce", "atomic_path",
+           "package_version", "regime_of",
            "write_atomic"]
