@@ -64,8 +64,8 @@ from pillar_xval.scenes import InputError, Scene, ScopeError
 
 from ._dense import _smooth_edge_radius
 from ._fft_grid import CellGrid, build_grid, candidate_side, estimate_host_memory
-from ._elastic_pillar import (FFTPillarTerm, TopsOnlyTerm, check_pillars, scene_compliance,
-                              tops_grid, uses_elastic_block)
+from ._elastic_pillar import (FFTPillarTerm, TopsOnlyTerm, check_pillars, operator_records,
+                              scene_compliance, tops_grid, uses_elastic_block)
 from ._fft_operator import CirculantPreconditioner, CompliancePlan, near_field_correction
 from ._limits import PRECISIONS
 from ._xp import NumpyDevice, select_backend
@@ -89,7 +89,7 @@ MIN_CELLS_ACROSS_CONTACT = 5
 
 
 def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAULT_TOLERANCE,
-              max_iterations: int | None = None, workers: int = 2,
+              max_iterations: int | None = None, workers: int | None = None,
               warm_start: bool = True, edge_correction: bool = True, progress=None,
               device: str = "cpu", backend=None, preconditioner: str = "circulant",
               pillars: str = "hooke", compliance=None, precision: str = "mixed",
@@ -109,8 +109,9 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     max_iterations : int, optional
         Iteration cap; default 20 sqrt(n_cells) + 500.  Reaching it returns
         ``converged = False`` with the reason in ``diagnostics["message"]``.
-    workers : int
-        Threads for the FFTs.
+    workers : int, optional
+        Threads for the FFTs (default: :func:`pillar_xval.threads.thread_count`, the CPUs the
+        process may use or ``PILLAR_XVAL_THREADS``).
     warm_start : bool
         Start from the solution at N // 2 cells per diameter (recursively, down to
         ``WARM_START_MIN_CELLS``), interpolated bilinearly (nested iteration).
@@ -250,7 +251,7 @@ def _prepare(scene: Scene, cells_per_diameter: int, opts: _Options, be, workspac
     if opts.elastic:
         tops = tops_grid(grid) if grid.has_floor else grid
         term = FFTPillarTerm(scene, tops, opts.compliance, lambda gamma: near_field_correction(
-            tops, gamma, backend=be) if opts.edge_correction else None)
+            tops, gamma, backend=be) if opts.edge_correction else None, workers=be.workers)
         if grid.has_floor:
             term = TopsOnlyTerm(term, grid.n_cells)
     floor = grid.has_floor
@@ -322,6 +323,7 @@ def finish(scene: Scene, setup: _Setup, outcome, cells_per_diameter: int, opts: 
         " + elastic pillars" if opts.elastic else "")
     if opts.elastic:
         result.diagnostics["pillars"] = "elastic"
+        result.diagnostics["operators"] = operator_records(opts.compliance.diagnostics)
         result.discretisation["pillars"] = "elastic"
     result.diagnostics["timings_s"] = setup.timings
     return result

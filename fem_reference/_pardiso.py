@@ -7,7 +7,9 @@ installs as a wheel (pypardiso + mkl).  The symmetric indefinite mode (mtype -2,
 triangle, Bunch-Kaufman pivots with symmetric weighted matching, as MKL advises for saddle
 points) stores half the factor of pypardiso's default unsymmetric mode.  Solves call the
 library directly with the factors (phase 33): pypardiso's ``solve`` would rebuild the 1-based
-index arrays and compare the whole matrix with the factorised one on every call.
+index arrays and compare the whole matrix with the factorised one on every call.  Every call
+runs on :func:`pillar_xval.threads.thread_count` threads (MKL's, held through threadpoolctl
+once the library is loaded).
 """
 
 from __future__ import annotations
@@ -16,6 +18,8 @@ import ctypes
 
 import numpy as np
 import scipy.sparse as sp
+
+from pillar_xval.threads import limiter
 
 from ._reduced import SolveError
 
@@ -35,6 +39,7 @@ class Pardiso:
                                  "of the 3D FEM") from None
             solver = PyPardisoSolver(mtype=-2)
         self._solver = solver
+        self._threads = limiter()  # MKL is loaded by now
         self._solver.msglvl = 0
         iparm = self._solver.iparm
         iparm[:] = 0
@@ -61,6 +66,10 @@ class Pardiso:
         return self._call(33, b2).reshape(b.shape)
 
     def _call(self, phase: int, b: np.ndarray) -> np.ndarray:
+        with self._threads():
+            return self._phase(phase, b)
+
+    def _phase(self, phase: int, b: np.ndarray) -> np.ndarray:
         s = self._solver
         x = np.zeros_like(b, order="F")
         err = ctypes.c_int32(0)
