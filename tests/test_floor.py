@@ -4,6 +4,10 @@ refuse a scene whose floor is reached."""
 
 from __future__ import annotations
 
+import csv
+import io
+import json
+
 import numpy as np
 import pytest
 
@@ -183,3 +187,18 @@ def test_models_without_the_floor_refuse_a_scene_that_reaches_it(model, options)
     scene = load_scene("paper-fig3-sparse", ["load.indentation_um=3"])
     with pytest.raises(ScopeError, match="reaches the floor between the pillars.*use bem-fft"):
         run_model(model, scene, **options)
+
+
+def test_the_loading_curve_crosses_the_transition_and_marks_it(tmp_path, capsys):
+    from validation.cli import main
+
+    code = main(["curve", "--scene", "paper-fig3-sparse", "--indentations-um", "1.5,5",
+                 "--models", "bem-fft", "--cells-per-diameter", "8", "--out", str(tmp_path),
+                 "--executor", "serial"])
+    out = capsys.readouterr().out
+    assert code == 0 and "touches the floor between the loads 1.5 and 5 um" in out
+    doc = json.loads((tmp_path / "curve.json").read_text())
+    assert doc["transitions"]["bem-fft"]["mixed_load"] == 5e-6
+    rows = list(csv.DictReader(io.StringIO((tmp_path / "curve.csv").read_text())))
+    assert [r["regime"] for r in rows] == ["multi-pillar", "mixed"]
+    assert float(rows[0]["floor_force_N"]) == 0.0 < float(rows[1]["floor_force_N"])
