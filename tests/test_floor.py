@@ -265,3 +265,14 @@ def test_roof_collapse_closed_form_limits():
     dense = load_scene("paper-fig3-sparse", ["pillars.rigid=true",
                                              "pillars.surface_fraction=0.3"])
     assert roof_collapse_pressure(dense) > roof_collapse_pressure(base)
+
+
+def test_the_planner_plans_a_mixed_scene_with_floor_models_only():
+    from validation.planner.plan import plan
+
+    p = plan(load_scene("paper-fig3-sparse", ["load.indentation_um=5"]), 0.05)
+    assert p["regime"]["name"] == "mixed"
+    assert p["choice"] is not None and p["choice"]["model"] == "bem-fft"
+    refused = [c for c in p["candidates"] if c["model"] in ("bem", "fem-axisym", "spring")]
+    assert refused and all("does not include the floor" in c["why"] for c in refused)
+    assert plan(load_scene("paper-fig3-sparse"), 0.05)["regime"]["name"] == "multi"

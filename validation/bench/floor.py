@@ -38,8 +38,8 @@ PERF_N = 24
 PERF_HEIGHTS_UM = (1.0, 20.0)  # mixed, suspended
 SHARE_ZETAS_UM = (1.1, 1.5, 2.0, 3.0, 4.0)
 SHARE_N = 12
-CONV_SCENE = BASE + ["lens.radius_mm=0.2", "pillars.surface_fraction=0.2",
-                     "pillars.height_um=1", "load.indentation_um=2.5"]
+CONV_SCENE = BASE + ["lens.radius_mm=0.2", "pillars.surface_fraction=0.03",
+                     "pillars.height_um=1", "load.indentation_um=2"]
 CONV_LEVELS = (8, 16, 32, 64)
 PEER_SCENES = {  # both with floor contact (at Phi = 0.1 and zeta = 2 h the lens is suspended)
     "Phi = 0.03, h/d = 0.25, zeta = 2 h": BASE + [
