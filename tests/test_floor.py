@@ -276,3 +276,20 @@ def test_the_planner_plans_a_mixed_scene_with_floor_models_only():
     refused = [c for c in p["candidates"] if c["model"] in ("bem", "fem-axisym", "spring")]
     assert refused and all("does not include the floor" in c["why"] for c in refused)
     assert plan(load_scene("paper-fig3-sparse"), 0.05)["regime"]["name"] == "multi"
+
+
+@pytest.mark.parametrize("label", ["floor: zeta=10h", "floor: h/d=0.05 zeta=5h",
+                                   "floor: Ep- zeta=3h", "floor: Ep+ zeta=3h",
+                                   "floor: Phi=0.9 zeta=5h"])
+def test_extremes_past_the_pillar_tops_hold_the_invariants(label):
+    from validation.studies.extremes.run import corner_scenes, model_options
+
+    scene = next(e["scene"] for e in corner_scenes() if e["label"] == label)
+    result = solve_fft(scene, **model_options()["bem-fft"])
+    f = result.fields
+    assert result.converged, result.diagnostics["message"]
+    assert np.all(f["pressure_Pa"] >= 0.0)
+    assert result.diagnostics["max_interpenetration_m"] <= 1e-6 * scene.indentation_m
+    assert abs(result.diagnostics["force_balance_N"]) <= 1e-9 * result.total_force_N
+    # Close packing holds the lens up at 5 h; elsewhere the floor is touched.
+    assert result.regime == ("multi-pillar" if "Phi=0.9" in label else "mixed")
