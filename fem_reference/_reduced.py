@@ -32,7 +32,7 @@ class ReducedSystem:
     def full(self, x_reduced: np.ndarray) -> tuple[np.ndarray, dict]:
         """Full displacement dofs and each body's physical pressure p (E_ref units)."""
         x = self.T @ x_reduced
-        nu = self.basis_u.N
+        nu = self.T.shape[0] - sum(len(ps.dofs) for ps in self.pressures)
         pressure = {}
         for ps in self.pressures:
             p = np.zeros(ps.basis.N)

@@ -38,5 +38,29 @@ def test_cases_parse_and_refuse():
     assert ab.parse_case("elastic-fft:32@1e-10")["options"] == {"tol": 1e-10}
     import argparse
 
-    with pytest.raises(argparse.ArgumentTypeError, match="dense, fft:N or elastic-fft:N"):
+    with pytest.raises(argparse.ArgumentTypeError, match="dense, fft:N, elastic-fft:N or"):
         ab.parse_case("fft")
+    case = ab.parse_case("fem3d:0.82:2")
+    assert case["model"] == "fem3d" and case["cells"] == 2.0
+    assert case["overrides"] == ["pillars.surface_fraction=0.82"]
+    for bad in ("fem3d:0.82", "fem3d:x:2", "fem3d:0.2:2:1"):
+        with pytest.raises(argparse.ArgumentTypeError, match="fem3d:PHI:MESH_SIZE"):
+            ab.parse_case(bad)
+
+
+def test_fem3d_rows_carry_the_median_of_each_phase():
+    case = ab.parse_case("fem3d:0.2:2.83")
+
+    def run(wall, factorise):
+        phases = {"mesh": 1.0, "assemble": 2.0, "factorise": factorise, "contact": 4.0,
+                  "post": 0.5}
+        return {"wall_s": wall, "cpu_s": wall, "iterations": 30, "converged": True,
+                "F_T": 1.0, "sigma0": 2.0, "a": 3.0, "phases": phases, "peak_rss_GiB": 1.5}
+
+    runs = {"baseline": [run(9.0, 3.0), run(11.0, 5.0), run(10.0, 4.0)],
+            "this": [run(3.0, 1.0), run(4.0, 2.0), run(5.0, 3.0)]}
+    base, this = ab.summarise(case, runs)
+    assert base["phases_median_s"]["factorise"] == 4.0
+    assert this["phases_median_s"]["factorise"] == 2.0 and this["speed-up"] == 2.5
+    text = ab.table([base, this])
+    assert "| fem3d:0.2:2.83 | this | 1.0 | 2.0 | 2.0 | 4.0 | 0.5 | 1.50 |" in text

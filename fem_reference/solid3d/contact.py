@@ -46,7 +46,8 @@ class ContactFaces:
     ``points`` (2, n) are the P2 points of the contact faces, ``vertices`` their vertex
     subset carrying lam (indices into ``points``), ``D`` (n x n_v) the mortar matrix,
     ``weights`` w_j = integral of psi_j, ``G`` (n x n_reduced) the gap change per reduced
-    unknown, ``pillar_of_vertex`` the index into ``pillar_names`` (-1 for a flat scene).
+    unknown, ``pillar_of_vertex`` the index into ``pillar_names`` (-1 for a flat scene),
+    ``triangles`` (3, m) the face triangles' vertices.
     """
 
     points: np.ndarray
@@ -56,6 +57,7 @@ class ContactFaces:
     G: sp.csr_matrix
     pillar_of_vertex: np.ndarray
     pillar_names: list
+    triangles: np.ndarray
 
     @property
     def n_vertices(self) -> int:
@@ -150,7 +152,7 @@ def contact_faces(mesh, system, *, lens_meshed: bool, lower: str) -> ContactFace
     if G.nnz == 0:
         raise SolveError("no elastic body carries the contact faces")
     return ContactFaces(points, b1.doflocs, D, weights, G.tocsr(), pillar_of_vertex,
-                        pillar_names)
+                        pillar_names, local)
 
 
 def _rigid_rows(system, points, pillar_names, b2, owner):
@@ -173,36 +175,6 @@ def _rigid_rows(system, points, pillar_names, b2, owner):
             vals.append(-uz[:, j])
     return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                          shape=(points.shape[1], system.T.shape[1]))
-
-
-def preconditioner(weights, pillar_of_vertex, springs, compliance):
-    """Approximate inverse of the condensed operator on the contact set.
-
-    Diagonal: the hat function psi_j (integral w_j) acts like a uniform pressure on a disk
-    of area w_j, whose mean deflection is 16 gamma rho / (3 pi) (Johnson 1985, sec. 3.2), so
-    diag_j ~ (16 / 3 pi) gamma w_j sqrt(w_j / pi), with gamma the local compliance
-    (1 - nu^2) / E of the two faces.  The absolute scale matters: ``springs`` per pillar (or
-    None) add the uniform mode of soft pillars, c_k (W_k W_k^T), by Sherman-Morrison, as in
-    the FFT BEM (at E_p / E_l = 1e-3 it is far more compliant than the local modes).
-    Returns (precondition(r, active), inverse_diagonal).
-    """
-    w = np.asarray(weights, dtype=float)
-    d = 16.0 / (3.0 * math.pi) * compliance * w * np.sqrt(w / math.pi)
-    inv_d = 1.0 / d
-    if springs is None or pillar_of_vertex.min() < 0:
-        return (lambda r, active: r * inv_d * active), inv_d
-    springs = np.asarray(springs, dtype=float)
-    npil = len(springs)
-    pil = pillar_of_vertex
-
-    def apply(r, active):
-        z = r * inv_d * active
-        wa = w * active
-        denom = 1.0 / springs + np.bincount(pil, weights=wa * wa * inv_d, minlength=npil)
-        coef = np.bincount(pil, weights=wa * z, minlength=npil) / denom
-        return (z - coef[pil] * wa * inv_d) * active
-
-    return apply, inv_d
 
 
 def contact_area_share(weights, lam) -> float:

@@ -17,8 +17,10 @@ estimate at L = 1e2); the graded far field itself moves F_T by <= 0.08 % from L 
 
 Solution.  One PARDISO factorisation of the reduced saddle-point matrix; the contact problem
 on the P1 mortar multiplier is solved by constrained conjugate gradients with the condensed
-operator D^T G K^-1 G^T D applied by one back-substitution per iteration.  Linear residual
-and complementarity residual are checked and reported.
+operator D^T G K^-1 G^T D applied by one back-substitution per iteration, preconditioned by
+the contact faces' half-space model and started from that model's solution
+(:mod:`.half_space`).  Linear residual and complementarity residual are checked and
+reported.
 """
 
 from __future__ import annotations
@@ -39,7 +41,8 @@ from pillar_xval.scenes.lattice import lattice_indices
 
 from .._driver import (RTOL_COMPLEMENTARITY, PhaseClock, contact_radius, fem_result,
                        flat_candidate, refuse_rigid_pair, scaled_materials, verdict)
-from .contact import contact_area_share, contact_faces, line_profile, preconditioner
+from .contact import contact_area_share, contact_faces, line_profile
+from .half_space import HalfSpaceModel, serial_dense_algebra
 from .fields import cell_stresses, write_vtu3d
 from .system import assemble_sector
 
@@ -48,6 +51,9 @@ MODEL = "fem-3d"
 # contact of radius a_c; the grading makes the large block cost a few shells of elements.
 BLOCK_FACTOR = 1e4
 MAX_CG_ITERATIONS = 2000
+# Most steps of iterative refinement of the solution reported (float32 factor: each gains
+# four digits or more, see system.SINGLE_MAX_ERROR), stopping at a residual of 1e-12.
+EXACT_REFINE = 4
 # Under a force: the tolerance of the first solve on a mesh built for a guess (it decides
 # whether the mesh is the solved indentation's: a zeta to ~1e-5, where the pillars' reach
 # changes every 0.2-2 % of zeta on the paper's scenes), and the meshes for successive
@@ -255,51 +261,73 @@ def _mesh_and_factorise(setup: dict, mesh_size: float, sector_angle: float,
 def _contact(scene: Scene, setup: dict, system, faces, tol: float, clock: PhaseClock,
              force: float | None = None, start=None) -> dict:
     """The mortar contact by constrained CG on the condensed operator D^T G K^-1 G^T D (one
-    back-substitution per iteration); then the displacement ``x`` under the contact load,
+    back-substitution per application); then the displacement ``x`` under the contact load,
     its residual, the pointwise gaps ``w``, the operator's asymmetry and the indentation
     ``zeta`` (m; with ``force``, the sector's force in N, the one found for it).  ``start``:
-    the multipliers to start from."""
+    the multipliers to start from.
+
+    With a float32 factor (:meth:`.system.SectorSystem.factorise`) the CG's steps and its
+    clipping updates apply the operator by one float32 back-substitution, and the gap it
+    accepts is recomputed with the refined solve (the CG's mixed precision, as the FFT BEM's
+    float32 transforms: :func:`pillar_xval.contact.constrained_cg`)."""
     ell, E_ref = setup["ell"], setup["E_ref"]
     R, zeta = scene.lens.radius_m, scene.indentation_m
     r_pts = np.hypot(*faces.points) * ell
     gap0 = (analytic.lens_gap(R, r_pts) - zeta) / ell
     D, G = faces.D, faces.G
+    single = system.single_error > 0.0
 
-    def apply(lam):
-        x, _ = system.solve(G.T @ (D @ lam), refine=0)
-        return D.T @ (G @ x)
+    def apply(lam):  # columns allowed
+        return D.T @ (G @ system.exact(G.T @ (D @ lam)))
 
-    springs = _springs(scene, setup, faces, E_ref, ell)
-    precondition, inv_d = preconditioner(faces.weights, faces.pillar_of_vertex, springs,
-                                         setup["face_compliance"] * E_ref)
+    if single:
+        def approximate(lam):
+            x, _ = system.solve(G.T @ (D @ lam), refine=0)
+            return D.T @ (G @ x)
+
+        apply.approximate = approximate
+        # its error bound for the CG's bookkeeping (the accepted gap is always exact)
+        apply.approximate_error = 10.0 * system.single_error
+
+        def apply_few(index, values, single=False):
+            lam = np.zeros(faces.n_vertices)
+            lam[index] = values
+            return (apply.approximate if single else apply)(lam)
+
+        apply.apply_few = apply_few
 
     def report(it, err):
         if it % 10 == 0:
             clock.say(f"contact iteration {it}: residual {err:.3g}")
 
     clock.say(f"contact: {faces.n_vertices} pressure unknowns")
-    b, q0, target = D.T @ gap0, np.zeros(faces.n_vertices), None
-    if force is not None:  # Polonsky-Keer's force control; the weighted gap moves by weights
-        b, q0 = b + faces.weights * (zeta / ell), np.maximum(-b, 0.0)
-        target = force / (E_ref * ell**2)
-    if start is not None:
-        q0 = start
-    sol = constrained_cg(apply, b, q0, scale=zeta / ell,
-                         tol=tol, max_iterations=MAX_CG_ITERATIONS, precondition=precondition,
-                         inverse_diagonal=inv_d, weights=faces.weights, callback=report,
-                         force=target, load=None if force is None else faces.weights)
+    b, target = D.T @ gap0, None
+    with serial_dense_algebra():
+        model = HalfSpaceModel(faces, _springs(scene, setup, faces, E_ref, ell),
+                               setup["face_compliance"] * E_ref,
+                               setup["geometry"].sector_angle)
+        # under a force the model's contact at the guessed indentation, rescaled by the CG
+        q0 = model.warm_start(b, zeta / ell) if start is None else start
+        if force is not None:  # Polonsky-Keer's force control; the weighted gap moves by weights
+            b, target = b + faces.weights * (zeta / ell), force / (E_ref * ell**2)
+        sol = constrained_cg(apply, b, q0, scale=zeta / ell,
+                             tol=tol, max_iterations=MAX_CG_ITERATIONS,
+                             precondition=model.precondition,
+                             inverse_diagonal=model.inverse_diagonal, weights=faces.weights,
+                             callback=report, force=target,
+                             load=None if force is None else faces.weights)
     if force is not None:
         zeta = sol.approach * ell
         gap0 = (analytic.lens_gap(R, r_pts) - zeta) / ell
     lam = sol.pressure
     clock.done("contact")
-    load = G.T @ (D @ lam)
-    x, residual = system.solve(load)
+    x, residual = system.solve(G.T @ (D @ lam), refine=EXACT_REFINE)
     w = G @ x + gap0
-    asym = _asymmetry(apply, faces.n_vertices)
+    probes = np.random.default_rng(12345).random((faces.n_vertices, 2))
+    asym = _asymmetry(probes, apply(probes))
     clock.done("post")
     return {"sol": sol, "lam": lam, "x": x, "residual": residual, "w": w, "asymmetry": asym,
-            "zeta": zeta}
+            "preconditioner": model.name, "zeta": zeta}
 
 
 def _result(scene: Scene, setup: dict, mesh, system, faces, contact: dict, mesh_size: float,
@@ -340,10 +368,13 @@ def _result(scene: Scene, setup: dict, mesh, system, faces, contact: dict, mesh_
                        "contact reached the end of the candidate zone" if reaches_end else "")
     diagnostics = {
         "cg_iterations": int(sol.iterations), "cg_reentries": int(sol.reentries),
-        "operator_asymmetry": contact["asymmetry"],
+        "operator_asymmetry": contact["asymmetry"], "preconditioner": contact["preconditioner"],
         "contact_vertices": int(faces.n_vertices), "vertices_in_contact": int(np.sum(lam > 0)),
         "pillars_meshed": [p.name for p in geo.pillars], "reach_factor": reach_factor,
         "factor_nonzeros": system.factor.factor_nonzeros,
+        "factor": {"ordering": system.factor.ordering,
+                   "precision": "single" if system.factor.single else "double",
+                   "single_solve_error": system.single_error},
         "peak_rss_GiB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20,
         "pillar_top_profile_alpha": {"theta_rad": float(sector_angle),
                                      "r_m": (r1 * ell).tolist(), "pressure_Pa": p1.tolist()},
@@ -463,12 +494,12 @@ def _springs(scene, setup, faces, E_ref, ell):
     return [c / share[name] for name in faces.pillar_names]
 
 
-def _asymmetry(apply, n: int) -> float:
-    """|x.Ay - y.Ax| / (|x| |Ay|) for two seeded random vectors: the condensed operator's
-    symmetry as applied (two back-substitutions)."""
-    rng = np.random.default_rng(12345)
-    x, y = rng.random(n), rng.random(n)
-    ax, ay = apply(x), apply(y)
+def _asymmetry(probes: np.ndarray, applied: np.ndarray) -> float:
+    """|x.Ay - y.Ax| / (|x| |Ay|) for two seeded random vectors x, y (``probes``' columns)
+    and the condensed operator applied to them (``applied``, as the CG applies it when it
+    takes a gap as exact): its symmetry."""
+    x, y = probes.T
+    ax, ay = applied.T
     return float(abs(x @ ay - y @ ax) / max(np.linalg.norm(x) * np.linalg.norm(ay), 1e-300))
 
 

@@ -17,7 +17,8 @@ restricted to the motions that the mirror planes through its centre leave invari
 1 unknowns).
 
 Solver.  MKL PARDISO (:mod:`._pardiso`) on the diagonally scaled symmetric indefinite
-matrix, factorised once, with iterative refinement against the scaled matrix.
+matrix, factorised once (node by node in float32 where that is accurate, else after a
+weighted matching in float64), with iterative refinement against the scaled matrix.
 """
 
 from __future__ import annotations
@@ -31,11 +32,18 @@ from skfem import Basis, ElementTetP1, ElementTetP2, ElementVector
 
 from .._pardiso import Pardiso
 from .._reduced import ReducedSystem, SolveError, relative_residual
-from ..forms.solid3d import (derivative_coupling, gradient_product, mixed_coefficients,
-                             pressure_mass)
+from ..forms import tet_p2
+from ..forms.solid3d import mixed_coefficients
 
 # Quadrature: P2 gradients are P1, their products P2: degree 2 is exact on straight tets.
 INTORDER = 2
+# The largest relative error of a float32 solve for which the factor stays in float32: each
+# step of refinement then gains at least four digits (measured 2.6e-6 at Phi = 0.82, mesh_size
+# 2.83, residual 2.9e-10 after one step); beyond it the matrix is factorised in float64.
+SINGLE_MAX_ERROR = 1e-4
+# The relative error of a solve the contact iterations take as exact: a tenth of their
+# tolerance, 1e-8 of the indentation on gaps of the order of the indentation.
+EXACT_ERROR = 1e-9
 E_Z = np.array([0.0, 0.0, 1.0])
 
 
@@ -96,28 +104,72 @@ class SectorSystem(ReducedSystem):
     """
 
     mesh: object
-    basis_u: object
     basis_s: object
     pressures: list
     K: sp.csr_matrix
     T: sp.csr_matrix
     scale: np.ndarray
     rigid: list
+    nodes: np.ndarray = None
     factor: object = None
+    single_error: float = 0.0
+    exact_steps: int = 0
+    _basis_u: object = field(default=None, repr=False)
+
+    @property
+    def basis_u(self):
+        """The vector P2 basis (built when first asked for: only the fields need it)."""
+        if self._basis_u is None:
+            self._basis_u = Basis(self.mesh, ElementVector(ElementTetP2()), intorder=INTORDER)
+        return self._basis_u
 
     def factorise(self) -> None:
-        S = sp.diags(self.scale)
-        self._Ks = (S @ self.K @ S).tocsr()
-        self.factor = Pardiso(self._Ks)
+        """PARDISO's factorisation of the scaled matrix: in float32, ordered node by node
+        (``nodes``: the mesh node of every reduced unknown, see :mod:`.._pardiso`), where
+        that is accurate (:data:`SINGLE_MAX_ERROR`), else PARDISO's default ordering after a
+        weighted matching in float64 (where the moduli differ by 1e6, the node-ordered
+        factor without the matching's pivots loses accuracy too: a refined solve's
+        residual stalled at 3e-11, the condensed operator's asymmetry was 4e-9).
 
-    def solve(self, rhs: np.ndarray, refine: int = 2) -> tuple[np.ndarray, float]:
-        """Solve K x = rhs (columns allowed) with iterative refinement; returns x and the
-        relative scaled residual max_j ||S (K x_j - b_j)|| / ||S b_j|| (NaN, not computed,
-        with ``refine=0``: one back-substitution and nothing else)."""
+        ``single_error``: the relative error of one float32 solve of a random right-hand side
+        (max norm, measured by one step of refinement; 0 for a float64 factor)."""
+        Ks = self.K.copy()
+        Ks.data *= self.scale[np.repeat(np.arange(Ks.shape[0]), np.diff(Ks.indptr))]
+        Ks.data *= self.scale[Ks.indices]
+        self._Ks = Ks
+        self.factor = Pardiso(Ks, nodes=self.nodes, single=True)
+        b = np.random.default_rng(0).standard_normal(Ks.shape[0])
+        y = self.factor.solve(b)
+        self.single_error = float(np.max(np.abs(self.factor.solve(b - Ks @ y)))
+                                  / np.max(np.abs(y)))
+        if not self.single_error <= SINGLE_MAX_ERROR:
+            self.factor = None  # its memory first
+            self.factor = Pardiso(Ks)
+            self.single_error = 0.0
+        # Refinement steps for an error below EXACT_ERROR: each multiplies it by single_error.
+        self.exact_steps = 0 if self.single_error == 0.0 else int(math.ceil(
+            math.log(EXACT_ERROR) / math.log(self.single_error) - 1.0 - 1e-9))
+
+    def exact(self, rhs: np.ndarray) -> np.ndarray:
+        """K^-1 rhs to a relative error below :data:`EXACT_ERROR` (``exact_steps`` steps of
+        refinement, no residual computed); one back-substitution with a float64 factor."""
+        x, _ = self.solve(rhs, refine=self.exact_steps, check=False)
+        return x
+
+    def solve(self, rhs: np.ndarray, refine: int = 2,
+              check: bool = True) -> tuple[np.ndarray, float]:
+        """Solve K x = rhs (columns allowed) with up to ``refine`` steps of iterative
+        refinement against the float64 matrix, until the residual is below 1e-12; returns x
+        and the relative scaled residual max_j ||S (K x_j - b_j)|| / ||S b_j|| (NaN, not
+        computed, with ``refine=0``: one back-substitution and nothing else, of relative
+        error ``single_error`` for a float32 factor; ``check=False``: ``refine`` steps and
+        no residual)."""
         rhs = np.asarray(rhs, dtype=float)
         b = self.scale[:, None] * rhs.reshape(rhs.shape[0], -1)
         y = self.factor.solve(b)
-        if refine == 0:  # inside the contact iterations: the caller checks at the end
+        if refine == 0 or not check:  # inside the contact iterations
+            for _ in range(refine):
+                y += self.factor.solve(b - self._Ks @ y)
             return (self.scale[:, None] * y).reshape(rhs.shape), float("nan")
         rel = relative_residual(b - self._Ks @ y, b)
         for _ in range(refine):
@@ -126,7 +178,6 @@ class SectorSystem(ReducedSystem):
             y += self.factor.solve(b - self._Ks @ y)
             rel = relative_residual(b - self._Ks @ y, b)
         return (self.scale[:, None] * y).reshape(rhs.shape), rel
-
 
 
 def assemble_sector(mesh, materials: dict, *, sector_angle: float, clamp_pillar_base: bool,
@@ -147,81 +198,144 @@ def assemble_sector(mesh, materials: dict, *, sector_angle: float, clamp_pillar_
         Rigid pillars bonded to the elastic substrate (their ``pillar_base_{name}`` faces
         move rigidly), centres in mesh units.
     """
-    ub = Basis(mesh, ElementVector(ElementTetP2()), intorder=INTORDER)
-    sb = Basis(mesh, ElementTetP2(), intorder=INTORDER)  # scalar: pieces, positions and sets
-    nu_dofs = ub.N
-    blocks_A, blocks_B, blocks_C, pressures = [], [], [], []
-    offset = nu_dofs
+    sb = Basis(mesh, ElementTetP2(), intorder=INTORDER)  # numbering, positions and sets
+    n_u = 3 * sb.N
+    pressures, offset = [], n_u
     for body, (E, nu) in materials.items():
-        if progress:
-            progress(f"assembling {body}")
-        elements = mesh.subdomains[body]
         mu, beta, c = mixed_coefficients(E, nu)
-        sb_b = sb.with_elements(elements)
+        elements = mesh.subdomains[body]
         pb = Basis(mesh, ElementTetP1(), elements=elements, intorder=INTORDER)
-        dofs = np.unique(pb.element_dofs)
-        A_b, B = vector_blocks(sb_b, pb, mu)
-        blocks_A.append(A_b)
-        B = B[dofs]
-        M = pressure_mass.assemble(pb).tocsr()[dofs][:, dofs]
-        blocks_B.append(beta * B)
-        blocks_C.append(-c * M)
+        dofs = np.unique(mesh.t[:, elements])  # P1 dofs are the vertices
         pressures.append(PressureSpace3D(body, pb, dofs, beta, mu, offset))
         offset += len(dofs)
-    A = sum(blocks_A[1:], blocks_A[0])
-    B = sp.vstack(blocks_B)
-    K = sp.bmat([[A, B.T], [B, sp.block_diag(blocks_C)]], format="csr")
-
-    T, rigid = _transform(mesh, sb, K.shape[0], sector_angle, clamp_pillar_base, rigid_pillars)
     if progress:
-        progress(f"reducing {K.shape[0]} unknowns to {T.shape[1]}")
-    Kr = (T.T @ K @ T).tocsr()
+        progress(f"assembling {', '.join(materials)}")
+    A, B, M = assemble_blocks(mesh, sb, pressures)
+    T, rigid = _transform(mesh, sb, offset, sector_angle, clamp_pillar_base, rigid_pillars)
+    if progress:
+        progress(f"reducing {offset} unknowns to {T.shape[1]}")
+    n_p = offset - n_u
+    T_u = T[:n_u, :T.shape[1] - n_p]  # T is block diagonal: the pressures map one to one
+    K_uu = T_u.T.tocsr() @ (A @ T_u)
+    del A
+    K_pu = sp.vstack([ps.beta * b for ps, b in zip(pressures, B)], format="csr") @ T_u
+    K_pp = sp.block_diag([-mixed_coefficients(*materials[ps.body])[2] * m
+                          for ps, m in zip(pressures, M)], format="csr")
+    # [[K_uu, K_pu^T], [K_pu, K_pp]] (stacking CSR blocks copies their arrays, no sorting)
+    Kr = sp.vstack([sp.hstack([K_uu, K_pu.T.tocsr()], format="csr"),
+                    sp.hstack([K_pu, K_pp], format="csr")], format="csr")
+    del K_uu
     Kr.eliminate_zeros()
     # Scaling: 1/sqrt|diag| for displacements and rigid motions, 1/sqrt(diag M) for pressures.
     scale = np.zeros(T.shape[1])
     is_u = np.ones(T.shape[1], dtype=bool)
     reduced_of = _reduced_of(T)
-    for ps in pressures:
-        M_diag = pressure_mass.assemble(ps.basis).diagonal()[ps.dofs]
+    for ps, m in zip(pressures, M):
         red = reduced_of[ps.offset:ps.offset + len(ps.dofs)]
-        scale[red] = 1.0 / np.sqrt(M_diag)
+        scale[red] = 1.0 / np.sqrt(m.diagonal())
         is_u[red] = False
     diag = np.abs(Kr.diagonal())
     if np.any(diag[is_u] <= 0):
         raise SolveError("a displacement unknown has no stiffness (a body is not held)")
     scale[is_u] = 1.0 / np.sqrt(diag[is_u])
-    return SectorSystem(mesh, ub, sb, pressures, Kr, T.tocsr(), scale, rigid)
+    nodes = _nodes_of(T, n_u, pressures, reduced_of, rigid)
+    return SectorSystem(mesh, sb, pressures, Kr, T.tocsr(), scale, rigid, nodes)
 
 
-def vector_blocks(sb, pb, mu: float):
-    """A (shear stiffness) and B (divergence coupling) of vector P2 from scalar pieces.
+# Elements per block of the element integrals: ~120 MB of 3 x 3 blocks at a time.
+CHUNK = 16384
 
-    Vector dof 3 s + c is component c of scalar node s (skfem's ElementVector layout).
-    Equal to assembling :func:`forms.solid3d.shear_stiffness` and ``divergence_coupling``
-    on the vector basis (tested), about 5x faster: 10 x 10 local matrices, not 30 x 30.
+
+def assemble_blocks(mesh, sb, pressures: list):
+    """The shear stiffness A (3 N x 3 N, vector dof 3 s + c of P2 node s, summed over the
+    bodies) and each body's divergence coupling B_b (its vertices x 3 N) and pressure mass
+    M_b, with the body's mu (unscaled by beta, 1/lambda).
+
+    The element integrals come from :mod:`..forms.tet_p2`.  A is summed on the pattern of
+    P2 node pairs, one 3 x 3 block per pair (a ninth of the unknowns' pairs to sort), and laid
+    out row by row as CSR directly.
     """
-    n = sb.N
-    K = [[None] * 3 for _ in range(3)]
-    for p in range(3):
-        for q in range(p, 3):
-            K[p][q] = gradient_product(p, q).assemble(sb, mu=mu).tocsr()
-            K[q][p] = K[p][q].T.tocsr()
-    lap = K[0][0] + K[1][1] + K[2][2]
-    rows, cols, vals = [], [], []
-    for a in range(3):      # trial component
-        for b in range(3):  # test component
-            blk = (K[a][b] + lap if a == b else K[a][b]).tocoo()
-            rows.append(3 * blk.row + b)
-            cols.append(3 * blk.col + a)
-            vals.append(blk.data)
-    A = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                      shape=(3 * n, 3 * n))
-    Bs = [derivative_coupling(a).assemble(sb, pb).tocoo() for a in range(3)]
-    B = sp.csr_matrix((np.concatenate([blk.data for blk in Bs]),
-                       (np.concatenate([blk.row for blk in Bs]),
-                        np.concatenate([3 * blk.col + a for a, blk in enumerate(Bs)]))),
-                      shape=(pb.N, 3 * n))
-    return A, B
+    N = sb.N
+    bodies = [mesh.subdomains[ps.body] for ps in pressures]
+    elements = np.concatenate(bodies)
+    first = np.cumsum([0] + [len(e) for e in bodies])  # body k: elements[first[k]:first[k+1]]
+    mu = np.concatenate([np.full(len(e), ps.mu) for ps, e in zip(pressures, bodies)])
+    nodes = sb.element_dofs[:, elements].T  # (E, 10)
+    row, col, where = _pair_pattern(nodes, N)
+    blocks = np.zeros(9 * len(row))
+    grad, volume = tet_p2.barycentric_gradients(mesh.p, mesh.t[:, elements])
+    divergence = np.empty((len(elements), 4, 10, 3))
+    for lo in range(0, len(elements), CHUNK):
+        sl = slice(lo, lo + CHUNK)
+        dphi = tet_p2.p2_gradients(grad[sl])
+        V = tet_p2.elasticity_blocks(tet_p2.gradient_products(dphi, volume[sl]), mu[sl])
+        index = (where[sl, :, None] * 9 + np.arange(9)).ravel()
+        blocks += np.bincount(index, weights=V.ravel(), minlength=len(blocks))
+        divergence[sl] = tet_p2.divergence_blocks(dphi, volume[sl])
+    del where, grad
+    A = _vector_csr(row, col, blocks.reshape(-1, 3, 3), N)
+    B, M = [], []
+    for k, ps in enumerate(pressures):
+        sl = slice(first[k], first[k + 1])
+        nd, vals, n_p = nodes[sl], divergence[sl], len(ps.dofs)
+        row = np.searchsorted(ps.dofs, nd[:, :4])  # vertex q of each element, in the body's
+        rows = np.broadcast_to(row[:, :, None, None], vals.shape)
+        cols = np.broadcast_to(3 * nd[:, None, :, None] + np.arange(3), vals.shape)
+        B.append(sp.csr_matrix((vals.ravel(), (rows.ravel(), cols.ravel())),
+                               shape=(n_p, 3 * N)))
+        m = tet_p2.pressure_masses(volume[sl])
+        r, c = np.broadcast_to(row[:, :, None], m.shape), np.broadcast_to(row[:, None, :], m.shape)
+        M.append(sp.csr_matrix((m.ravel(), (r.ravel(), c.ravel())), shape=(n_p, n_p)))
+    return A, B, M
+
+
+def _pair_pattern(nodes: np.ndarray, N: int):
+    """(row, col) of the node pairs that share an element, sorted by row then column, and
+    where[e, 10 t + s]: the index of the pair (nodes[e, t], nodes[e, s])."""
+    k = nodes.shape[1]
+    pattern = sp.csr_matrix((np.ones(nodes.size * k, dtype=np.float32),
+                             (np.repeat(nodes, k, axis=1).ravel(), np.tile(nodes, k).ravel())),
+                            shape=(N, N))
+    pattern.sum_duplicates()
+    pattern.sort_indices()
+    row = np.repeat(np.arange(N, dtype=np.int64), np.diff(pattern.indptr))
+    keys = row * N + pattern.indices
+    pairs = (nodes[:, :, None].astype(np.int64) * N + nodes[:, None, :]).reshape(len(nodes), -1)
+    return row, pattern.indices.astype(np.int64), np.searchsorted(keys, pairs)
+
+
+def _vector_csr(row, col, blocks, N) -> sp.csr_matrix:
+    """The 3 N x 3 N CSR matrix with the 3 x 3 block ``blocks[k]`` (row component b, column
+    component a) at node pair (row[k], col[k]), the pairs sorted by row, then column."""
+    indptr_s = np.searchsorted(row, np.arange(N + 1))
+    length = np.diff(indptr_s)
+    k = np.arange(len(row))
+    start = indptr_s[row]
+    data = np.empty(9 * len(row))
+    indices = np.empty(9 * len(row), dtype=np.int64)
+    for b in range(3):
+        first = 3 * (3 * start + b * length[row] + (k - start))
+        for a in range(3):
+            data[first + a] = blocks[:, b, a]
+            indices[first + a] = 3 * col + a
+    indptr = np.append((9 * indptr_s[:-1, None] + 3 * np.arange(3) * length[:, None]).ravel(),
+                       9 * len(row))
+    A = sp.csr_matrix((data, indices, indptr), shape=(3 * N, 3 * N))
+    A.has_sorted_indices = True
+    return A
+
+
+def _nodes_of(T, n_u: int, pressures: list, reduced_of: np.ndarray, rigid: list):
+    """The mesh node of every reduced unknown: a displacement's P2 node, a pressure's vertex
+    (P1 dofs are vertices, numbered first by the P2 basis too), and a label past the nodes
+    for the motions of each rigid pillar."""
+    Tc = T.tocsc()
+    nodes = Tc.indices[Tc.indptr[:-1]] // 3  # a displacement column's first row: 3 s + c
+    for k, rp in enumerate(rigid):
+        nodes[rp.columns] = n_u // 3 + k
+    for ps in pressures:
+        nodes[reduced_of[ps.offset:ps.offset + len(ps.dofs)]] = ps.dofs
+    return nodes
 
 
 def _reduced_of(T) -> np.ndarray:

@@ -152,47 +152,82 @@ class WedgeGeometry:
         (size edge_ratio / n) and the centre pillar's top (size centre_ratio / n), capped at a
         tenth of the block.
         """
+        return self.size_callback()(0, 0, x, y, z, 0.0)
+
+    def size_callback(self):
+        """The size rule of :meth:`size_at` as gmsh's size callback ``f(dim, tag, x, y, z,
+        lc)``, its constants bound once and the meshed centres near each rounded lattice
+        point looked up once (gmsh calls it ~5e5 times a mesh, mostly to integrate the size
+        along the curves near the pillars): 1.5-2x faster per call than reading them from
+        the geometry at every call, to the same values (bitwise)."""
+        cached = self.__dict__.get("_size_callback")
+        if cached is not None:
+            return cached
+        hypot, inf = math.hypot, math.inf
         h_c = 1.0 / self.elements_across_contact
         h_e = self.edge_ratio * h_c
         g = self.growth
         cap = 0.1 * self.block_size_m / self.focus_radius_m
+        scale = self.mesh_size
         if not self.has_pillars:
-            rho = math.hypot(x, y)
             c = self.contact_radius_m / self.focus_radius_m
-            size = min(h_c + g * math.hypot(max(rho - c, 0.0), z),
-                       h_e + g * math.hypot(rho - 1.0, z))
-            return self.mesh_size * min(size, cap)
-        H = self.pillar_height_m / self.focus_radius_m
-        cx, cy = self._nearest_centre(x, y)
-        # Only the nearest pillar matters: pillars do not overlap, so the nearest centre is
-        # also nearest to every top, rim and base feature (and each size grows with distance).
-        rho = math.hypot(x - cx, y - cy)
-        size = min(cap, h_c + g * math.hypot(max(rho - 1.0, 0.0), z),
-                   h_e + g * math.hypot(rho - 1.0, min(abs(z), abs(z + H))))
-        if self.centre_ratio < 1.0:
-            r0 = math.hypot(x, y)  # the centre pillar's top: the disk r <= 1 at z = 0
-            size = min(size, self.centre_ratio * h_c + g * math.hypot(max(r0 - 1.0, 0.0), z))
-        return self.mesh_size * size
 
-    def _nearest_centre(self, x: float, y: float):
-        """Centre (focus units) of the meshed pillar nearest to (x, y): the lattice point
-        found by rounding the lattice coordinates, checked with its eight index
-        neighbours, or a scan of all pillars when none of those is meshed."""
+            def size(dim, tag, x, y, z, lc):
+                rho = hypot(x, y)
+                s = min(h_c + g * hypot(max(rho - c, 0.0), z), h_e + g * hypot(rho - 1.0, z))
+                return scale * min(s, cap)
+
+            object.__setattr__(self, "_size_callback", size)
+            return size
+        H = self.pillar_height_m / self.focus_radius_m
+        h_0 = self.centre_ratio * h_c
+        centred = self.centre_ratio < 1.0
         table, e = self._lattice
-        if e > 0.0:
-            m0 = round(2.0 * y / (SQRT3 * e))
-            n0 = round((2.0 * x / e + m0) / 2.0)
-            best, where = math.inf, None
-            for dn in (-1, 0, 1):
-                for dm in (-1, 0, 1):
-                    c = table.get((n0 + dn, m0 + dm))
-                    if c is not None:
-                        d2 = (c[0] - x) ** 2 + (c[1] - y) ** 2
-                        if d2 < best:
-                            best, where = d2, c
-            if where is not None:
-                return where
-        return min(table.values(), key=lambda c: (c[0] - x) ** 2 + (c[1] - y) ** 2)
+        row = SQRT3 * e
+        centres = list(table.values())
+        around = [(dn, dm) for dn in (-1, 0, 1) for dm in (-1, 0, 1)]
+        near = {}  # rounded lattice indices -> the meshed centres among their 3 x 3 block
+
+        def size(dim, tag, x, y, z, lc):
+            # The nearest meshed pillar: the lattice point found by rounding the lattice
+            # coordinates, checked with its eight index neighbours, or a scan of all pillars
+            # when none of those is meshed.  Only the nearest pillar matters: pillars do not
+            # overlap, so the nearest centre is also nearest to every top, rim and base
+            # feature (and each size grows with distance).  Comparisons spell out min, max
+            # and abs (the first of equal values wins, as with them), and hypot takes signed
+            # arguments: the same values, without the builtins' calls.
+            candidates = centres
+            if e > 0.0:
+                m0 = round(2.0 * y / row)
+                n0 = round((2.0 * x / e + m0) / 2.0)
+                candidates = near.get((n0, m0))
+                if candidates is None:
+                    candidates = [table[k] for k in ((n0 + dn, m0 + dm) for dn, dm in around)
+                                  if k in table] or centres
+                    near[(n0, m0)] = candidates
+            best = inf
+            for p in candidates:
+                d2 = (p[0] - x) ** 2 + (p[1] - y) ** 2
+                if d2 < best:
+                    best, (cx, cy) = d2, p
+            rim = hypot(x - cx, y - cy) - 1.0
+            s = cap
+            t = h_c + g * hypot(rim if rim > 0.0 else 0.0, z)
+            if t < s:
+                s = t
+            top, base = (z if z >= 0.0 else -z), (z + H if z + H >= 0.0 else -(z + H))
+            t = h_e + g * hypot(rim, base if base < top else top)
+            if t < s:
+                s = t
+            if centred:  # the centre pillar's top: the disk r <= 1 at z = 0
+                r0 = hypot(x, y) - 1.0
+                t = h_0 + g * hypot(r0 if r0 > 0.0 else 0.0, z)
+                if t < s:
+                    s = t
+            return scale * s
+
+        object.__setattr__(self, "_size_callback", size)
+        return size
 
     @property
     def _lattice(self):

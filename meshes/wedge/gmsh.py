@@ -296,7 +296,7 @@ def _mesh(gmsh, geo: WedgeGeometry, pairs) -> None:
     gmsh.option.setNumber("Mesh.Algorithm3D", 1)  # Delaunay volumes
     gmsh.option.setNumber("Mesh.ElementOrder", 1)  # scikit-fem raises the order itself
     gmsh.option.setNumber("Mesh.Optimize", 1)
-    set_size_callback(gmsh, lambda dim, tag, x, y, z, lc: geo.size_at(x, y, z))
+    set_size_callback(gmsh, geo.size_callback())
     for lens_face, lower_face in pairs:
         gmsh.model.mesh.setPeriodic(2, [lens_face], [lower_face], IDENTITY)
     gmsh.model.mesh.generate(3)

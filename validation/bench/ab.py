@@ -18,7 +18,10 @@ and the load averages to ``DIR/bench_ab.md`` and ``DIR/bench_ab.json``.
 
 Cases: ``dense`` (the dense BEM at its default P = 11 on paper-fig3-dense, zeta = 0.5 um),
 ``fft:N`` and ``elastic-fft:N`` (the FFT BEM with Hooke or elastic pillars at N cells per
-diameter on paper-fig3-dense), optionally ``@tol`` (the FFT's tolerance), e.g. ``fft:58@1e-12``.
+diameter on paper-fig3-dense), optionally ``@tol`` (the FFT's tolerance), e.g. ``fft:58@1e-12``;
+``fem3d:PHI:MESH_SIZE`` (fem-3d on paper-fig3-sparse with surface fraction PHI, the lattice
+study's scene at zeta = 0.3 um), whose rows add the median time of each phase of the solve and
+the interpreter's peak RSS (its own, since each run is a fresh process).
 """
 
 from __future__ import annotations
@@ -32,6 +35,9 @@ import sys
 from pathlib import Path
 
 SCENE = ("paper-fig3-dense", ["load.indentation_um=0.5"])
+FEM3D_SCENE = "paper-fig3-sparse"
+# The phases fem-3d times (its diagnostics' time_s), in the order they run.
+FEM3D_PHASES = ("mesh", "assemble", "factorise", "contact", "post")
 # The fine level's solve per iteration over the bare FFT pair: wall over wall on the model's
 # own padded grid; wall over wall on the 2 n - 1 padded grid (one yardstick for both sides
 # when their padding differs); CPU over CPU (both threads: steadier on a loaded machine).
@@ -46,12 +52,14 @@ from pillar_xval.scenes import load_scene
 scene = load_scene(case["scene"], case["overrides"])
 if case["model"] == "dense":
     from bem_solver import solve_dense as solve
+elif case["model"] == "fem3d":
+    from fem_reference.solid3d import solve
 else:
     from bem_solver import solve_fft as solve
-if case["model"] != "dense" and case["pillars"] == "elastic":
+if case["model"] == "fft" and case["pillars"] == "elastic":
     from bem_solver._elastic_pillar import scene_compliance
     scene_compliance(scene)  # the cached compliance, read outside the timing
-if case["model"] != "dense":  # the fine level's CG is the last one a solve runs
+if case["model"] == "fft":  # the fine level's CG is the last one a solve runs
     import bem_solver._fft as fft_module
     cg_of_module, fine = fft_module.constrained_cg, {}
     def timed_cg(*a, **k):
@@ -60,15 +68,19 @@ if case["model"] != "dense":  # the fine level's CG is the last one a solve runs
         fine.update(wall=time.perf_counter() - t, cpu=time.process_time() - c)
         return res
     fft_module.constrained_cg = timed_cg
-args = () if case["model"] == "dense" else (case["cells"],)
-kw = {} if case["model"] == "dense" else {"pillars": case["pillars"], **case["options"]}
+args = (case["cells"],) if case["model"] != "dense" else ()
+kw = {"pillars": case["pillars"], **case["options"]} if case["model"] == "fft" else {}
 for _ in range(2 if warm else 1):
     t, c = time.perf_counter(), time.process_time()
     r = solve(scene, *args, **kw)
     wall, cpu = time.perf_counter() - t, time.process_time() - c
 out = {"wall_s": wall, "cpu_s": cpu, "iterations": r.iterations, "converged": r.converged,
        "F_T": r.total_force_N, "sigma0": r.centre_pressure_Pa, "a": r.contact_radius_m}
-if case["model"] != "dense":  # the fine level's time per iteration over the bare FFT pair
+if case["model"] == "fem3d":
+    import resource
+    out["phases"] = r.diagnostics["time_s"]
+    out["peak_rss_GiB"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20
+if case["model"] == "fft":  # the fine level's time per iteration over the bare FFT pair
     import statistics
     import numpy as np
     import scipy.fft as sfft
@@ -100,15 +112,31 @@ print(json.dumps(out))
 
 
 def parse_case(text: str) -> dict:
+    if text.startswith("fem3d:"):
+        return _parse_fem3d(text)
     name, _, tol = text.partition("@")
     model, _, cells = name.partition(":")
     if model not in ("dense", "fft", "elastic-fft") or (model != "dense") != bool(cells):
-        raise argparse.ArgumentTypeError(f"{text!r}: expected dense, fft:N or elastic-fft:N")
+        raise argparse.ArgumentTypeError(f"{text!r}: expected dense, fft:N, elastic-fft:N or "
+                                         "fem3d:PHI:MESH_SIZE")
     options = {"tol": float(tol)} if tol else {}
     return {"label": text, "model": "dense" if model == "dense" else "fft",
             "pillars": "elastic" if model == "elastic-fft" else "hooke",
             "cells": int(cells) if cells else None, "options": options,
             "scene": SCENE[0], "overrides": SCENE[1]}
+
+
+def _parse_fem3d(text: str) -> dict:
+    parts = text.split(":")
+    try:
+        phi, mesh_size = float(parts[1]), float(parts[2])
+        if len(parts) != 3:
+            raise ValueError
+    except (IndexError, ValueError):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected fem3d:PHI:MESH_SIZE, e.g. "
+                                         "fem3d:0.82:2") from None
+    return {"label": text, "model": "fem3d", "cells": mesh_size, "options": {},
+            "scene": FEM3D_SCENE, "overrides": [f"pillars.surface_fraction={phi}"]}
 
 
 def run_once(root: Path, case: dict, warm: bool) -> dict:
@@ -136,6 +164,10 @@ def summarise(case, runs) -> list[dict]:
                      "applications": rs[-1].get("applications"),
                      **{key: statistics.median([r.get(key, float("nan")) for r in rs])
                         for key in PER_ITERATION}})
+        if "phases" in rs[-1]:
+            rows[-1]["phases_median_s"] = {k: statistics.median([r["phases"][k] for r in rs])
+                                           for k in FEM3D_PHASES}
+            rows[-1]["peak_rss_median_GiB"] = statistics.median([r["peak_rss_GiB"] for r in rs])
     base, this = rows
     this["speed-up"] = base["wall_median_s"] / this["wall_median_s"]
     this["max_rel_diff"] = max(_rel(base[q], this[q]) for q in ("F_T", "sigma0", "a"))
@@ -155,6 +187,13 @@ def table(rows) -> str:
             + "; ".join(f"{r[key]:.2f}" for key in PER_ITERATION) + " | "
             f"{r['F_T']:.10g} | {r['sigma0']:.10g} | {r['a']:.10g} | "
             f"{r.get('speed-up', float('nan')):.2f} | {r.get('max_rel_diff', float('nan')):.2e} |")
+    phased = [r for r in rows if "phases_median_s" in r]
+    if phased:
+        lines += ["", "| case | side | " + " | ".join(f"{k} s" for k in FEM3D_PHASES)
+                  + " | peak RSS GiB |", "|" + "---|" * (len(FEM3D_PHASES) + 3)]
+        lines += [f"| {r['case']} | {r['side']} | "
+                  + " | ".join(f"{r['phases_median_s'][k]:.1f}" for k in FEM3D_PHASES)
+                  + f" | {r['peak_rss_median_GiB']:.2f} |" for r in phased]
     return "\n".join(lines)
 
 
@@ -166,8 +205,8 @@ def main(argv=None) -> int:
                     help="checkout of the new code (default: this one)")
     ap.add_argument("--out", type=Path, required=True, help="folder for bench_ab.md/.json")
     ap.add_argument("--case", type=parse_case, action="append",
-                    help="dense, fft:N, elastic-fft:N, optionally @tol (repeatable; "
-                         "default: dense)")
+                    help="dense, fft:N, elastic-fft:N, optionally @tol, or "
+                         "fem3d:PHI:MESH_SIZE (repeatable; default: dense)")
     ap.add_argument("--repeats", type=int, default=5, help="runs per side and case (5)")
     ap.add_argument("--warm", action="store_true", help="time a second solve per interpreter")
     args = ap.parse_args(argv)
