@@ -6,8 +6,8 @@ STAMP  := $(VENV)/.installed
 OUT    ?= out
 
 .PHONY: demo study-gecit study-lattice figures test test-slow bench-bem bench-fft bench-gpu bench-fem3d \
-	bench-elastic bench-engine bench-figures bench-startup clean calibrate validate-planner extremes \
-	regimes
+	bench-elastic bench-engine bench-figures bench-startup bench-force clean calibrate \
+	validate-planner extremes regimes
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -94,6 +94,13 @@ bench-fem3d: $(STAMP)
 # the claims in $(OUT)/bench-elastic/elastic_fem3d.md (30-60 minutes; resumes).
 bench-elastic: $(STAMP)
 	$(PY) -m validation.bench.elastic_fem3d --out $(OUT)/bench-elastic
+
+# Force control against indentation control at the same resolution, timed alternately in one
+# run: paper-fig3-dense with bem-fft (N = 32, 64), bem (P = 11) and fem-3d (mesh_size 2.83, 2,
+# 1.41), single-pillar with fem-axisym (mesh_size 2, 1, 0.5); the table in
+# $(OUT)/bench-force/bench_force.md (about 30 minutes, most of it fem-3d at 1.41).
+bench-force: $(STAMP)
+	$(PY) -m validation.bench.force --out $(OUT)/bench-force
 
 # CLI start-up: `pillar-xval --version` and `solve --help`, median of 5 fresh processes each.
 bench-startup: $(STAMP)

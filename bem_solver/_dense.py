@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -89,56 +90,107 @@ def solve_dense(scene: Scene, elements_per_diameter: int = 11, cells: str = "cov
     check_pillars(pillars)
     t0 = time.perf_counter()
     P = int(elements_per_diameter)
+    if scene.force_N is not None:
+        from ._dense_force import solve_under_force
+
+        return solve_under_force(scene, P, cells, contact, pillars, compliance, progress, t0)
     _refuse_if_too_large(scene, P, cells, contact)
-    elastic = None
-    if uses_elastic_block(scene, pillars):
-        modal = scene_compliance(scene, compliance, progress=progress)
-        pattern = cell_pattern(P, cells)
-        cells_m = pattern.scaled(scene.pillars.diameter_m)
-        rows = representative_rows(scene, pattern)
-        _refuse_large_block(P, len(rows), len(pattern.x), modal)
-        elastic = {"modal": modal, "pattern": pattern, "rows": rows,
-                   "X": cached_excess_block(scene, cells_m, modal, rows, (P, cells))}
-    r_max = overlap_radius(scene)
-    hertz_radius = math.sqrt(scene.lens.radius_m * scene.indentation_m)
-    radius = _initial_radius(scene, contact)
+    elastic = elastic_setup(scene, P, cells, pillars, compliance, progress)
+    level = solve_rounds(scene, P, cells, contact, elastic)
+    return level_result(scene, level, time.perf_counter() - t0)
 
-    # Collocation points out to the overlap radius, built once for the outside check.
-    reach = None
-    if contact == "exact" and radius < r_max:
-        outer = discretise(scene, P, cells, r_max)
-        reach = (outer.rep_x, outer.rep_y)
 
+def level_result(scene: Scene, level: "Level", wall: float) -> ContactResult:
+    """The result of ``level`` for ``scene`` (indentation-controlled: the given indentation,
+    or the one a force-controlled solve found); ``wall``: its time (s)."""
+    return _result(scene, level.disc, level.sol, level.P, level.cells, level.contact,
+                   level.rounds, level.extra, wall)
+
+
+def elastic_setup(scene: Scene, P: int, cells: str, pillars: str, compliance=None,
+                  progress=None) -> dict | None:
+    """The elastic pillar's compliance and its block of excess compliance on the cells of
+    one pillar (None with Hooke pillars)."""
+    if not uses_elastic_block(scene, pillars):
+        return None
+    modal = scene_compliance(scene, compliance, progress=progress)
+    pattern = cell_pattern(P, cells)
+    cells_m = pattern.scaled(scene.pillars.diameter_m)
+    rows = representative_rows(scene, pattern)
+    _refuse_large_block(P, len(rows), len(pattern.x), modal)
+    return {"modal": modal, "pattern": pattern, "rows": rows,
+            "X": cached_excess_block(scene, cells_m, modal, rows, (P, cells))}
+
+
+@dataclass
+class Level:
+    """A finished dense solve that can be solved again at another approach on the same
+    operator (:func:`resolve`): the scene it was discretised for, its options, the candidate
+    region (``radius``, m) with its discretisation and reduced operator ``M``, the solution,
+    its indentation ``zeta`` (m), and the collocation points of the outside check."""
+
+    scene: Scene
+    P: int
+    cells: str
+    contact: str
+    elastic: dict | None
+    disc: Discretisation
+    M: np.ndarray
+    radius: float
+    sol: ContactSolution
+    rounds: int
+    extra: dict
+    zeta: float
+    reach: tuple | None = None
+    reach_radius: float = 0.0
+
+
+def solve_rounds(scene: Scene, P: int, cells: str, contact: str, elastic: dict | None,
+                 force: float | None = None, zeta: float | None = None,
+                 start: Level | None = None) -> Level:
+    """The contact on candidate regions grown until no contact is possible beyond them.
+
+    ``scene`` is indentation-controlled: its indentation is the given one, or with ``force``
+    (N) the design indentation of a force-controlled solve (the first candidate region, and a
+    flat scene's cell size), whose indentation is then solved for with the force.  ``zeta``
+    (m) solves at another indentation than the scene's on the discretisation of ``start``
+    (:func:`resolve`), whose region and operator are reused while they hold the contact."""
+    zeta = scene.indentation_m if zeta is None else zeta
+    r_max = _overlap(scene.lens.radius_m, zeta) if start is not None else overlap_radius(scene)
+    hertz_radius = math.sqrt(scene.lens.radius_m * zeta)
+    radius = _initial_radius(scene, contact) if start is None else start.radius
+    reach, reach_radius = (None, 0.0) if start is None else (start.reach, start.reach_radius)
     rounds = 0
     while True:
         rounds += 1
-        disc = discretise(scene, P, cells, radius)
-        if disc.n_unknowns > MAX_UNKNOWNS:
-            raise ScopeError(
-                f"elements_per_diameter = {P}: {disc.n_unknowns} unknowns exceed the dense "
-                f"limit {MAX_UNKNOWNS}; use a smaller P or the FFT model (--model bem-fft)")
-        block = None
-        if elastic is not None:
-            img_cell = image_cells(disc, elastic["pattern"], scene.pillars.diameter_m)
-            block = reduced_block(disc, elastic["X"], img_cell, elastic["rows"])
-            if uses_coupling(scene, elastic["modal"]):
-                block += coupling_block(scene, disc, elastic["modal"])
-        M = reduced_operator(scene, disc, block)
-        # Rows of the reduced operator are weighted by the orbit sizes: gap_i / w_i is in m.
-        b = disc.rep_weight * (lens_gap(scene, disc.rep_x, disc.rep_y) - scene.indentation_m)
-        if contact == "exact":
+        if start is not None and radius == start.radius:
+            disc, M = start.disc, start.M
+            guess = start.sol.pressure > 0
+        else:
+            disc, M = _operator(scene, P, cells, radius, elastic)
             # Start from the Hertz contact disk: a few active-set steps fewer than {overlap}.
             guess = np.hypot(disc.rep_x, disc.rep_y) <= hertz_radius
-            sol = solve_contact(M, b, scale=scene.indentation_m, weights=disc.rep_weight,
-                                groups=disc.rep_orbit, initial=guess, tol=RTOL_COMPLEMENTARITY)
+        # Rows of the reduced operator are weighted by the orbit sizes: gap_i / w_i is in m.
+        gap0 = lens_gap(scene, disc.rep_x, disc.rep_y)
+        b = disc.rep_weight * (gap0 if force is not None else gap0 - zeta)
+        if contact == "exact":
+            sol = solve_contact(M, b, scale=zeta, weights=disc.rep_weight,
+                                groups=disc.rep_orbit, initial=guess, tol=RTOL_COMPLEMENTARITY,
+                                force=force, load=None if force is None else disc.rep_weight)
             extra = {}
+            if force is not None:
+                zeta = sol.approach
+                r_max = _overlap(scene.lens.radius_m, zeta)
             if not sol.converged:
                 break  # reported in the result; the candidate region is not grown further
         else:
             sol, extra = _paper_search(scene, disc, M, b)
+        if contact == "exact" and radius < r_max * (1.0 - 1e-12) and reach_radius < r_max:
+            outer = discretise(scene, P, cells, r_max)
+            reach, reach_radius = (outer.rep_x, outer.rep_y), r_max
         violated = (None if contact == "paper" else
                     _outside_violations(scene, disc, sol.pressure, reach, radius, r_max,
-                                        elastic))
+                                        elastic, zeta))
         if violated is None:
             break
         radius = min(r_max, violated + (scene.pillars.diameter_m if scene.pillars else
@@ -146,8 +198,37 @@ def solve_dense(scene: Scene, elements_per_diameter: int = 11, cells: str = "cov
     if elastic is not None:
         extra = {**extra, "pillars": "elastic",
                  "pillar_compliance": _compliance_summary(elastic["modal"])}
-    return _result(scene, disc, sol, P, cells, contact, rounds, extra,
-                   time.perf_counter() - t0)
+    return Level(scene, P, cells, contact, elastic, disc, M, radius, sol, rounds, extra, zeta,
+                 reach, reach_radius)
+
+
+def resolve(level: Level, zeta: float) -> Level:
+    """``level`` solved again under the indentation ``zeta`` (m) on its discretisation: its
+    operator while its candidate region holds the contact, grown otherwise."""
+    return solve_rounds(level.scene, level.P, level.cells, level.contact, level.elastic,
+                        zeta=zeta, start=level)
+
+
+def _operator(scene: Scene, P: int, cells: str, radius: float, elastic: dict | None):
+    """(discretisation, reduced operator) of the candidate region ``radius`` (m)."""
+    disc = discretise(scene, P, cells, radius)
+    if disc.n_unknowns > MAX_UNKNOWNS:
+        raise ScopeError(
+            f"elements_per_diameter = {P}: {disc.n_unknowns} unknowns exceed the dense "
+            f"limit {MAX_UNKNOWNS}; use a smaller P or the FFT model (--model bem-fft)")
+    block = None
+    if elastic is not None:
+        img_cell = image_cells(disc, elastic["pattern"], scene.pillars.diameter_m)
+        block = reduced_block(disc, elastic["X"], img_cell, elastic["rows"])
+        if uses_coupling(scene, elastic["modal"]):
+            block += coupling_block(scene, disc, elastic["modal"])
+    return disc, reduced_operator(scene, disc, block)
+
+
+def _overlap(radius_m: float, zeta: float) -> float:
+    """Radius (m) where the undeformed lens meets the tops at approach ``zeta``
+    (:func:`._discretise.overlap_radius` at an indentation the scene does not give)."""
+    return math.sqrt(max(2.0 * radius_m * zeta - zeta * zeta, 0.0))
 
 
 def _compliance_summary(modal) -> dict:
@@ -283,10 +364,11 @@ def _paper_search(scene, disc, M, b):
     return sol, extra
 
 
-def _outside_violations(scene, disc, q, reach, radius, r_max, elastic=None):
+def _outside_violations(scene, disc, q, reach, radius, r_max, elastic=None, zeta=None):
     """Largest radius beyond the candidate region where contact cannot be ruled out, or None.
 
-    ``reach`` holds the representative collocation points out to the overlap radius.
+    ``reach`` holds the representative collocation points out to the overlap radius;
+    ``zeta`` is the indentation (default the scene's).
     Displacements are bounded below by (gamma/pi) F / (|x - x_F| + rho) for a force F spread
     within rho of x_F (the Hooke shortening, also >= 0, is left out of the bound); where the
     lens gap plus this bound stays positive, no contact is possible.  An elastic pillar's own
@@ -319,7 +401,7 @@ def _outside_violations(scene, disc, q, reach, radius, r_max, elastic=None):
         floor = min(0.0, float(elastic["X"].min()))
         terms = np.where(own, lens_share * terms + floor * forces[loaded][None, :], terms)
     u_low = terms.sum(axis=1)
-    gap_low = lens_gap(scene, ox, oy) - scene.indentation_m + u_low
+    gap_low = lens_gap(scene, ox, oy) - (scene.indentation_m if zeta is None else zeta) + u_low
     bad = gap_low < 0
     return float(np.hypot(ox[bad], oy[bad]).max()) if bad.any() else None
 
@@ -432,4 +514,5 @@ def _residual_of(sol, q, gap, scene) -> float:
     return min_map_residual(np.abs(q), gap) / scene.indentation_m
 
 
-__all__ = ["estimate_memory", "lens_gap", "solve_dense"]
+__all__ = ["Level", "elastic_setup", "estimate_memory", "lens_gap", "level_result", "resolve",
+           "solve_dense", "solve_rounds"]

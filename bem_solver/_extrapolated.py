@@ -45,7 +45,7 @@ from pillar_xval.scenes import Scene
 
 from ._dense import solve_dense
 
-__all__ = ["MODEL_NAME", "extrapolation_order", "fine_level", "richardson",
+__all__ = ["MODEL_NAME", "extrapolate", "extrapolation_order", "fine_level", "richardson",
            "solve_dense_extrapolated"]
 
 MODEL_NAME = "bem-richardson"
@@ -128,9 +128,22 @@ def solve_dense_extrapolated(scene: Scene, elements_per_diameter: int = 5,
     """
     t0 = time.perf_counter()
     p1 = elements_per_diameter
+    if scene.force_N is not None:
+        from ._extrapolated_force import solve_under_force
+
+        return solve_under_force(scene, p1, cells, pillars, compliance, t0)
     coarse = solve_dense(scene, p1, cells=cells, pillars=pillars, compliance=compliance)
-    p2 = fine_level(p1)
-    fine = solve_dense(scene, p2, cells=cells, pillars=pillars, compliance=compliance)
+    fine = solve_dense(scene, fine_level(p1), cells=cells, pillars=pillars,
+                       compliance=compliance)
+    return extrapolate(scene, coarse, fine, cells, t0)
+
+
+def extrapolate(scene: Scene, coarse: ContactResult, fine: ContactResult, cells: str,
+                t0: float) -> ContactResult:
+    """The extrapolated result of the two levels on ``scene`` (module docstring); ``t0``: the
+    start of the solve (s, ``time.perf_counter``)."""
+    p1 = coarse.discretisation["elements_per_diameter"]
+    p2 = fine.discretisation["elements_per_diameter"]
     order = extrapolation_order(scene)
     sigma0 = richardson(coarse.centre_pressure_Pa, fine.centre_pressure_Pa, p1, p2, order)
     if scene.pillars is None:

@@ -53,6 +53,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -69,7 +70,7 @@ from ._fft_operator import CirculantPreconditioner, CompliancePlan, near_field_c
 from ._limits import PRECISIONS
 from ._xp import NumpyDevice, select_backend
 
-__all__ = ["solve_fft"]
+__all__ = ["finish", "run_cg", "solve_fft", "warm_levels"]
 
 MODEL_NAME = "bem-fft"
 DEFAULT_TOLERANCE = 1e-8
@@ -164,12 +165,70 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     if precision not in PRECISIONS:
         raise InputError(f"precision = {precision!r}: choose one of {', '.join(PRECISIONS)}")
     be = select_backend(device, workers) if backend is None else backend
-    xp = be.xp
     elastic = uses_elastic_block(scene, pillars)
     if elastic:
         if not isinstance(be, NumpyDevice):
             raise InputError(f"pillars = 'elastic' runs on the CPU only (device = {device!r})")
         compliance = scene_compliance(scene, compliance, progress=progress)
+    opts = _Options(tol, max_iterations, workers, warm_start, edge_correction, progress,
+                    preconditioner, pillars, compliance if elastic else None, precision,
+                    elastic)
+    if scene.force_N is not None:
+        from ._fft_force import solve_under_force
+
+        return solve_under_force(scene, cells_per_diameter, opts, be, start, _nested,
+                                 _workspace)
+    setup = _prepare(scene, cells_per_diameter, opts, be, _workspace, start)
+    b = be.asarray(setup.grid.gap0, dtype=be.xp.float64)
+    coarse = cells_per_diameter // 2
+    lap = time.perf_counter()
+    if warm_start and coarse >= WARM_START_MIN_CELLS:
+        # Nested iteration: the solution at half the resolution, interpolated, brings the
+        # contact set nearly right, so the fine constrained CG restarts seldom.  The coarser
+        # levels transform in this plan's work arrays (made first, the largest).
+        rough = _coarser(scene, coarse, opts, be, setup.plan.workspace)
+        q0 = _interpolate(rough, setup.grid, be, slivers=edge_correction)
+        levels = warm_levels(rough, coarse)
+    else:
+        q0 = _initial_pressure(setup.plan, b, be)
+        levels = []
+    be.synchronize()
+    setup.timings["warm_start"] = time.perf_counter() - lap
+    outcome = run_cg(setup, b, q0, scene.indentation_m, opts, be)
+    return finish(scene, setup, outcome, cells_per_diameter, opts, be, levels, start)
+
+
+@dataclass(frozen=True)
+class _Options:
+    """The options of one solve, handed on to its coarser levels."""
+
+    tol: float
+    max_iterations: int | None
+    workers: int
+    warm_start: bool
+    edge_correction: bool
+    progress: object
+    preconditioner: str
+    pillars: str
+    compliance: object
+    precision: str
+    elastic: bool
+
+
+@dataclass
+class _Setup:
+    """The grid, its operator and preconditioner, and the timings so far."""
+
+    grid: CellGrid
+    plan: CompliancePlan
+    precondition: object
+    timings: dict
+
+
+def _prepare(scene: Scene, cells_per_diameter: int, opts: _Options, be, workspace,
+             start: float) -> _Setup:
+    """Grid, operator and preconditioner of ``scene`` (indentation-controlled: its
+    indentation sets the candidate region, and on a flat scene the cell size)."""
     # A grid beyond the FFT size limit is refused by build_grid, by its size; one within it
     # is refused here, before any array is built, when it would not fit in memory.
     need = estimate_host_memory(scene, cells_per_diameter, isinstance(be, NumpyDevice))
@@ -179,56 +238,66 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
         raise ScopeError(f"cells_per_diameter = {cells_per_diameter}: this grid needs about "
                          f"{need / 2**30:.3g} GiB, {short}; choose fewer cells per diameter")
     grid = build_grid(scene, cells_per_diameter, max_fft_points=be.max_fft_points)
-    if not edge_correction:
+    if not opts.edge_correction:
         grid = _plain_grid(grid, scene)
     L = grid.cell_size
-    spring = 0.0 if grid.flat or elastic else scene.pillar_spring_compliance
+    spring = 0.0 if grid.flat or opts.elastic else scene.pillar_spring_compliance
     timings = {"grid": time.perf_counter() - start}
     lap = time.perf_counter()
     correction = near_field_correction(grid, scene.half_space_compliance, backend=be) \
-        if edge_correction else None
+        if opts.edge_correction else None
     term = None
-    if elastic:
-        term = FFTPillarTerm(scene, grid, compliance, lambda gamma: near_field_correction(
-            grid, gamma, backend=be) if edge_correction else None)
+    if opts.elastic:
+        term = FFTPillarTerm(scene, grid, opts.compliance, lambda gamma: near_field_correction(
+            grid, gamma, backend=be) if opts.edge_correction else None)
     plan = CompliancePlan(grid.shape, grid.flat_index, L, scene.half_space_compliance,
-                          pillar=grid.pillar, spring_compliance=spring, workers=workers,
+                          pillar=grid.pillar, spring_compliance=spring, workers=opts.workers,
                           correction=correction, backend=be, pillar_term=term,
-                          precision=precision, workspace=_workspace)
+                          precision=opts.precision, workspace=workspace)
     be.synchronize()
     timings["kernel_table"] = time.perf_counter() - lap
-    precondition = _preconditioner(plan, preconditioner)
-    zeta = scene.indentation_m
-    b = be.asarray(grid.gap0, dtype=xp.float64)
-    coarse = cells_per_diameter // 2
-    lap = time.perf_counter()
-    if warm_start and coarse >= WARM_START_MIN_CELLS:
-        # Nested iteration: the solution at half the resolution, interpolated, brings the
-        # contact set nearly right, so the fine constrained CG restarts seldom.  The coarser
-        # levels transform in this plan's work arrays (made first, the largest).
-        rough = solve_fft(scene, coarse, tol=max(tol, WARM_START_TOL), workers=workers,
-                          warm_start=True, edge_correction=edge_correction, backend=be,
-                          preconditioner=preconditioner, pillars=pillars,
-                          compliance=compliance if elastic else None, precision=precision,
-                          _nested=True, _workspace=plan.workspace)
-        q0 = _interpolate(rough, grid, be, slivers=edge_correction)
-        levels = rough.diagnostics["warm_start_levels"] + [{
-            "cells_per_diameter": coarse, "iterations": rough.iterations,
-            "operator_applications": rough.diagnostics["operator_applications"],
-            "cells": rough.discretisation["cells"]}]
-    else:
-        q0 = _initial_pressure(plan, b, be)
-        levels = []
-    be.synchronize()
-    timings["warm_start"] = time.perf_counter() - lap
+    return _Setup(grid, plan, _preconditioner(plan, opts.preconditioner), timings)
+
+
+def _coarser(scene: Scene, cells_per_diameter: int, opts: _Options, be, workspace):
+    """The solution at ``cells_per_diameter`` (a warm start), with this solve's options."""
+    return solve_fft(scene, cells_per_diameter, tol=max(opts.tol, WARM_START_TOL),
+                     workers=opts.workers, warm_start=True,
+                     edge_correction=opts.edge_correction, backend=be,
+                     preconditioner=opts.preconditioner, pillars=opts.pillars,
+                     compliance=opts.compliance, precision=opts.precision, _nested=True,
+                     _workspace=workspace)
+
+
+def warm_levels(rough: ContactResult, cells_per_diameter: int) -> list:
+    """The warm start's levels, coarsest first, ending with ``rough`` itself."""
+    return rough.diagnostics["warm_start_levels"] + [{
+        "cells_per_diameter": cells_per_diameter, "iterations": rough.iterations,
+        "operator_applications": rough.diagnostics["operator_applications"],
+        "cells": rough.discretisation["cells"]}]
+
+
+def run_cg(setup: _Setup, b, q0, scale: float, opts: _Options, be, force=None):
+    """The constrained CG on ``setup`` (``force``: the given sum of the cell pressures,
+    force over L^2), its answer back on the host; the time in ``setup.timings``."""
+    max_iterations = opts.max_iterations
     if max_iterations is None:
-        max_iterations = int(20 * math.sqrt(grid.n_cells)) + 500
+        max_iterations = int(20 * math.sqrt(setup.grid.n_cells)) + 500
     lap = time.perf_counter()
-    outcome = constrained_cg(plan, b, q0, scale=zeta, tol=tol, max_iterations=max_iterations,
-                             precondition=precondition, callback=progress, backend=be)
+    outcome = constrained_cg(setup.plan, b, q0, scale=scale, tol=opts.tol,
+                             max_iterations=max_iterations, precondition=setup.precondition,
+                             callback=opts.progress, backend=be, force=force)
     outcome.pressure = be.to_numpy(outcome.pressure)
     outcome.gap = be.to_numpy(outcome.gap)
-    timings["solve"] = time.perf_counter() - lap
+    setup.timings["solve"] = setup.timings.get("solve", 0.0) + time.perf_counter() - lap
+    return outcome
+
+
+def finish(scene: Scene, setup: _Setup, outcome, cells_per_diameter: int, opts: _Options, be,
+           levels: list, start: float) -> ContactResult:
+    """The result of ``outcome`` on ``setup`` for ``scene`` (indentation-controlled: the
+    grid's scene, or the one at the indentation a force-controlled solve found)."""
+    grid, plan = setup.grid, setup.plan
     message = outcome.message
     converged = outcome.converged
     if converged:
@@ -238,17 +307,17 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
             converged = False
             message = coarse_message
     wall = time.perf_counter() - start
-    result = _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, message,
-                     wall)
+    result = _result(scene, grid, plan, outcome, cells_per_diameter, opts.tol, converged,
+                     message, wall)
     result.diagnostics["warm_start_levels"] = levels
     result.diagnostics["device"] = be.device
-    result.diagnostics["preconditioner"] = _PRECONDITIONERS[preconditioner] + (
+    result.diagnostics["preconditioner"] = _PRECONDITIONERS[opts.preconditioner] + (
         " + pillar springs" if plan.has_spring else
-        " + elastic pillars" if elastic else "")
-    if elastic:
+        " + elastic pillars" if opts.elastic else "")
+    if opts.elastic:
         result.diagnostics["pillars"] = "elastic"
         result.discretisation["pillars"] = "elastic"
-    result.diagnostics["timings_s"] = timings
+    result.diagnostics["timings_s"] = setup.timings
     return result
 
 

@@ -21,6 +21,7 @@ def register(monkeypatch, name: str, solver: str, options=None, **fields):
     from validation.registry import MODELS, Model
 
     model = MODELS.get(name) or Model(name, solver, f"fake {name}")
+    fields.setdefault("force_control", "outer")  # a fake solves under indentations only
     if options is None:
         options = model.options
     elif not isinstance(options, dict):

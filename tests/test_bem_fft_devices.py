@@ -171,6 +171,21 @@ def test_strict_namespace_gives_the_numpy_answer(case):
         ref.diagnostics["operator_applications"]
 
 
+@pytest.mark.parametrize("case", [("paper-fig3-sparse", [], 16), ("hertz", [], 12)],
+                         ids=lambda c: c[0])
+def test_strict_namespace_under_a_force(case):
+    """Force control (the constrained CG's approach as the multiplier, the grid's design
+    rounds) uses the array API alone: the strict namespace gives the numpy answer."""
+    name, overrides, n = case
+    scene = load_scene(name, overrides)
+    scene = scene.at_force(solve_fft(scene, n).total_force_N)
+    ref = solve_fft(scene, n)
+    strict = solve_fft(scene, n, backend=StrictDevice(numpy_primitives=True))
+    assert ref.converged and strict.converged
+    assert strict.indentation_m == pytest.approx(ref.indentation_m, rel=RTOL_ROUNDOFF)
+    _agree(ref, strict, RTOL_ROUNDOFF, ref.indentation_m)
+
+
 def _plans(backend, scene_name, overrides, n):
     scene = load_scene(scene_name, overrides)
     grid = build_grid(scene, n)

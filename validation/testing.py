@@ -26,13 +26,13 @@ from dataclasses import dataclass
 from pillar_xval.outcome import ContactResult
 from pillar_xval.scenes import InputError
 
-from .registry import QUANTITIES
+from .registry import LOAD_QUANTITIES, QUANTITIES
 
 __all__ = ["QUANTITY_BY_KEY", "Check", "assert_agree", "assert_close", "assert_converged",
            "assert_matches_closed_form", "assert_order", "check_tolerance", "checks_made",
            "quantity_value"]
 
-QUANTITY_BY_KEY = {q.key: q for q in QUANTITIES}
+QUANTITY_BY_KEY = {q.key: q for q in (*QUANTITIES, *LOAD_QUANTITIES)}
 CLOSED_FORMS = ("hertz", "punch", "spring")
 
 
@@ -254,19 +254,21 @@ def assert_order(study: Mapping, expected: float, *, atol: float = 0.1,
 
 
 def _closed_form_values(result: ContactResult, form: str) -> dict:
+    """The closed form's quantities on the result's scene (under a given force, the closed
+    form that carries it: each inverts exactly)."""
     from pillar_xval.scenes import Scene, analytic
 
     scene = Scene.from_dict(result.scene)
     if form == "hertz":
         h = analytic.hertz(scene)
         return {"F_T": h.force, "sigma0": h.centre_pressure, "a": h.contact_radius,
-                "A": h.contact_area}, "Hertz (Johnson 1985, sec. 4.2)"
+                "A": h.contact_area, "zeta": h.indentation}, "Hertz (Johnson 1985, sec. 4.2)"
     punch = analytic.rigid_punch(scene) if form == "punch" else analytic.spring_model(scene)
     d = scene.pillars.diameter_m
     what = ("rigid flat punch (Johnson 1985, sec. 3.8)" if form == "punch"
             else "the paper's spring model (one Hooke pillar)")
     return {"F_T": punch.force, "sigma0": punch.centre_pressure, "a": d / 2.0,
-            "A": math.pi * d * d / 4.0}, what
+            "A": math.pi * d * d / 4.0, "zeta": punch.indentation}, what
 
 
 def assert_matches_closed_form(result: ContactResult, form: str, *, rtol: float,

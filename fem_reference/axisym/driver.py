@@ -14,10 +14,19 @@ pillar base.
 Solution.  Factorise once; one solve per contact point gives the compliance matrix C; the
 LCP of :mod:`.contact` gives the nodal forces; linear residual and complementarity are
 checked and reported.
+
+Under a given force the exact LCP solver takes the approach as one more unknown
+(:func:`pillar_xval.contact.solve_active_set`, ``force=``): the factorisation and C are the
+same, only the contact solve changes.  One pillar's mesh does not depend on the indentation.
+A flat scene's mesh is drawn in units of the Hertz radius sqrt(R zeta) and is the same in
+those units for every zeta: it follows the solved zeta by a change of unit, the gap vector
+recomputed and the LCP solved again, without meshing or factorising again, until the unit's
+zeta and the solved one agree (:data:`FLAT_DESIGN_RTOL`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -48,6 +57,11 @@ DOFS_EXPONENT = 1.9
 CONTACT_POINTS_AT_UNIT_SIZE = 60.0
 BYTES_PER_DOF_LOG = 650.0
 BYTES_FIXED = 40 * 2.0**20
+# A flat scene under a force: the mesh unit's zeta and the solved one agree within this (the
+# answer then differs from the indentation-controlled one at the solved zeta by this times
+# the discrete force's sensitivity to the element size, < 1e-2).
+FLAT_DESIGN_RTOL = 1e-6
+MAX_DESIGN_ROUNDS = 6
 
 
 def estimate_memory(scene: Scene, mesh_size: float = 1.0) -> dict:
@@ -131,15 +145,54 @@ def solve(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None,
         ``diagnostics["message"]``.
     """
     clock = PhaseClock(progress)
-    setup = _setup(scene, mesh_size, block_factor)
-    _refuse_if_too_large(scene, mesh_size)
+    force = scene.force_N
+    solved = scene
+    if force is not None:  # refused before solving when the least indentation is beyond
+        _implied(scene, analytic.least_indentation(scene), "at least: the lens on a rigid "
+                 "flat", bound=True)
+        solved = scene.designed(analytic.indentation_estimate(scene))
+    setup = _setup(solved, mesh_size, block_factor, scope=force is None)
+    _refuse_if_too_large(solved, mesh_size)
     mesh, system = _mesh_and_factorise(setup, mesh_size, clock)
     compliance = _compliance(system, clock)
-    contact = _contact(scene, setup, system, compliance, clock)
-    result = _result(scene, setup, mesh, system, compliance, contact, mesh_size, clock)
+    contact = _contact(solved, setup, system, compliance, clock, force)
+    rounds, settled = [], True
+    while force is not None:
+        zeta = contact["zeta"]
+        rounds.append({"design_indentation_m": solved.indentation_m, "indentation_m": zeta})
+        settled = abs(zeta / solved.indentation_m - 1.0) <= FLAT_DESIGN_RTOL
+        if not scene.is_flat or settled or len(rounds) == MAX_DESIGN_ROUNDS:
+            solved = _implied(scene, zeta, f"fem-axisym at mesh_size {mesh_size:g}")
+            break
+        # The flat mesh in units of the Hertz radius: the unit follows the solved zeta.
+        mesh = dataclasses.replace(mesh, points=mesh.points * math.sqrt(
+            zeta / solved.indentation_m))
+        solved = scene.designed(zeta)
+        setup = _setup(solved, mesh_size, block_factor, scope=False)
+        contact = _contact(solved, setup, system, compliance, clock, force)
+    result = _result(solved, setup, mesh, system, compliance, contact, mesh_size, clock)
+    if force is not None:
+        if scene.is_flat and not settled:
+            result.converged = False
+            result.diagnostics["message"] = (f"the mesh unit's indentation did not settle in "
+                                             f"{MAX_DESIGN_ROUNDS} rounds")
+        result.for_force(scene.to_dict(), zeta, design_rounds=rounds)
     if vtu_path is not None:
-        _write_fields(vtu_path, scene, setup, mesh, system, contact["x"], result)
+        _write_fields(vtu_path, solved, setup, mesh, system, contact["x"], result)
     return result
+
+
+def _implied(scene: Scene, zeta: float, how: str, bound: bool = False) -> Scene:
+    """The force-controlled ``scene`` at the indentation ``zeta`` (m) found ``how`` for it,
+    within the scope of a given indentation and of this model (one pillar: Phi < Phi_S at
+    zeta; ``bound``: zeta is a lower bound, at which only that is checked), else a ScopeError
+    naming the force and zeta."""
+    solved = scene.designed(zeta) if bound else scene.implied(zeta, how)
+    problem = "" if scene.is_flat else _beyond_one_pillar(solved)
+    if problem:
+        raise ScopeError(f"load.force_uN = {scene.force_N * 1e6:.6g}: implies an indentation "
+                         f"of {zeta * 1e6:.4g} um ({how}): {problem}")
+    return solved
 
 
 def _mesh_and_factorise(setup: dict, mesh_size: float, clock: PhaseClock):
@@ -179,21 +232,29 @@ def _compliance(system, clock: PhaseClock) -> dict:
     return {"D": D, "X": X, "U": U, "C": C, "asymmetry": asymmetry, "residual": residual}
 
 
-def _contact(scene: Scene, setup: dict, system, compliance: dict, clock: PhaseClock) -> dict:
+def _contact(scene: Scene, setup: dict, system, compliance: dict, clock: PhaseClock,
+             force: float | None = None) -> dict:
     """The mortar LCP, exactly: pressures ``lam`` (units of E_ref), nodal forces ``f``,
-    pointwise gaps ``w`` at the P2 points and the displacement ``x`` (units of ell)."""
+    pointwise gaps ``w`` at the P2 points, the displacement ``x`` (units of ell) and the
+    indentation ``zeta`` (m): the scene's, or with ``force`` (N) the one found for it."""
     D, U, C, X = compliance["D"], compliance["U"], compliance["C"], compliance["X"]
-    ell = setup["ell"]
+    ell, E_ref = setup["ell"], setup["E_ref"]
     R, zeta = scene.lens.radius_m, scene.indentation_m
     r_m = system.contact_r * ell
     gap = analytic.lens_gap(R, r_m) / ell
     weight = D.sum(axis=0)  # integral of psi_j r dr: turns weighted gaps into mean gaps
     clock.say("contact")
-    sol = solve_active_set(C, D.T @ (gap - zeta / ell), scale=zeta / ell, weights=weight,
-                           tol=RTOL_COMPLEMENTARITY)
+    if force is None:
+        sol = solve_active_set(C, D.T @ (gap - zeta / ell), scale=zeta / ell, weights=weight,
+                               tol=RTOL_COMPLEMENTARITY)
+    else:  # the force is 2 pi E_ref ell^2 weight . lam (see _result)
+        sol = solve_active_set(C, D.T @ gap, scale=zeta / ell, weights=weight,
+                               tol=RTOL_COMPLEMENTARITY, load=weight,
+                               force=force / (2.0 * math.pi * E_ref * ell**2))
+        zeta = sol.approach * ell
     lam = sol.pressure
     out = {"sol": sol, "lam": lam, "f": D @ lam, "w": U @ lam + gap - zeta / ell,
-           "x": X @ lam, "r_m": r_m}
+           "x": X @ lam, "r_m": r_m, "zeta": zeta}
     clock.done("contact")
     return out
 
@@ -249,11 +310,24 @@ def _write_fields(vtu_path, scene: Scene, setup: dict, mesh, system, x, result) 
     vertex = system.basis_u.nodal_dofs
     cells = cell_stresses(system, u, p_body, setup["E_ref"])
     write_vtu(vtu_path, mesh, u[vertex] * ell, cells,
-              {"model": MODEL, "scene": result.scene, "discretisation": result.discretisation})
+              {"model": MODEL, "scene": result.scene, "discretisation": result.discretisation,
+               "indentation_m": result.indentation_m})
 
 
-def _setup(scene: Scene, mesh_size: float, block_factor: float) -> dict:
-    """Geometry, units, meshed bodies and constraints for ``scene``."""
+def _beyond_one_pillar(scene: Scene) -> str:
+    """Why ``scene`` (at its indentation) is beyond the one pillar this model holds, or ''."""
+    phi, phi_s = scene.pillars.surface_fraction, analytic.single_pillar_threshold_rim(scene)
+    if phi < phi_s:
+        return ""
+    return (f"pillars.surface_fraction = {phi:.4g} >= Phi_S = {phi_s:.4g}: the lens, pushed "
+            "by the centre pillar's flat-punch field, reaches the rim of the next ring; the "
+            "axisymmetric FEM holds the centre pillar only (use the BEM, or lower Phi)")
+
+
+def _setup(scene: Scene, mesh_size: float, block_factor: float, scope: bool = True) -> dict:
+    """Geometry, units, meshed bodies and constraints for ``scene`` (``scope``: refuse a
+    second pillar in reach at the scene's indentation; the mesh of one pillar does not depend
+    on it)."""
     lens, sub = scene.lens.material, scene.substrate
     if scene.is_flat:
         ell, candidate = flat_candidate(scene)
@@ -265,13 +339,10 @@ def _setup(scene: Scene, mesh_size: float, block_factor: float) -> dict:
                    "contact_substrate" if not sub.rigid else None)
     else:
         p = scene.pillars
-        phi_s = analytic.single_pillar_threshold_rim(scene)
-        if p.surface_fraction >= phi_s:
-            raise ScopeError(
-                f"pillars.surface_fraction = {p.surface_fraction:.4g} >= Phi_S = {phi_s:.4g}: "
-                "the lens, pushed by the centre pillar's flat-punch field, reaches the rim of "
-                "the next ring; the axisymmetric FEM holds the centre pillar only (use the "
-                "BEM, or lower Phi)")
+        if scope:
+            problem = _beyond_one_pillar(scene)
+            if problem:
+                raise ScopeError(problem)
         pillar = p.material
         refuse_rigid_pair(lens, pillar, "a rigid pillar")
         ell = 0.5 * p.diameter_m

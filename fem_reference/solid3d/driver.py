@@ -25,6 +25,7 @@ reported.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import resource
 
@@ -53,6 +54,12 @@ MAX_CG_ITERATIONS = 2000
 # Most steps of iterative refinement of the solution reported (float32 factor: each gains
 # four digits or more, see system.SINGLE_MAX_ERROR), stopping at a residual of 1e-12.
 EXACT_REFINE = 4
+# Under a force: the tolerance of the first solve on a mesh built for a guess (it decides
+# whether the mesh is the solved indentation's: a zeta to ~1e-5, where the pillars' reach
+# changes every 0.2-2 % of zeta on the paper's scenes), and the meshes for successive
+# indentations before the solve gives up settling them.
+LOOSE_TOL = 1e-5
+MAX_MESHINGS = 4
 # Element size on the centre pillar's top over the contact element size (see _setup).
 CENTRE_RATIO = 0.25
 # Smallest gap between neighbouring pillars, in diameters: at Phi = 0.9 (gap 0.0038 d) the
@@ -176,16 +183,53 @@ def solve(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None, progress=None,
         ``diagnostics["message"]``.
     """
     _check_options(mesh_size, sector_angle, block_factor, reach_factor, tol)
-    _refuse_if_too_large(scene, mesh_size, sector_angle, reach_factor)
     clock = PhaseClock(progress)
-    setup = _setup(scene, mesh_size, sector_angle, block_factor, reach_factor, grading or {})
-    mesh, skmesh, system, faces = _mesh_and_factorise(setup, mesh_size, sector_angle, clock)
-    contact = _contact(scene, setup, system, faces, tol, clock)
-    result = _result(scene, setup, mesh, system, faces, contact, mesh_size, sector_angle,
+    # Under a force the mesh is the one of the solved indentation (the pillars in its reach;
+    # a flat mesh's unit, the Hertz radius, follows it without meshing again).  A mesh built
+    # for a guess is first solved loosely, to learn whether it is that mesh: if so the solve
+    # goes on from there, else the mesh is built again for the solved indentation.
+    force, rounds, held = scene.force_N, [], True
+    solved = scene if force is None else scene.designed(analytic.indentation_estimate(scene))
+    while True:
+        _refuse_if_too_large(solved, mesh_size, sector_angle, reach_factor)
+        setup = _setup(solved, mesh_size, sector_angle, block_factor, reach_factor,
+                       grading or {})
+        if not rounds or not scene.is_flat:
+            mesh, skmesh, system, faces = _mesh_and_factorise(setup, mesh_size, sector_angle,
+                                                              clock)
+        else:
+            mesh = dataclasses.replace(mesh, points=mesh.points * (setup["ell"] / ell))
+        ell = setup["ell"]
+        sector_force = None if force is None else force * sector_angle / (2.0 * math.pi)
+        loose = sector_force is not None and not scene.is_flat
+        contact = _contact(solved, setup, system, faces, max(tol, LOOSE_TOL) if loose else tol,
+                           clock, sector_force)
+        if force is None:
+            break
+        zeta = contact["zeta"]
+        rounds.append({"design_indentation_m": solved.indentation_m, "indentation_m": zeta})
+        held = _meshed_alike(setup, _setup(scene.designed(zeta), mesh_size, sector_angle,
+                                           block_factor, reach_factor, grading or {}))
+        if held and loose:  # the mesh is the solved one's: on to the tolerance from here
+            contact = _contact(solved, setup, system, faces, tol, clock, sector_force,
+                               start=contact["lam"])
+            zeta = rounds[-1]["indentation_m"] = contact["zeta"]
+            held = _meshed_alike(setup, _setup(scene.designed(zeta), mesh_size, sector_angle,
+                                               block_factor, reach_factor, grading or {}))
+        if held or len(rounds) == MAX_MESHINGS:
+            solved = scene.implied(zeta, f"fem-3d at mesh_size {mesh_size:g}")
+            break
+        solved = scene.designed(zeta)
+    result = _result(solved, setup, mesh, system, faces, contact, mesh_size, sector_angle,
                      reach_factor, clock)
+    if force is not None:
+        result.for_force(scene.to_dict(), zeta, design_rounds=rounds)
+        if not held:
+            result.converged = False
+            result.diagnostics["message"] = f"the mesh did not settle in {MAX_MESHINGS} rounds"
     if vtu_path is not None:
         clock.say(f"writing {vtu_path}")
-        _write_fields(vtu_path, scene, setup, mesh, skmesh, system, contact["x"], result)
+        _write_fields(vtu_path, solved, setup, mesh, skmesh, system, contact["x"], result)
     clock.say(f"done: F_T = {result.total_force_N:.6g} N, {contact['sol'].iterations} contact "
               "iterations")
     return result
@@ -214,10 +258,13 @@ def _mesh_and_factorise(setup: dict, mesh_size: float, sector_angle: float,
     return mesh, skmesh, system, faces
 
 
-def _contact(scene: Scene, setup: dict, system, faces, tol: float, clock: PhaseClock) -> dict:
+def _contact(scene: Scene, setup: dict, system, faces, tol: float, clock: PhaseClock,
+             force: float | None = None, start=None) -> dict:
     """The mortar contact by constrained CG on the condensed operator D^T G K^-1 G^T D (one
     back-substitution per application); then the displacement ``x`` under the contact load,
-    its residual, the pointwise gaps ``w`` and the operator's asymmetry.
+    its residual, the pointwise gaps ``w``, the operator's asymmetry and the indentation
+    ``zeta`` (m; with ``force``, the sector's force in N, the one found for it).  ``start``:
+    the multipliers to start from.
 
     With a float32 factor (:meth:`.system.SectorSystem.factorise`) the CG's steps and its
     clipping updates apply the operator by one float32 back-substitution, and the gap it
@@ -254,16 +301,24 @@ def _contact(scene: Scene, setup: dict, system, faces, tol: float, clock: PhaseC
             clock.say(f"contact iteration {it}: residual {err:.3g}")
 
     clock.say(f"contact: {faces.n_vertices} pressure unknowns")
-    b = D.T @ gap0
+    b, target = D.T @ gap0, None
     with serial_dense_algebra():
         model = HalfSpaceModel(faces, _springs(scene, setup, faces, E_ref, ell),
                                setup["face_compliance"] * E_ref,
                                setup["geometry"].sector_angle)
-        sol = constrained_cg(apply, b, model.warm_start(b, zeta / ell), scale=zeta / ell,
+        # under a force the model's contact at the guessed indentation, rescaled by the CG
+        q0 = model.warm_start(b, zeta / ell) if start is None else start
+        if force is not None:  # Polonsky-Keer's force control; the weighted gap moves by weights
+            b, target = b + faces.weights * (zeta / ell), force / (E_ref * ell**2)
+        sol = constrained_cg(apply, b, q0, scale=zeta / ell,
                              tol=tol, max_iterations=MAX_CG_ITERATIONS,
                              precondition=model.precondition,
                              inverse_diagonal=model.inverse_diagonal, weights=faces.weights,
-                             callback=report)
+                             callback=report, force=target,
+                             load=None if force is None else faces.weights)
+    if force is not None:
+        zeta = sol.approach * ell
+        gap0 = (analytic.lens_gap(R, r_pts) - zeta) / ell
     lam = sol.pressure
     clock.done("contact")
     x, residual = system.solve(G.T @ (D @ lam), refine=EXACT_REFINE)
@@ -272,7 +327,7 @@ def _contact(scene: Scene, setup: dict, system, faces, tol: float, clock: PhaseC
     asym = _asymmetry(probes, apply(probes))
     clock.done("post")
     return {"sol": sol, "lam": lam, "x": x, "residual": residual, "w": w, "asymmetry": asym,
-            "preconditioner": model.name}
+            "preconditioner": model.name, "zeta": zeta}
 
 
 def _result(scene: Scene, setup: dict, mesh, system, faces, contact: dict, mesh_size: float,
@@ -349,7 +404,8 @@ def _write_fields(vtu_path, scene: Scene, setup: dict, mesh, skmesh, system, x,
     nv = skmesh.p.shape[1]
     disp = u[:3 * nv].reshape(-1, 3).T * ell  # vertex dofs come first (3 s + c)
     write_vtu3d(vtu_path, mesh.points, mesh.tets, disp, cells,
-                {"model": MODEL, "scene": result.scene, "discretisation": result.discretisation})
+                {"model": MODEL, "scene": result.scene, "discretisation": result.discretisation,
+                 "indentation_m": result.indentation_m})
 
 
 def _setup(scene: Scene, mesh_size, sector_angle, block_factor, reach_factor, grading) -> dict:
@@ -414,6 +470,13 @@ def _check_options(mesh_size, sector_angle, block_factor, reach_factor, tol) -> 
     if not any(math.isclose(sector_angle, s, rel_tol=1e-12) for s in SECTORS):
         raise InputError(f"sector_angle = {sector_angle!r}: allowed values are pi/6, pi/3 "
                          "and pi/2 (both planes must be mirror planes of the lattice)")
+
+
+def _meshed_alike(a: dict, b: dict) -> bool:
+    """Whether two set-ups mesh alike: the same pillars, in the same unit (a flat mesh's
+    Hertz radius, within 5e-7: the element sizes, to the round-off of a solve)."""
+    return ([p.name for p in a["geometry"].pillars] == [p.name for p in b["geometry"].pillars]
+            and abs(b["ell"] / a["ell"] - 1.0) <= 5e-7)
 
 
 def _reach(R: float, gap: float) -> float:

@@ -14,6 +14,11 @@
   eq. rSzeta at the next ring's rim: ``scenes.analytic.single_pillar_threshold_rim``) or when the lens curvature across the pillar top, d^2 / (8 R), reaches zeta
   (then the contact covers only part of the top, which the flat punch cannot represent).
 
+Under a given force both invert exactly: Hertz's F = (4/3) sqrt(R) zeta^(3/2) / gamma gives
+zeta = (3 F gamma / (4 sqrt R))^(2/3), so a = (3 F R gamma / 4)^(1/3) and sigma_0 =
+3 F / (2 pi a^2); the spring model is linear, zeta = F gamma* / d and sigma_0S = 2 F / (pi d^2).
+The model is then the same closed form at that indentation, whose scope checks apply there.
+
 How far either is from the truth is not decided here: the planner's error models measure it
 (``pillar-xval calibrate``).
 
@@ -59,6 +64,20 @@ def _result(model, scene, started, force, sigma0, radius, area, pillars, forces,
         diagnostics={"message": "closed form", "force_balance_N": 0.0})
 
 
+def _under_force(model: str, scene: Scene, zeta: float, solve) -> ContactResult:
+    """``solve`` (the closed form under a given indentation) at ``zeta`` (m), the indentation
+    its exact inversion gives for the force of ``scene``."""
+    started = time.perf_counter()
+    solved = scene.implied(zeta, f"{model}, inverted exactly")
+    try:
+        result = solve(solved)
+    except ScopeError as exc:
+        raise ScopeError(f"load.force_uN = {scene.force_N * 1e6:.6g}: implies an indentation "
+                         f"of {zeta * 1e6:.4g} um ({model}, inverted exactly): {exc}") from None
+    result.wall_time_s = time.perf_counter() - started
+    return result.for_force(scene.to_dict(), zeta, force_control="inverted exactly")
+
+
 def solve_hertz(scene: Scene) -> ContactResult:
     """Hertz contact of the lens on the substrate (flat), or the Hertz-like limit of a dense
     lattice (pillars); see the module docstring.
@@ -83,6 +102,10 @@ def solve_hertz(scene: Scene) -> ContactResult:
     if scene.half_space_compliance == 0.0:
         raise ScopeError("hertz: lens and substrate are both rigid; the Hertz contact needs "
                          "an elastic body")
+    if scene.force_N is not None:
+        zeta = analytic.Hertz.indentation_for_force(scene.force_N, scene.lens.radius_m,
+                                                    scene.half_space_compliance)
+        return _under_force(HERTZ_MODEL, scene, zeta, solve_hertz)
     h = analytic.hertz(scene)
     a = h.contact_radius
     r = PROFILE_SAMPLES * a
@@ -140,6 +163,9 @@ def solve_spring(scene: Scene) -> ContactResult:
     d = p.diameter_m
     if analytic.effective_compliance(scene) == 0.0:
         raise ScopeError("spring: lens, pillars and substrate are all rigid")
+    if scene.force_N is not None:
+        zeta = scene.force_N * analytic.effective_compliance(scene) / d  # F = d zeta / gamma*
+        return _under_force(SPRING_MODEL, scene, zeta, solve_spring)
     phi_s = analytic.single_pillar_threshold_rim(scene)
     if p.surface_fraction >= phi_s:
         raise ScopeError(

@@ -6,8 +6,9 @@ complementarity problem of displacement-controlled frictionless contact
     gap = A q + b,   q >= 0,   gap >= 0,   q_i gap_i = 0  for every cell i,
 
 with b = g - zeta the undeformed gap minus the indentation (m) and q the cell pressures (Pa).
-This is the minimisation of 1/2 q.A q + b.q over q >= 0 (Polonsky and Keer 1999, without the
-load-controlled mean-gap shift of their step 3, since the indentation is given).
+This is the minimisation of 1/2 q.A q + b.q over q >= 0.  Under force control (``force``)
+the approach is one more unknown, the multiplier of the force's constraint, found as Polonsky
+and Keer do, by the mean-gap shift of their step 3 (:class:`_ForceControl`).
 
 Free set.  The conjugate directions live on the *free set*: the contact set {q > 0} and the
 cells out of contact that interpenetrate (gap < 0).  An interpenetrating cell thus enters the
@@ -126,8 +127,8 @@ def diagonal_preconditioner(diagonal, spring=0.0, pillar=None, n_pillars=0, back
 
 def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, precondition=None,
                    inverse_diagonal=None, weights=None, callback=None,
-                   backend=None) -> ContactSolution:
-    """Constrained conjugate gradients on the free set, displacement-controlled.
+                   backend=None, force=None, load=None) -> ContactSolution:
+    """Constrained conjugate gradients on the free set, displacement- or force-controlled.
 
     Parameters
     ----------
@@ -139,11 +140,12 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
         ``approximate`` (and ``approximate_error``), the steps use that (mixed precision, see
         the module docstring) and ``apply_few`` is called with ``single=True``.
     b : array
-        Undeformed gap minus indentation (m).
+        Undeformed gap minus indentation (m); under force control the undeformed gap alone.
     q0 : array
-        Initial pressures (Pa), >= 0.
+        Initial pressures (Pa), >= 0 (under force control rescaled to ``force``).
     scale : float
-        Length (m) that normalises the residual (the indentation zeta).
+        Length (m) that normalises the residual (the indentation zeta); under force control
+        the approach found replaces it as soon as it is positive.
     tol : float
         Stop when max-norm min-map residual / scale <= tol.
     max_iterations : int
@@ -160,6 +162,12 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
         Array backend of ``b``, ``q0`` and of what ``apply`` returns (:mod:`pillar_xval.contact._xp`;
         default numpy).  The iteration uses only the array API standard and the backend's
         ``dot``, so the same code runs on numpy or cupy arrays.
+    force : float, optional
+        Force control (Polonsky and Keer's own form, :class:`_ForceControl`): the given
+        l.q, the approach an unknown returned as ``approach``.
+    load : array, optional
+        l, the gap's change per unit approach and each unknown's share of the force (default
+        ones: cells of equal area).
 
     Returns
     -------
@@ -173,6 +181,10 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
         scaling = 1.0 if inverse_diagonal is None else inverse_diagonal
         precondition = lambda r, free: xp.where(free, r * scaling, 0.0)  # noqa: E731
     q = xp.maximum(be.asarray(q0, dtype=xp.float64), 0.0)
+    fc = None
+    if force is not None:
+        fc = _ForceControl(xp, dot, float(force), load, b, precondition, scale)
+        q = fc.start(q)
     # An operator may update the gap after a step that clips few pressures without a whole
     # application: apply.apply_few(index, values) -> A d, or None when it would not pay.
     apply_few = getattr(apply, "apply_few", None)
@@ -181,6 +193,14 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
     approximate = getattr(apply, "approximate", None)
     rel_error = float(getattr(apply, "approximate_error", 0.0)) if approximate else 0.0
     step_apply = approximate or apply
+
+    def exact_gap(q):
+        gap = apply(q) + b
+        return gap if fc is None else fc.offset(gap)
+
+    def energy_of(q, gap):
+        return _energy(dot, q, gap, b) + (0.0 if fc is None else fc.energy_term())
+
     # The first gap too: its error enters the bound like a step's.
     gap = step_apply(q)
     drift = rel_error * _max_abs(xp, gap)
@@ -202,20 +222,25 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
     # floating-point operations, without fresh arrays (page faults on large grids).
     active = q > 0.0
     for it in range(1, max_iterations + 1):
+        if fc is not None:
+            gap = fc.recentre(gap, active)
+            scale = fc.scale
         err = _residual(xp, gap, active, weights, n) / scale
         if drift > 0.0 and (err <= tol or drift > DRIFT_SHARE * err * scale):
-            gap = apply(q) + b
+            gap = exact_gap(q)
             drift, since_refresh = 0.0, 0
             err = _residual(xp, gap, active, weights, n) / scale
         history.append(err)
         best, since_best = (err, 0) if err < best else (best, since_best + 1)
         if not monotone and since_best >= STALL_ITERATIONS:
-            monotone, energy = True, _energy(dot, q, gap, b)
+            monotone, energy = True, energy_of(q, gap)
         if err <= tol:
             return ContactSolution(q, gap, True, it - 1, err, METHOD, "converged", history,
-                                   entries, halved)
+                                   entries, halved, None if fc is None else fc.zeta)
         free = active | (gap < 0.0)
         z = precondition(gap, free)
+        if fc is not None:
+            z = fc.project(z, free)
         g_new = dot(gap, z)
         slope = None
         if conj and g_old > 0:
@@ -223,6 +248,8 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
             t *= beta  # t may be z_old's array: z_old is not read again
             t += z
             t *= xp.astype(free, xp.float64)  # where(free, ., 0), faster
+            if fc is not None:
+                t = fc.reproject(t)
             slope = dot(gap, t)
             if slope <= 0.0:
                 slope = None  # the projected conjugate direction no longer descends: restart
@@ -234,7 +261,7 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
         if not denom > 0:
             return ContactSolution(q, gap, False, it, err, METHOD,
                                    f"non-positive curvature {denom:g}: operator not SPD",
-                                   history, entries, halved)
+                                   history, entries, halved, None if fc is None else fc.zeta)
         tau = slope / denom
         q_new = q - tau * t
         any_clipped = n > 0 and bool(xp.min(q_new) < 0.0)
@@ -249,7 +276,7 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
         conj = True
         since_refresh += 1
         if (any_clipped and clip_gap is None) or since_refresh >= REFRESH_EVERY:
-            gap = apply(q_new) + b
+            gap = exact_gap(q_new)
             since_refresh = 0
             drift = 0.0
         else:
@@ -260,19 +287,24 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
             if approximate:
                 drift += rel_error * (_max_abs(xp, w) + (
                     0.0 if clip_gap is None else _max_abs(xp, clip_gap)))
+        if fc is not None and any_clipped:
+            q_new, gap, ratio = fc.rescale(q_new, gap)
+            drift *= ratio
         if monotone and any_clipped:
             # A truncated step: taken only if it lowers the energy, else shortened (module
             # docstring).  The gap's error bound enters as slack on the comparison.
-            new_energy = _energy(dot, q_new, gap, b)
+            new_energy = energy_of(q_new, gap)
             halvings = 0
             while halvings < BACKTRACK_MAX and new_energy > energy + _energy_slack(
                     xp, drift, q_new, energy):
                 halvings += 1
                 tau *= 0.5
                 q_new = xp.maximum(q - tau * t, 0.0)
-                gap = apply(q_new) + b
+                if fc is not None:
+                    q_new = fc.start(q_new)
+                gap = exact_gap(q_new)
                 drift, since_refresh = 0.0, 0
-                new_energy = _energy(dot, q_new, gap, b)
+                new_energy = energy_of(q_new, gap)
             halved += halvings
             conj = halvings == 0
             energy = new_energy
@@ -283,14 +315,100 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
         q, active = q_new, new_active
         if callback is not None:
             callback(it, err)
-    gap = apply(q) + b
+    gap = exact_gap(q)
+    if fc is not None:
+        gap = fc.recentre(gap, q > 0.0)
+        scale = fc.scale
     err = _residual(xp, gap, q > 0.0, weights, n) / scale
     history.append(err)
     converged = err <= tol
     return ContactSolution(q, gap, converged, max_iterations, err, METHOD,
                            "converged" if converged else
                            f"no convergence in {max_iterations} iterations (residual {err:.3g} "
-                           f"> {tol:g})", history, entries, halved)
+                           f"> {tol:g})", history, entries, halved,
+                           None if fc is None else fc.zeta)
+
+
+class _ForceControl:
+    """Polonsky and Keer's force control [1]: the approach zeta is the multiplier of the
+    constraint l.q = F.
+
+    - The gap carries the current approach, gap = A q + b - zeta l; at each iteration zeta
+      moves to the mean gap over the contact set (sum of gaps over sum of l there), which
+      makes the gap's mean on the set zero (:meth:`recentre`).
+    - The directions are projected onto l.t = 0 in the preconditioner's metric,
+      z - (l.z / l.M l) M l with M l the preconditioned load on the free set
+      (:meth:`project`, :meth:`reproject`): a step along them keeps l.q = F, and its exact
+      line search is that of the constrained minimum (the gradient's component along l is
+      the multiplier's).
+    - A step that truncates pressures at zero raises l.q: the pressures are rescaled to F and
+      the gap with them, gap' = r gap + (1 - r)(b - zeta l), r = F / l.q (:meth:`rescale`).
+    - The energy on the constraint, 1/2 q.A q + b.q, is 1/2 q.(gap + b) + zeta F / 2
+      (:meth:`energy_term`), invariant under the approach's moves.
+
+    ``load`` None means l = 1 (sums instead of products).  One preconditioner application
+    more per iteration (M l) than under indentation control.
+    """
+
+    def __init__(self, xp, dot, force, load, b, precondition, scale):
+        self.xp, self.dot, self.force, self.b = xp, dot, force, b
+        self.load = xp.ones_like(b) if load is None else load
+        self.unit = load is None
+        self.precondition = precondition
+        self.zeta = 0.0
+        self.given_scale = scale
+        self.m_load = None
+
+    def ldot(self, v) -> float:
+        return float(self.xp.sum(v)) if self.unit else self.dot(self.load, v)
+
+    def start(self, q):
+        """``q`` rescaled to the force; where it carries none, the first point to touch
+        (least b / l)."""
+        total = self.ldot(q)
+        if not total > 0.0:
+            touch = self.b if self.unit else self.b / self.load
+            q = self.xp.astype(touch <= self.xp.min(touch), self.xp.float64)
+            total = self.ldot(q)
+        return q * (self.force / total)
+
+    def offset(self, gap):
+        """gap - zeta l, in place."""
+        gap -= self.zeta if self.unit else self.zeta * self.load
+        return gap
+
+    def recentre(self, gap, active):
+        on = self.xp.astype(active, self.xp.float64)
+        area = self.ldot(on)
+        if area > 0.0:
+            shift = self.dot(gap, on) / area
+            self.zeta += shift
+            gap -= shift if self.unit else shift * self.load
+        return gap
+
+    @property
+    def scale(self) -> float:
+        return self.zeta if self.zeta > 0.0 else self.given_scale
+
+    def project(self, z, free):
+        self.m_load = self.precondition(self.load, free)
+        self.norm = self.dot(self.load, self.m_load)
+        return self.reproject(z)
+
+    def reproject(self, t):
+        if self.norm > 0.0:
+            t -= (self.dot(self.load, t) / self.norm) * self.m_load
+        return t
+
+    def rescale(self, q, gap):
+        ratio = self.force / self.ldot(q)
+        q *= ratio
+        gap *= ratio
+        gap += (1.0 - ratio) * (self.b - (self.zeta if self.unit else self.zeta * self.load))
+        return q, gap, ratio
+
+    def energy_term(self) -> float:
+        return 0.5 * self.zeta * self.force
 
 
 def _energy(dot, q, gap, b) -> float:

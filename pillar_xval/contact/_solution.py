@@ -15,7 +15,9 @@ class ContactSolution:
     gap unit: m, or m times a weight), ``residual`` the min-map residual over ``scale``,
     ``history`` the residual after each iteration (iterative solvers), ``reentries`` the
     iterations in which unknowns re-entered the contact set and ``halvings`` the truncated
-    steps shortened to lower the energy (constrained CG).
+    steps shortened to lower the energy (constrained CG).  ``approach`` is the indentation a
+    force-controlled solve found (the multiplier of the force constraint, in the unit of the
+    caller's gaps), None under indentation control.
     """
 
     pressure: np.ndarray
@@ -28,6 +30,7 @@ class ContactSolution:
     history: list = field(default_factory=list)
     reentries: int = 0
     halvings: int = 0
+    approach: float | None = None
 
 
 def min_map_residual(pressure, gap, weights=None) -> float:

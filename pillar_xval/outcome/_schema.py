@@ -12,7 +12,7 @@ from dataclasses import asdict, dataclass, field
 from importlib import metadata
 from typing import Any
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 
 
 def package_version() -> str:
@@ -37,12 +37,16 @@ class PillarForce:
 class ContactResult:
     """Answer of one model on one scene (SI units).
 
-    ``centre_pressure_Pa`` is the contact pressure at r = 0 (sigma_0); ``contact_radius_m`` the
-    radius of the outermost point of contact; ``real_contact_area_m2`` the area where the
-    pressure is positive; ``pillar_top_profile`` the pressure across the central pillar top
-    (``r_m`` from its centre, ``pressure_Pa``).  ``diagnostics`` holds model-specific
-    numbers (residuals, complementarity errors); ``fields`` holds arrays for plots and CSV
-    files and is not part of the JSON document.
+    ``load_control`` says which load the scene gave: ``"indentation"`` (``indentation_m``
+    given, ``total_force_N`` solved) or ``"force"`` (``scene["load"]["force_N"]`` given,
+    ``indentation_m`` and ``total_force_N`` solved, the latter equal to the given force within
+    the model's solver tolerance); both fields are on every result, filled from the scene when
+    a model leaves them out.  ``centre_pressure_Pa`` is the contact pressure at r = 0
+    (sigma_0); ``contact_radius_m`` the radius of the outermost point of contact;
+    ``real_contact_area_m2`` the area where the pressure is positive; ``pillar_top_profile``
+    the pressure across the central pillar top (``r_m`` from its centre, ``pressure_Pa``).
+    ``diagnostics`` holds model-specific numbers (residuals, complementarity errors);
+    ``fields`` holds arrays for plots and CSV files and is not part of the JSON document.
     """
 
     model: str
@@ -62,6 +66,24 @@ class ContactResult:
     version: str = field(default_factory=package_version)
     schema_version: int = SCHEMA_VERSION
     fields: dict = field(default_factory=dict, repr=False)
+    load_control: str = ""
+    indentation_m: float | None = None
+
+    def __post_init__(self):
+        load = self.scene.get("load", {}) if isinstance(self.scene, dict) else {}
+        if not self.load_control:
+            self.load_control = "force" if "force_N" in load else "indentation"
+        if self.indentation_m is None:
+            self.indentation_m = load.get("indentation_m")
+
+    def for_force(self, scene: dict, indentation_m: float, **diagnostics) -> "ContactResult":
+        """This result, solved at ``indentation_m`` (m), as the answer to the force-controlled
+        ``scene`` (its SI dictionary): its scene, load control and indentation, and the
+        ``diagnostics`` of how the force was met.  Returns itself."""
+        self.scene = scene
+        self.load_control, self.indentation_m = "force", float(indentation_m)
+        self.diagnostics.update(diagnostics)
+        return self
 
     def to_dict(self) -> dict:
         out = asdict(self)
@@ -90,10 +112,13 @@ class ContactResult:
             f"scene            {s.get('name', '?')}"
             + ("" if s.get("pillars") is None
                else f"  Phi = {s['pillars']['surface_fraction']:.4g}")
-            + f"  zeta = {s['load']['indentation_m'] * 1e6:.4g} um",
+            + (f"  zeta = {self.indentation_m * 1e6:.4g} um" if self.load_control != "force"
+               else f"  F = {s['load']['force_N'] * 1e6:.4g} uN (given)"),
             "materials        " + "; ".join(
                 f"{part} {_fmt_material(s[part])}" for part in ("lens", "pillars", "substrate")
                 if s.get(part) is not None),
+            *([f"indentation      {self.indentation_m * 1e6:.6g} um (solved)"]
+              if self.load_control == "force" else []),
             f"total force      {self.total_force_N * 1e6:.6g} uN",
             f"centre pressure  {self.centre_pressure_Pa * 1e-3:.6g} kPa",
             f"contact radius   {self.contact_radius_m * 1e6:.6g} um",

@@ -18,7 +18,11 @@ Allowed ranges (why: PHYSICS.md, "Scene input")
   printed value 0.9069 means close packing (pitch = diameter), and whose pitch is a length
   in range;
 - pitch >= diameter; indentation below the pillar height (or below R/2 on a flat substrate);
-  lens radius above 10 x the larger of pillar diameter and height; not both half-spaces rigid.
+  lens radius above 10 x the larger of pillar diameter and height; not both half-spaces rigid;
+- a force (the load of a force-controlled scene, instead of the indentation): [1e-21, 1e22] N,
+  the force scale E L^2 of the softest modulus on the shortest length to the stiffest on the
+  longest; and an indentation it implies within the limits above.  Before anything is
+  solved, the lens pressed on a rigid flat bounds it from below (:func:`force_problem`).
 """
 
 from __future__ import annotations
@@ -29,6 +33,9 @@ from ._errors import SceneError, show, show_amount
 
 LENGTH_RANGE_M = (1e-9, 1e3)
 MODULUS_RANGE_PA = (1e-3, 1e16)
+# E L^2 from the softest modulus on the shortest length to the stiffest on the longest: no
+# scene in range balances a force outside it.
+FORCE_RANGE_N = (1e-21, 1e22)
 POISSON_RANGE = (0.0, 0.5)
 # Surface fraction of hexagonal close packing (pitch = diameter), and the value the paper and
 # the README print for it, which is accepted as close packing too.
@@ -44,7 +51,8 @@ class Naming:
         return q
 
     def unit(self, q: str) -> str:
-        return "m" if q.endswith("_m") else "Pa" if q.endswith("E_Pa") else ""
+        return ("m" if q.endswith("_m") else "Pa" if q.endswith("E_Pa")
+                else "N" if q.endswith("_N") else "")
 
     def amount(self, q: str, si: float) -> str:
         """A bound or a derived value of quantity ``q`` in the unit of :meth:`unit`."""
@@ -137,33 +145,97 @@ def check_pitch(diameter_m: float, pitch_m: float, naming: Naming = SI) -> float
     return max(pitch_m, diameter_m)
 
 
-def check_scene(radius_m: float, indentation_m: float, pillars: tuple[float, float] | None,
-                lens_rigid: bool, substrate_rigid: bool, naming: Naming = SI) -> None:
+def check_force(q: str, si: float, naming: Naming = SI) -> float:
+    """A force in range (NaN, zero and negative values included in the refusal)."""
+    return check_range(q, si, *FORCE_RANGE_N, naming)
+
+
+def check_scene(radius_m: float, indentation_m: float | None,
+                pillars: tuple[float, float] | None, lens_rigid: bool, substrate_rigid: bool,
+                naming: Naming = SI) -> None:
     """The relations between the parts of a scene; ``pillars`` is (diameter, height) in m, or
-    None for a flat substrate.  Each quantity is already in its own range."""
+    None for a flat substrate; ``indentation_m`` None for a force-controlled scene (its
+    indentation is checked once implied: :func:`indentation_problem`).  Each quantity is
+    already in its own range."""
     R, zeta = radius_m, indentation_m
     if lens_rigid and substrate_rigid:
         raise naming.error(
             "substrate.rigid", f"not with {naming.key('lens.rigid')} = true (at least one "
             "half-space must be elastic)", True)
+    if zeta is not None:
+        problem = indentation_problem(R, zeta, pillars, naming)
+        if problem:
+            raise naming.error("load.indentation_m", problem, zeta)
     if pillars is None:
-        if zeta >= 0.5 * R:
-            raise naming.error(
-                "load.indentation_m",
-                f"must be below half of {naming.quote('lens.radius_m', R)}, "
-                f"{naming.measure('load.indentation_m', 0.5 * R)} "
-                "(the half-space model needs a contact radius far below R)", zeta)
         return
     d, h = pillars
-    if zeta >= h:
-        raise naming.error(
-            "load.indentation_m",
-            f"must be below the pillar height, {naming.quote('pillars.height_m', h)} (at "
-            "zeta >= h the lens reaches the substrate between pillars, which this model does not "
-            "include)", zeta)
     if R <= 10.0 * max(d, h):
         raise naming.error(
             "lens.radius_m",
             f"must exceed {naming.measure('lens.radius_m', 10.0 * max(d, h))}, 10 x the larger "
             "of pillar diameter and height (the model treats the lens as a half-space over many "
             "pillars)", R)
+
+
+def indentation_problem(radius_m: float, indentation_m: float,
+                        pillars: tuple[float, float] | None, naming: Naming = SI) -> str:
+    """Why ``indentation_m`` is outside what the models cover ('' when it is not): the one
+    scope check of an indentation, given (:func:`check_scene`) or implied by a force
+    (:func:`force_problem`, and each model's solved indentation)."""
+    R, zeta = radius_m, indentation_m
+    lo, hi = LENGTH_RANGE_M
+    if not lo <= zeta <= hi:
+        return (f"must lie in [{naming.amount('load.indentation_m', lo)}, "
+                f"{naming.amount('load.indentation_m', hi)}] {naming.unit('load.indentation_m')} "
+                "(the allowed lengths)")
+    if pillars is None:
+        if zeta >= 0.5 * R:
+            return (f"must be below half of {naming.quote('lens.radius_m', R)}, "
+                    f"{naming.measure('load.indentation_m', 0.5 * R)} "
+                    "(the half-space model needs a contact radius far below R)")
+        return ""
+    h = pillars[1]
+    if zeta >= h:
+        return (f"must be below the pillar height, {naming.quote('pillars.height_m', h)} (at "
+                "zeta >= h the lens reaches the substrate between pillars, which this model "
+                "does not include)")
+    return ""
+
+
+def indentation_limits(radius_m: float, pillars: tuple[float, float] | None) -> tuple:
+    """(smallest, largest) indentation in m that :func:`indentation_problem` accepts, the
+    largest a relative 1e-9 inside its open end."""
+    top = 0.5 * radius_m if pillars is None else pillars[1]
+    return LENGTH_RANGE_M[0], min(LENGTH_RANGE_M[1], top * (1.0 - 1e-9))
+
+
+def rigid_flat_indentation(force_N: float, radius_m: float, lens_compliance: float) -> float:
+    """The indentation (m) at which the lens, pressed on a rigid flat, carries ``force_N``:
+    Hertz's zeta = (3 F gamma_l / (4 sqrt R))^(2/3) ([J] sec. 4.2).  Any substrate, pillar or
+    partial contact deflects more, so it is a lower bound of every model's indentation at that
+    force (0 for a rigid lens, which bounds nothing)."""
+    return (3.0 * force_N * lens_compliance / (4.0 * math.sqrt(radius_m))) ** (2.0 / 3.0)
+
+
+def force_problem(radius_m: float, force_N: float, lens_compliance: float,
+                  pillars: tuple[float, float] | None, naming: Naming = SI) -> str:
+    """Why a force is refused before anything is solved ('' when it is not): the lower bound
+    of the indentation it implies (:func:`rigid_flat_indentation`) already fails the
+    indentation's scope check."""
+    zeta = rigid_flat_indentation(force_N, radius_m, lens_compliance)
+    if zeta <= LENGTH_RANGE_M[0]:
+        return ""  # a bound below the smallest indentation decides nothing
+    problem = indentation_problem(radius_m, zeta, pillars, naming)
+    if not problem:
+        return ""
+    return implied_problem(zeta, "where the lens pressed on a rigid flat carries it; any "
+                           "substrate or pillar deflects more", problem, naming, "at least ")
+
+
+def implied_problem(zeta: float, how: str, problem: str, naming: Naming = SI,
+                    bound: str = "") -> str:
+    """The refusal of a force whose implied indentation ``zeta`` (m; found ``how``) fails the
+    indentation's scope check with ``problem``."""
+    q = "load.indentation_m"
+    shown = f"{float(naming.amount(q, zeta)):.4g} {naming.unit(q)}"
+    return f"implies an indentation of {bound}{shown} ({how}): {naming.key(q)} {problem}"

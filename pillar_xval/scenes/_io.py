@@ -8,7 +8,9 @@ dimensionless)::
     [pillars]    diameter_um, height_um, surface_fraction | pitch_um, E_Pa, nu (or rigid)
     [substrate]  E_Pa, nu (or rigid)      (optional with pillars: missing keys, or the whole
                                            table, take the pillars' material, E_s = E_p)
-    [load]       indentation_um
+    [load]       indentation_um | force_uN  (exactly one: the indentation, or the normal
+                                           force in micronewtons; each model solves for the
+                                           other)
 
 A file without a ``[pillars]`` table is a flat substrate (the Hertz problem).  Allowed ranges:
 :mod:`pillar_xval.scenes._checks`; overrides: :mod:`pillar_xval.scenes._overrides`.
@@ -154,6 +156,7 @@ def scene_to_toml(scene: Scene) -> str:
         lines += ["[pillars]", f"diameter_um = {um(p.diameter_m)}",
                   f"height_um = {um(p.height_m)}", f"pitch_um = {um(p.pitch_m)}",
                   *mat(p.material), ""]
-    lines += ["[substrate]", *mat(scene.substrate), "",
-              "[load]", f"indentation_um = {um(scene.indentation_m)}", ""]
+    load = (f"indentation_um = {um(scene.indentation_m)}" if scene.force_N is None
+            else f"force_uN = {_in_file_units(scene.force_N, PER_UM)}")
+    lines += ["[substrate]", *mat(scene.substrate), "", "[load]", load, ""]
     return "\n".join(lines)

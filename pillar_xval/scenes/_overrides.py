@@ -6,8 +6,9 @@ Rules (the README's scene-file section states them for users):
   no ``inf`` or ``nan``) for numeric keys, ``true``/``false`` for ``rigid``;
 - the last override of a key wins;
 - an override of ``pitch_um`` replaces the file's ``surface_fraction`` and the other way
-  round, and so do ``E_Pa`` and ``rigid = true``; overriding both keys of such a pair is
-  refused, as a file holding both is;
+  round, and so do ``force_uN`` and ``indentation_um`` (the load: ``--set load.force_uN=20``
+  presses a preset by 20 uN instead of its indentation), and ``E_Pa`` and ``rigid = true``;
+  overriding both keys of such a pair is refused, as a file holding both is;
 - ``rigid=false`` makes a body elastic again with the file's ``E_Pa`` (or, for the
   substrate, the pillars' material);
 - ``table=none`` removes a table (``pillars=none``: a flat substrate, which keeps the pillars'
@@ -26,7 +27,8 @@ from ._tables import KEYS
 # refuse "007", which is harmless; float() alone would accept "0_3" as 3 and "infinity".
 _NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
 _INTEGER = re.compile(r"[+-]?[0-9]+")
-_PAIRS = {"pitch_um": "surface_fraction", "surface_fraction": "pitch_um"}
+_PAIRS = {"pitch_um": "surface_fraction", "surface_fraction": "pitch_um",
+          "indentation_um": "force_uN", "force_uN": "indentation_um"}
 
 
 def apply_overrides(data: dict, overrides: list[str] | tuple[str, ...]) -> dict:

@@ -16,7 +16,7 @@ from typing import Any
 
 from . import _checks as ck
 from ._checks import PHI_CLOSE_PACKING
-from ._errors import SceneError
+from ._errors import SceneError, ScopeError, show_amount
 
 
 @dataclass(frozen=True)
@@ -83,24 +83,81 @@ class Pillars:
 
 @dataclass(frozen=True)
 class Scene:
-    """A lens pressed by ``indentation_m`` onto pillars on a substrate (or onto a flat
-    substrate when ``pillars`` is None, the Hertz problem)."""
+    """A lens pressed onto pillars on a substrate (or onto a flat substrate when ``pillars``
+    is None, the Hertz problem) by a given indentation ``indentation_m`` (m), or by a given
+    normal force ``force_N`` (N; then ``indentation_m`` is None: each model solves for it).
+    Exactly one of the two is given."""
 
     lens: Lens
     substrate: Material
-    indentation_m: float
+    indentation_m: float | None
     pillars: Pillars | None = None
     name: str = "custom"
+    force_N: float | None = None
 
     def __post_init__(self):
         _check_material("substrate", self.substrate)
-        zeta = ck.as_float("load.indentation_m", self.indentation_m)
-        zeta = ck.check_length("load.indentation_m", zeta)
-        object.__setattr__(self, "indentation_m", zeta)
+        if (self.indentation_m is None) == (self.force_N is None):
+            raise SceneError("load: give exactly one of indentation_m and force_N "
+                             f"({'both' if self.force_N is not None else 'neither'} given)")
         p = self.pillars
-        ck.check_scene(self.lens.radius_m, zeta,
-                       None if p is None else (p.diameter_m, p.height_m),
+        pillars = None if p is None else (p.diameter_m, p.height_m)
+        zeta = None
+        if self.force_N is None:
+            zeta = ck.as_float("load.indentation_m", self.indentation_m)
+            zeta = ck.check_length("load.indentation_m", zeta)
+            object.__setattr__(self, "indentation_m", zeta)
+        else:
+            force = ck.check_force("load.force_N", ck.as_float("load.force_N", self.force_N))
+            object.__setattr__(self, "force_N", force)
+        ck.check_scene(self.lens.radius_m, zeta, pillars,
                        self.lens.material.rigid, self.substrate.rigid)
+        if zeta is None:
+            problem = ck.force_problem(self.lens.radius_m, self.force_N,
+                                       self.lens.material.compliance, pillars)
+            if problem:
+                raise ck.SI.error("load.force_N", problem, self.force_N)
+
+    # --- the load ---------------------------------------------------------------------
+    @property
+    def load_control(self) -> str:
+        """``"indentation"`` (the indentation is given) or ``"force"`` (the force is)."""
+        return "indentation" if self.force_N is None else "force"
+
+    def at_indentation(self, indentation_m: float) -> "Scene":
+        """The same scene pressed by ``indentation_m`` (m), indentation-controlled."""
+        return dataclasses.replace(self, indentation_m=indentation_m, force_N=None)
+
+    def at_force(self, force_N: float) -> "Scene":
+        """The same scene pressed by ``force_N`` (N), force-controlled."""
+        return dataclasses.replace(self, indentation_m=None, force_N=force_N)
+
+    def designed(self, indentation_m: float) -> "Scene":
+        """The scene at a *design* indentation: the guess of the indentation a force implies,
+        for which a model builds its discretisation, moved into the allowed range where a
+        guess falls outside it (:func:`._checks.indentation_limits`).  The indentation the
+        model then solves for is checked by :meth:`implied`."""
+        p = self.pillars
+        lo, hi = ck.indentation_limits(self.lens.radius_m,
+                                       None if p is None else (p.diameter_m, p.height_m))
+        return self.at_indentation(min(max(indentation_m, lo), hi))
+
+    def implied(self, indentation_m: float, how: str) -> "Scene":
+        """The scene at the indentation a model solved for this scene's force, checked by
+        the scope check of a given indentation (:func:`._checks.indentation_problem`): a
+        ScopeError names the force, the indentation and ``how`` it was found."""
+        from ._tables import FileNaming  # the user's keys and units (it imports this module)
+
+        naming = FileNaming({})
+        p = self.pillars
+        problem = ck.indentation_problem(self.lens.radius_m, indentation_m,
+                                         None if p is None else (p.diameter_m, p.height_m),
+                                         naming)
+        if problem:
+            raise ScopeError(f"{naming.key('load.force_N')} = "
+                             f"{show_amount(self.force_N * 1e6)}: "
+                             + ck.implied_problem(indentation_m, how, problem, naming))
+        return self.at_indentation(indentation_m)
 
     # --- derived quantities -------------------------------------------------------------
     @property
@@ -128,9 +185,11 @@ class Scene:
 
         p = data.get("pillars")
         pillars = None if not p else Pillars(p["diameter_m"], p["height_m"], p["pitch_m"], mat(p))
+        load = data["load"]
         return cls(lens=Lens(data["lens"]["radius_m"], mat(data["lens"])),
-                   substrate=mat(data["substrate"]), indentation_m=data["load"]["indentation_m"],
-                   pillars=pillars, name=data.get("name", "custom"))
+                   substrate=mat(data["substrate"]), indentation_m=load.get("indentation_m"),
+                   pillars=pillars, name=data.get("name", "custom"),
+                   force_N=load.get("force_N"))
 
     def replace(self, **changes) -> "Scene":
         return dataclasses.replace(self, **changes)
@@ -144,7 +203,8 @@ class Scene:
             "name": self.name,
             "lens": {"radius_m": self.lens.radius_m, **mat(self.lens.material)},
             "substrate": mat(self.substrate),
-            "load": {"indentation_m": self.indentation_m},
+            "load": ({"indentation_m": self.indentation_m} if self.force_N is None
+                     else {"force_N": self.force_N}),
             "pillars": None,
         }
         if self.pillars is not None:

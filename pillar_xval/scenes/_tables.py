@@ -23,7 +23,7 @@ KEYS = {
     "lens": ("radius_mm", "E_Pa", "nu", "rigid"),
     "pillars": ("diameter_um", "height_um", "surface_fraction", "pitch_um", "E_Pa", "nu", "rigid"),
     "substrate": ("E_Pa", "nu", "rigid"),
-    "load": ("indentation_um",),
+    "load": ("indentation_um", "force_uN"),
 }
 TOP_KEYS = ("name", "description")
 # SI quantity -> (file key, file units per SI unit, file unit); others keep their key.
@@ -33,6 +33,7 @@ _FILE_KEYS = {
     "pillars.height_m": ("pillars.height_um", PER_UM, "um"),
     "pillars.pitch_m": ("pillars.pitch_um", PER_UM, "um"),
     "load.indentation_m": ("load.indentation_um", PER_UM, "um"),
+    "load.force_N": ("load.force_uN", PER_UM, "uN"),
 }
 _MISSING = object()
 
@@ -128,12 +129,33 @@ def scene_from_dict(data: dict, origin: str | None = None,
     else:
         raise naming.fail("[substrate] table is missing (a flat scene needs one: E_Pa or "
                           "rigid = true, and nu)")
-    zeta = _length(naming, "load.indentation_m")
-    ck.check_scene(radius, zeta, None if pillars is None else
-                   (pillars.diameter_m, pillars.height_m),
-                   lens.material.rigid, substrate.rigid, naming)
+    zeta, force = _load(naming, data["load"])
+    shape = None if pillars is None else (pillars.diameter_m, pillars.height_m)
+    ck.check_scene(radius, zeta, shape, lens.material.rigid, substrate.rigid, naming)
+    if force is not None:
+        problem = ck.force_problem(radius, force, lens.material.compliance, shape, naming)
+        if problem:
+            raise naming.error("load.force_N", problem, force)
     name = data.get("name", "custom")
-    return Scene(lens=lens, substrate=substrate, indentation_m=zeta, pillars=pillars, name=name)
+    return Scene(lens=lens, substrate=substrate, indentation_m=zeta, pillars=pillars, name=name,
+                 force_N=force)
+
+
+def _load(naming: FileNaming, table: dict) -> tuple[float | None, float | None]:
+    """(indentation in m, force in N) of the [load] table: exactly one of them is given."""
+    if _first_of(naming, "load", table, "indentation_um", "force_uN"):
+        return _length(naming, "load.indentation_m"), None
+    q = "load.force_N"
+    return None, ck.check_force(q, ck.as_float(q, _value(naming, q), naming, PER_UM), naming)
+
+
+def _first_of(naming: FileNaming, name: str, table: dict, first: str, second: str) -> bool:
+    """Whether [name] gives ``first`` (True) or ``second`` (False): exactly one of them."""
+    has_first, has_second = first in table, second in table
+    if has_first == has_second:
+        raise naming.fail(f"[{name}] needs exactly one of {first} and {second} "
+                          f"({'both' if has_first else 'neither'} given)")
+    return has_first
 
 
 def _check_structure(data: dict, naming: FileNaming) -> None:
@@ -176,12 +198,7 @@ def _length(naming: FileNaming, q: str) -> float:
 def _pillars(naming: FileNaming, table: dict) -> Pillars:
     d = _length(naming, "pillars.diameter_m")
     h = _length(naming, "pillars.height_m")
-    has_pitch, has_phi = "pitch_um" in table, "surface_fraction" in table
-    if has_pitch == has_phi:
-        raise naming.fail(
-            "[pillars] needs exactly one of pitch_um and surface_fraction "
-            f"({'both' if has_pitch else 'neither'} given)")
-    if has_pitch:
+    if _first_of(naming, "pillars", table, "pitch_um", "surface_fraction"):
         e = ck.check_pitch(d, _length(naming, "pillars.pitch_m"), naming)
     else:
         q = "pillars.surface_fraction"

@@ -33,7 +33,9 @@ from ._case import Case, accepts_vtu, code_version
 # 2: the record carries the SHA-256 of its own content (``digest``).
 RECORD_FORMAT = 2
 # Pillar forces are sums over the same cells as the total force: they agree to round-off
-# (measured <= 1e-15 relative on the dense BEM); a doubled or lost force is O(1).
+# (measured <= 1e-15 relative on the dense BEM); a doubled or lost force is O(1).  A
+# converged force-controlled result carries the given force within its solver's tolerance
+# (1e-8 at most, the secants'; the others to round-off): the same bound holds it.
 RTOL_FORCE_SUM = 1e-6
 
 
@@ -141,6 +143,11 @@ class CaseStore:
             result = ContactResult.from_dict(record["result"])
         except (KeyError, TypeError, ValueError) as exc:
             return f"result does not parse ({type(exc).__name__}: {exc})"
+        force = case.scene.force_N
+        if force is not None and result.converged and \
+                abs(result.total_force_N - force) > RTOL_FORCE_SUM * force:
+            return (f"carries {result.total_force_N:.9g} N, the case's force is "
+                    f"{force:.9g} N")
         if result.pillar_forces:
             total = sum(p.force_N for p in result.pillar_forces)
             if abs(total - result.total_force_N) > RTOL_FORCE_SUM * abs(result.total_force_N):

@@ -1,6 +1,6 @@
 """Figures of the studies (matplotlib, Agg): convergence, pressure profiles, the Gecit-like
-study and the time-accuracy trade-off.  Units as units (µm, kPa, µN); a figure whose data
-include a solve that missed its tolerance is stamped NOT CONVERGED
+study, the time-accuracy trade-off and the loading curve.  Units as units (µm, kPa, µN); a
+figure whose data include a solve that missed its tolerance is stamped NOT CONVERGED
 (:func:`validation.output.report.stamp_not_converged`).  The renders of FEM fields are
 :mod:`validation.output.render` and :mod:`validation.output.render3d`.
 """
@@ -10,7 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from matplotlib.ticker import NullFormatter
+from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
 from ..registry import QUANTITIES
 from .report import KPA, legend_outside, scene_label, pyplot, save_figure, stamp_not_converged
@@ -325,4 +325,88 @@ def plot_tradeoff(doc: dict, path: Path) -> Path:
     fig.tight_layout(rect=(0, 0.04, 1, 1))  # the bottom edge: references, NOT CONVERGED note
     stamp_not_converged(fig, [f"{r['model']} {rung_label(r['option'], r['level'])}"
                               for r in doc["rows"] if not r["converged"]])
+    return save_figure(fig, path, 120, layout=False)
+
+
+def _frame(ax, points: list[tuple[float, float]], scale: str) -> None:
+    """Limits around ``points`` (the models' and the measured), 8 % beyond them (a factor on
+    log axes), so that a closed form far from them does not squeeze them into a corner."""
+    points = [(x, y) for x, y in points if x > 0 and y > 0 or scale == "linear"]
+    if not points:
+        return
+    for axis, values in (("x", [p[0] for p in points]), ("y", [p[1] for p in points])):
+        lo, hi = min(values), max(values)
+        if scale == "log":
+            lo, hi = lo / 1.25, hi * 1.25
+        else:
+            pad = 0.08 * (hi - lo) if hi > lo else 0.08 * abs(hi) or 1.0
+            lo, hi = min(lo - pad, 0.0) if lo >= 0 else lo - pad, hi + pad
+        getattr(ax, f"set_{axis}lim")(lo, hi)
+
+
+# The loading curve's panels: (x attribute, y attribute, x label, y label, factors to display).
+_CURVE_PANELS = (
+    ("indentation_m", "total_force_N", "indentation ζ (µm)", "force F (µN)", 1e6, 1e6),
+    ("total_force_N", "contact_radius_m", "force F (µN)", "contact radius a (µm)", 1e6, 1e6),
+    ("total_force_N", "real_contact_area_m2", "force F (µN)", "real contact area A (µm²)",
+     1e6, 1e12),
+    ("total_force_N", "centre_pressure_Pa", "force F (µN)", r"centre pressure $\sigma_0$ (kPa)",
+     1e6, KPA),
+)
+
+
+def plot_curve(doc: dict, path: Path) -> Path:
+    """The loading curve (:mod:`validation.studies.curve`): F-zeta, a-F, A-F and sigma0-F,
+    each model with its numerical uncertainty band as error bars (where a ladder gave
+    levels), the Hertz and single-pillar closed forms dashed and dotted, the user's measured
+    points as black crosses; cases that did not converge crossed in red."""
+    plt = pyplot()
+    fig, axes = plt.subplots(2, 2, figsize=(11, 8.5))
+    styles = {"hertz": ("0.45", "--"), "spring": ("0.45", ":")}
+    # Loads over a decade or more: log axes, where power laws (Hertz: F ~ zeta^1.5) are lines.
+    scale = "log" if max(doc["loads"]) >= 10.0 * min(doc["loads"]) else "linear"
+    for ax, (xa, ya, xl, yl, fx, fy) in zip(axes.ravel(), _CURVE_PANELS):
+        ax.set_xscale(scale)
+        ax.set_yscale(scale)
+        if scale == "log":  # plain numbers at the decades and their 2 and 5, nothing between
+            for axis in (ax.xaxis, ax.yaxis):
+                axis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+                axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+                axis.set_minor_formatter(NullFormatter())
+        for name, ref in doc["references"].items():
+            colour, ls = styles.get(name, ("0.6", "-."))
+            ax.plot([v * fx for v in ref[xa]], [v * fy for v in ref[ya]], color=colour, ls=ls,
+                    lw=1.0, label=ref["label"])
+        for i, model in enumerate(doc["models"]):
+            rows = [r for r in doc["rows"] if r["model"] == model and "error" not in r]
+            if not rows:
+                continue
+            x, y = [r[xa] * fx for r in rows], [r[ya] * fy for r in rows]
+            xerr = [r.get("bands", {}).get(xa, 0.0) * fx for r in rows]
+            yerr = [r.get("bands", {}).get(ya, 0.0) * fy for r in rows]
+            ax.errorbar(x, y, xerr=xerr if any(xerr) else None, yerr=yerr if any(yerr) else None,
+                        fmt=_MARKERS[i % len(_MARKERS)] + "-", color=f"C{i}", lw=1.0, ms=5,
+                        capsize=3, label=model)
+            for r in rows:
+                if not r["converged"]:
+                    ax.plot(r[xa] * fx, r[ya] * fy, "x", color="red", ms=10, mew=2)
+        points = [p for p in (doc.get("data") or {}).get("points", []) if xa in p and ya in p]
+        if points:
+            ax.plot([p[xa] * fx for p in points], [p[ya] * fy for p in points], "kx", ms=7,
+                    mew=1.5, label=f"measured ({Path(doc['data']['file']).name})")
+        _frame(ax, [(r[xa] * fx, r[ya] * fy) for r in doc["rows"] if "error" not in r]
+               + [(p[xa] * fx, p[ya] * fy) for p in points], scale)
+        ax.set(xlabel=xl, ylabel=yl)
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7, loc="best")
+    control = "forces given" if doc["control"] == "force" else "indentations given"
+    if doc["references"]:
+        fig.text(0.5, 0.005, "closed forms for reference: Hertz (the lens on a continuum) and "
+                 "one Hooke pillar (the paper's spring model), each at the loads given; they "
+                 "may leave the frame, which the models and data set", ha="center",
+                 fontsize=8, color="0.3")
+    fig.suptitle(f"loading curve on {scene_label(doc['scene'])} ({control})", fontsize=11)
+    fig.tight_layout(rect=(0, 0.03, 1, 1))  # the bottom edge: the NOT CONVERGED note
+    stamp_not_converged(fig, [f"{r['model']} at {r['load']:.3g}" for r in doc["rows"]
+                              if "error" not in r and not r["converged"]])
     return save_figure(fig, path, 120, layout=False)

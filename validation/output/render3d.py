@@ -39,7 +39,8 @@ def region_of_interest(meta: dict) -> tuple[float, float, float]:
     of the undeformed lens sqrt(2 R zeta) plus a pillar diameter (flat: twice the Hertz
     radius)."""
     s = meta["scene"]
-    R, zeta = s["lens"]["radius_m"], s["load"]["indentation_m"]
+    # A force-controlled scene's indentation is the solved one, beside it in the sidecar.
+    R, zeta = s["lens"]["radius_m"], s["load"].get("indentation_m", meta.get("indentation_m"))
     if s.get("pillars"):
         d, h = s["pillars"]["diameter_m"], s["pillars"]["height_m"]
         roi = math.sqrt(2.0 * R * zeta) + d

@@ -104,7 +104,7 @@ REPORT_MARK = ".pillar-xval-report"
 # Each command's main file (written last), to know the owner of a folder made before marks.
 MAIN_FILES = {"solve": "result.json", "compare": "report.json", "converge": "converge.json",
               "tradeoff": "tradeoff.json", "gecit": "gecit.json", "lattice": "lattice.json",
-              "check": "check.json"}
+              "check": "check.json", "curve": "curve.json"}
 
 
 def report_owner(out: Path) -> str | None:
@@ -419,6 +419,8 @@ def scene_label(scene) -> str:
     if base is not None:
         if (d.get("pillars") is None) != (base.get("pillars") is None):
             said.append("flat" if d.get("pillars") is None else "with pillars")
+        if "force_N" in (d.get("load") or {}):
+            said.append(_say("F", UM, " µN", d["load"]["force_N"]))
         for (table, key), how in _PARAMETERS.items():
             mine, theirs = (d.get(table) or {}), (base.get(table) or {})
             if key not in mine or key not in theirs or not _differs(mine[key], theirs[key]):
@@ -434,6 +436,9 @@ def scene_label(scene) -> str:
     else:
         if d.get("pillars"):
             said.append(_say("Φ", 1.0, "", d["pillars"]["surface_fraction"]))
-        if d.get("load"):
-            said.append(_say("ζ", UM, " µm", d["load"]["indentation_m"]))
+        load = d.get("load") or {}
+        if "force_N" in load:
+            said.append(_say("F", UM, " µN", load["force_N"]))
+        elif load:
+            said.append(_say("ζ", UM, " µm", load["indentation_m"]))
     return f"{name} ({', '.join(said)})" if said else name

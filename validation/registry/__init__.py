@@ -17,14 +17,15 @@ from __future__ import annotations
 from pillar_xval.outcome import ContactResult
 from pillar_xval.scenes import InputError, Scene
 
-from .ladders import QUANTITIES, Ladder, Quantity, quantity_values
+from .ladders import LOAD_QUANTITIES, QUANTITIES, Ladder, Quantity, quantity_values
 from .model import CostLaw, Model
 from .models import DECLARED
 from .options import OptionSpec, check_option, flag
 
-__all__ = ["MODELS", "QUANTITIES", "CostLaw", "Ladder", "Model", "OptionSpec", "Quantity",
-           "candidates", "check_option", "family_options", "flag", "get_model", "ladder_for",
-           "ladders", "model_names", "option_vocabulary", "quantity_values", "run_model"]
+__all__ = ["LOAD_QUANTITIES", "MODELS", "QUANTITIES", "CostLaw", "Ladder", "Model",
+           "OptionSpec", "Quantity", "candidates", "check_option", "family_options", "flag",
+           "get_model", "ladder_for", "ladders", "model_names", "option_vocabulary",
+           "quantity_values", "run_model"]
 
 # Every model by its --model name, in declaration order (tests register fakes here).
 MODELS: dict[str, Model] = {m.name: m for m in DECLARED}

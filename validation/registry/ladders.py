@@ -32,6 +32,13 @@ QUANTITIES: tuple[Quantity, ...] = (
 )
 
 
+# What a check may compare besides: the indentation, given under indentation control and solved
+# under force control (where F_T is the given force, the same in every model).
+LOAD_QUANTITIES: tuple[Quantity, ...] = (
+    Quantity("zeta", "indentation_m", "m", "indentation zeta"),
+)
+
+
 def quantity_values(result: ContactResult) -> dict[str, float]:
     """The :data:`QUANTITIES` of a result, SI, by key."""
     return {q.key: float(getattr(result, q.attr)) for q in QUANTITIES}

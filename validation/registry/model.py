@@ -63,7 +63,12 @@ class Model:
       (mortar) sense, so the pointwise gap may dip by up to the FEMs' own limit;
     - ``expensive``: ``tradeoff`` runs it only when named (minutes per rung);
     - ``code``: packages beyond the engine's ``COMPUTING_PACKAGES`` whose source and data
-      decide its results; the case key hashes them (:mod:`validation.engine._case`).
+      decide its results; the case key hashes them (:mod:`validation.engine._case`);
+    - ``force_control``: how it solves a force-controlled scene: ``"native"``, its solver
+      takes one itself (and says how in its module); ``"outer"`` (the default, for a model
+      registered without a thought for it), :meth:`run` finds the indentation that carries
+      the force by whole solves under indentations
+      (:func:`pillar_xval.contact.solve_at_force`).
     """
 
     name: str
@@ -83,6 +88,7 @@ class Model:
     weak_contact: bool = False
     expensive: bool = False
     code: tuple[str, ...] = ()
+    force_control: str = "outer"
 
     @property
     def function(self) -> Callable[..., ContactResult]:
@@ -133,5 +139,12 @@ class Model:
         for name, value in zip(RUN_ARGUMENTS, (vtu_path, progress)):
             if value is not None and self.takes(name):
                 kwargs[name] = value
+        if scene.force_N is not None and self.force_control != "native":
+            from pillar_xval.contact import solve_at_force
+            from pillar_xval.scenes import analytic
+
+            return solve_at_force(lambda at: self.function(at, **kwargs), scene,
+                                  guess=analytic.indentation_estimate(scene),
+                                  how=f"{self.name}, by solves under indentations")
         return self.function(scene, **kwargs)
 

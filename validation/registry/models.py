@@ -14,6 +14,9 @@ __all__ = ["DECLARED"]
 # A closed form's time does not grow with anything: one constant term.
 _NO_COST = CostLaw("none", None, (0,))
 
+# Every model below solves a force-controlled scene itself (force_control = "native"): the
+# BEMs' and FEMs' contact solvers take the force as a constraint, the closed forms invert
+# exactly, auto plans at the estimated indentation (how: each solver's module docstring).
 DECLARED = (
     Model(
         "bem", "bem_solver:solve_dense",
@@ -33,7 +36,8 @@ DECLARED = (
         # Start-up, then assembly and dense factorisation.
         cost=CostLaw("dense-unknowns", "log_unknowns", (0, 2, 3), {"kind": "estimate"}),
         reference_rungs={"multi": (11, 15, 21), "flat": (11, 15, 21)},
-        robustness={"elements_per_diameter": 7}, keeps_fields=True),
+        robustness={"elements_per_diameter": 7}, keeps_fields=True,
+        force_control="native"),
     Model(
         "bem-richardson", "bem_solver._extrapolated:solve_dense_extrapolated",
         "the dense BEM at P and 2P - 1, Richardson-extrapolated",
@@ -43,7 +47,8 @@ DECLARED = (
         ladder=Ladder("elements_per_diameter", 5, 2.0, "odd", -1.0, (5, 7, 9, 11),
                       {"cells": "covered"},
                       "coarse element side / diameter = 1/P (fine level 2P - 1)"),
-        physics="hooke-pillar"),
+        physics="hooke-pillar",
+        force_control="native"),
     Model(
         "bem-fft", "bem_solver._fft:solve_fft",
         "FFT boundary-element model: regular grid, constrained CG, numpy or cupy",
@@ -62,7 +67,8 @@ DECLARED = (
         reference_rungs={"multi": (32, 48, 64), "flat": (32, 48, 64)},
         # 3000 CG iterations in extremes: the default, 20 sqrt(cells) + 500, reaches 14000 on
         # the widest corners, an hour of a stagnating solve where a verdict is wanted.
-        robustness={"cells_per_diameter": 16, "max_iterations": 3000}, keeps_fields=True),
+        robustness={"cells_per_diameter": 16, "max_iterations": 3000}, keeps_fields=True,
+        force_control="native"),
     Model(
         "fem-axisym", "fem_reference.axisym:solve",
         "axisymmetric FEM with one elastic pillar (scikit-fem, Taylor-Hood P2/P1)",
@@ -77,7 +83,8 @@ DECLARED = (
         reference_rungs={"single": (2.0, 1.0, 0.5), "flat": (2.0, 1.0, 0.5)},
         # The fast subset of extremes meshes it coarser: it checks robustness, not accuracy.
         robustness={"mesh_size": 2.0}, robustness_quick={"mesh_size": 4.0},
-        keeps_fields=True, weak_contact=True),
+        keeps_fields=True, weak_contact=True,
+        force_control="native"),
     Model(
         "fem-3d", "fem_reference.solid3d:solve",
         "3D FEM of the lattice's pi/6 wedge with elastic pillars (PARDISO, constrained CG)",
@@ -89,18 +96,21 @@ DECLARED = (
         physics="elastic-pillar",
         robustness={"mesh_size": 4.0}, weak_contact=True,
         # Its rungs take minutes each (validation/bench/fem3d.py).
-        expensive=True),
+        expensive=True,
+        force_control="native"),
     # Closed forms as models: the planner's cheapest candidates.
     Model(
         "hertz", "pillar_xval.closed_forms:solve_hertz",
         "Hertz on the substrate (flat), or the Hertz-like limit of a dense lattice",
         scopes=("flat", "multi"), scope_note="one pillar touches: no continuum",
-        cost=_NO_COST, robustness={}),
+        cost=_NO_COST, robustness={},
+        force_control="native"),
     Model(
         "spring", "pillar_xval.closed_forms:solve_spring",
         "the paper's soft-flat-punch (spring) model of one pillar",
         scopes=("single",), scope_note="a second pillar touches, or the scene is flat",
-        cost=_NO_COST, robustness={}),
+        cost=_NO_COST, robustness={},
+        force_control="native"),
     # The planner's choice for the scene (default tolerance and quantities); the plan is
     # recorded in the result's diagnostics["plan"].
     Model(
@@ -108,5 +118,6 @@ DECLARED = (
         "the planner's choice for the scene (pillar-xval plan)",
         options={"tolerance": PLANNED, "quantities": PLANNED, "budget": PLANNED},
         # The plan comes from the planner's code and its data (validation/planner/data).
-        code=("validation.planner",)),
+        code=("validation.planner",),
+        force_control="native"),
 )

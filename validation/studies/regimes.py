@@ -98,6 +98,7 @@ def grid_scene(base: Scene, phi: float, zeta_over_h: float) -> Scene:
     pillars = Pillars(p.diameter_m, p.height_m, Pillars.pitch_from_fraction(p.diameter_m, phi),
                       p.material)
     return base.replace(pillars=pillars, indentation_m=zeta_over_h * p.height_m,
+                        force_N=None,  # the map sets the indentation, whatever the base's load
                         name=f"{base.name} Phi={phi:.4g} zeta/h={zeta_over_h:.4g}")
 
 

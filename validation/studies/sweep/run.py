@@ -36,8 +36,10 @@ run it with :func:`run_sweep` (returns the table rows) and write the table with
 
 The table, one row per case: the swept keys, then every other scene parameter (file units,
 named as in a scene file: ``pillars.surface_fraction``, ``load.indentation_um``, ...), the
-model, its options (``option.<name>``), the result quantities in SI with the unit in the name
-(``total_force_N``, ``centre_pressure_Pa``, ``contact_radius_m``, ``real_contact_area_m2``),
+model, its options (``option.<name>``), the load's control (``load_control``: indentation or
+force: a ``load.force_uN`` axis sweeps forces, each replacing the base's indentation), the
+result quantities in SI with the unit in the name (``indentation_m``, given or solved,
+``total_force_N``, ``centre_pressure_Pa``, ``contact_radius_m``, ``real_contact_area_m2``),
 ``pillars_in_contact``, ``iterations``, ``converged``, ``wall_time_s`` (median of the timed
 runs), ``peak_memory_MB``, ``status`` (``ok`` or ``failed: why``) and ``case_key``.  Written
 as CSV and as Parquet (typed columns).
@@ -64,8 +66,10 @@ __all__ = ["Axis", "ModelSpec", "Sweep", "SweepCase", "crossed", "estimate_cost"
 SCENE_COLUMNS = ("lens.radius_mm", "lens.E_Pa", "lens.nu", "lens.rigid",
                  "pillars.diameter_um", "pillars.height_um", "pillars.surface_fraction",
                  "pillars.pitch_um", "pillars.E_Pa", "pillars.nu", "pillars.rigid",
-                 "substrate.E_Pa", "substrate.nu", "substrate.rigid", "load.indentation_um")
-RESULT_COLUMNS = ("total_force_N", "centre_pressure_Pa", "contact_radius_m",
+                 "substrate.E_Pa", "substrate.nu", "substrate.rigid", "load.indentation_um",
+                 "load.force_uN")
+RESULT_COLUMNS = ("load_control", "indentation_m", "total_force_N", "centre_pressure_Pa",
+                  "contact_radius_m",
                   "real_contact_area_m2", "pillars_in_contact", "iterations", "converged",
                   "wall_time_s", "peak_memory_MB", "status", "case_key")
 
@@ -78,7 +82,9 @@ UNMEASURED_SECONDS = 1.0
 def estimate_seconds(case: Case) -> float:
     """The predicted wall time (s) of a case: the planner's cost fit of its model, measured
     by ``pillar-xval calibrate`` on this machine (the model's default resolution where the
-    case gives none); :data:`UNMEASURED_SECONDS` without a fit."""
+    case gives none; a force-controlled scene at its estimated indentation, as the planner
+    reads it); :data:`UNMEASURED_SECONDS` without a fit."""
+    from ...planner.plan import planning_scene
     from ...planner.tables import load_data
     from ...registry import get_model
 
@@ -89,7 +95,7 @@ def estimate_seconds(case: Case) -> float:
     if fit.option and options.get(fit.option) is None:
         options[fit.option] = get_model(case.model).default(fit.option)
     try:
-        return fit.predict(case.scene, options)[0]
+        return fit.predict(planning_scene(case.scene), options)[0]
     except (InputError, ValueError, TypeError):
         return UNMEASURED_SECONDS
 
@@ -134,8 +140,11 @@ def scene_columns(scene: Scene) -> dict:
 
     out = dict.fromkeys(SCENE_COLUMNS)
     out.update({"lens.radius_mm": scene.lens.radius_m * 1e3, **mat("lens", scene.lens.material),
-                **mat("substrate", scene.substrate),
-                "load.indentation_um": scene.indentation_m * 1e6})
+                **mat("substrate", scene.substrate)})
+    if scene.force_N is None:
+        out["load.indentation_um"] = scene.indentation_m * 1e6
+    else:
+        out["load.force_uN"] = scene.force_N * 1e6
     if scene.pillars is not None:
         p = scene.pillars
         out.update({"pillars.diameter_um": p.diameter_m * 1e6,
@@ -186,7 +195,8 @@ def table_rows(sweep: Sweep, pairs: list[tuple[SweepCase, Outcome]]) -> list[dic
         row.update({f"option.{k}": c.case.options.get(k) for k in option_names})
         if o.ok:
             r = o.result
-            row.update({"total_force_N": r.total_force_N,
+            row.update({"load_control": r.load_control, "indentation_m": r.indentation_m,
+                        "total_force_N": r.total_force_N,
                         "centre_pressure_Pa": r.centre_pressure_Pa,
                         "contact_radius_m": r.contact_radius_m,
                         "real_contact_area_m2": r.real_contact_area_m2,
