@@ -124,6 +124,8 @@ class ContactResult:
             f"contact radius   {self.contact_radius_m * 1e6:.6g} um",
             f"real area        {self.real_contact_area_m2 * 1e12:.6g} um^2",
             f"pillars touching {self.pillars_in_contact}",
+            *([f"side walls       {self.diagnostics['side_wall_warning']}"]
+              if self.diagnostics.get("side_wall_warning") else []),
             f"converged        {self.converged} after {self.iterations} iterations, "
             f"{self.wall_time_s:.3g} s",
         ]

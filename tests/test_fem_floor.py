@@ -1,0 +1,171 @@
+"""The floor between pillars in the FEM references: the lens's bottom paired with the floor,
+the regime, the floor's share, and the side walls' validity diagnostic.
+
+Closed form: Hertz on a flat substrate is the limit of short pillars.  A pillar scene lies
+between two flat ones (exact solutions, monotone in the gaps and in the bodies' stiffness):
+its gaps are at least those of a flat substrate at the pillar tops and its body is that
+substrate with material removed (less force), and its gaps are at most those of a flat
+substrate at the floor with material added (more force).  So
+Hertz(zeta - h) <= F <= Hertz(zeta), and F tends to Hertz(zeta) as h -> 0.
+
+Tolerances: RTOL_MESH (2e-3), the discretisation error at mesh_size 4, where the short
+pillars' tests run: measured at zeta = 0.8 um, h = 0.1, 0.05, 0.025 um (elastic, and a
+rigid pillar on a rigid floor), F above Hertz(zeta - h) by 3.7e-4 to 7.1e-4 (the pillar's
+share), the floor contact radius below Hertz's sqrt(R (zeta - h)) by 0.9e-3 to 1.2e-3
+(1.3e-4 to 3.6e-4 at mesh_size 2); 1 - F / Hertz(zeta) = 0.181, 0.092, 0.046, order 0.98
+to 1.0 in h.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from fem_reference import axisym
+from fem_reference._floor import (annulus_edges, floor_reach, regime, side_wall_diagnostics,
+                                  side_wall_overlap)
+from meshes import build_axisymmetric_mesh, pillar_geometry
+from pillar_xval.scenes import SceneError, analytic, load_scene
+
+RTOL_MESH = 2e-3
+RTOL_SOLVER = 1e-8
+
+
+def deep(scene, zeta):
+    """``scene`` at the indentation ``zeta`` (m), at or beyond the pillar height where the
+    scene's own check still refuses it (that check is lifted with the BEMs' floor)."""
+    try:
+        return scene.at_indentation(zeta)
+    except SceneError:
+        out = copy.copy(scene)
+        object.__setattr__(out, "indentation_m", zeta)
+        return out
+
+
+def short_pillar(height_um, *extra):
+    return load_scene("single-pillar", [f"pillars.height_um={height_um}",
+                                        "load.indentation_um=0.001", *extra])
+
+
+def hertz_force(scene, zeta):
+    return analytic.hertz(dataclasses.replace(scene, pillars=None,
+                                              indentation_m=zeta)).force
+
+
+def assert_verified(result):
+    d = result.diagnostics
+    assert result.converged, d["message"]
+    assert d["linear_residual"] < RTOL_SOLVER
+    assert d["contact_residual"] < RTOL_SOLVER
+    assert d["compliance_asymmetry"] < RTOL_SOLVER  # reciprocity, with the floor's rows
+
+
+# --- Hertz as the limit of short pillars -------------------------------------------------
+@pytest.mark.parametrize("extra", [[], ["pillars.rigid=true", "substrate.rigid=true"]],
+                         ids=["elastic", "rigid-pillar-and-floor"])
+def test_short_pillars_tend_to_hertz(extra):
+    zeta = 0.8e-6
+    errors = []
+    for h_um in (0.1, 0.05):
+        scene = deep(short_pillar(h_um, *extra), zeta)
+        h = scene.pillars.height_m
+        res = axisym.solve(scene, mesh_size=4.0)
+        assert_verified(res)
+        upper, lower = hertz_force(scene, zeta), hertz_force(scene, zeta - h)
+        F = res.total_force_N
+        assert lower * (1 - RTOL_MESH) <= F <= upper * (1 + RTOL_MESH)
+        d = res.diagnostics
+        assert d["regime"] == "mixed" and d["floor_force_N"] > 0.5 * F
+        assert d["floor_force_N"] + res.pillar_forces[0].force_N == pytest.approx(F)
+        # the floor contact's outer radius: Hertz's on the floor, the pillar holding the
+        # lens up by a little
+        a_floor = math.sqrt(scene.lens.radius_m * (zeta - h))
+        assert d["floor_contact_radius_m"] == pytest.approx(a_floor, rel=RTOL_MESH)
+        assert res.contact_radius_m == d["floor_contact_radius_m"]
+        errors.append(1.0 - F / upper)
+    # the distance to Hertz(zeta) is first order in h: order 1 over the halving of h
+    assert math.log2(errors[0] / errors[1]) == pytest.approx(1.0, abs=0.1)
+
+
+def test_floor_contact_starts_beyond_the_reach_and_is_an_annulus():
+    base = short_pillar(0.2)
+    h, R, rim = 0.2e-6, base.lens.radius_m, 2e-6
+    onset = h + R - math.sqrt(R * R - rim * rim)  # the rigid lens touches the floor's rim
+    assert floor_reach(R, 0.99 * onset, h, rim) is None
+    below = axisym.solve(deep(base, 0.99 * onset), mesh_size=2.0)
+    assert_verified(below)
+    assert below.diagnostics["regime"] == "single-pillar"
+    assert below.diagnostics["floor_force_N"] == 0.0
+    above = axisym.solve(deep(base, 2.5 * h), mesh_size=2.0)
+    assert_verified(above)
+    d = above.diagnostics
+    assert d["regime"] == "mixed" and 0.0 < d["floor_force_N"] < above.total_force_N
+    # the pillar holds the lens up beside it: the floor contact is an annulus
+    r, p = above.fields["floor_r_m"], above.fields["floor_pressure_Pa"]
+    assert p[0] == 0.0 and p.max() > 0.0
+    inner = r[np.nonzero(p > 0)[0][0]]
+    outer = d["floor_contact_radius_m"]
+    assert d["floor_contact_area_m2"] < math.pi * (outer**2 - (0.9 * inner)**2)
+    assert d["floor_contact_area_m2"] > math.pi * (outer**2 - inner**2) * (1 - RTOL_MESH)
+    # contact lies within the rigid reach (pressure only opens gaps)
+    assert outer <= floor_reach(R, 2.5 * h, h, rim)
+
+
+def test_floor_lines_match_node_for_node():
+    geo = pillar_geometry(4e-6, 0.4e-6, 4e-3, mesh_size=2.0, floor_radius_m=30e-6)
+    r = np.linspace(2e-6, 30e-6, 50) / 2e-6
+    H = 0.4 / 2.0
+    assert [geo.size_at(x, 0.0) for x in r] == [geo.size_at(x, -H) for x in r]
+    mesh = build_axisymmetric_mesh(geo)  # checks the two floor lines match
+    top, floor = mesh.contact_nodes("contact_lens_floor"), mesh.contact_nodes("contact_floor")
+    assert len(top) == len(floor) > 20
+    assert np.allclose(mesh.points[1, floor], -0.4e-6)
+
+
+# --- side walls ---------------------------------------------------------------------------
+def test_side_wall_overlap_geometry():
+    wall_z = np.linspace(-1.0, 0.0, 11)
+    wall_r = 1.0 + 0.1 * (1.0 + wall_z)  # bulged at the top by 0.1
+    # lens points beside the rim: above the top (no overlap), inside, outside
+    lens_r = np.array([1.01, 1.05, 1.3])
+    lens_z = np.array([0.01, -0.2, -0.5])
+    depth, width = side_wall_overlap(lens_r, lens_z, 0.0, wall_r, wall_z)
+    assert depth == pytest.approx(0.2) and width == pytest.approx(0.08 - 0.05)
+    assert side_wall_overlap(lens_r + 1.0, lens_z, 0.0, wall_r, wall_z) == (0.0, 0.0)
+    small = side_wall_diagnostics((0.01, 0.001), 1.0)
+    assert "side_wall_warning" not in small and small["side_wall_overlap_ratio"] == 0.01
+    assert "no side walls" in side_wall_diagnostics((0.2, 0.01), 1.0)["side_wall_warning"]
+
+
+def test_side_wall_overlap_grows_with_the_indentation():
+    base = load_scene("single-pillar")
+    result = axisym.solve(base, mesh_size=2.0)
+    shallow = result.diagnostics
+    deeper = axisym.solve(base.at_indentation(1.5e-6), mesh_size=2.0).diagnostics
+    assert 0.0 <= shallow["side_wall_overlap_ratio"] < deeper["side_wall_overlap_ratio"]
+    assert "side_wall_warning" not in shallow and "side walls" not in result.summary()
+    shallow.update(side_wall_diagnostics((0.2 * base.pillars.height_m, 1e-8),
+                                         base.pillars.height_m))
+    assert "side walls       the deformed lens lies inside" in result.summary()
+    assert deeper["side_wall_overlap_m"] == pytest.approx(
+        deeper["side_wall_overlap_ratio"] * base.pillars.height_m)
+
+
+def test_regime_and_annulus_helpers():
+    flat = load_scene("hertz")
+    pillar = load_scene("single-pillar")
+    assert regime(flat, 0.0, 1.0, 0) == "flat"
+    assert regime(pillar, 1.0, 0.0, 1) == "single-pillar"
+    assert regime(pillar, 1.0, 0.0, 3) == "multi-pillar"
+    assert regime(pillar, 1.0, 1.0, 3) == "mixed"
+    r = np.linspace(1.0, 3.0, 9)  # P2 points: vertices 1, 1.5, ..., 3
+    lam = np.array([0.0, 0.0, 1.0, 1.0, 0.0])
+    w = np.array([1.0, 0.5, 0.2, 0.1, 0.0, 0.0, 0.0, 0.0, 0.0])
+    w[6:] = [0.1, 0.3, 0.6]
+    inner, outer = annulus_edges(r, lam, w)
+    assert 1.5 <= inner <= 2.0 and 2.5 <= outer <= 3.0
+    assert annulus_edges(r, np.zeros(5), w) == (0.0, 0.0)
