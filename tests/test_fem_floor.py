@@ -169,3 +169,52 @@ def test_regime_and_annulus_helpers():
     inner, outer = annulus_edges(r, lam, w)
     assert 1.5 <= inner <= 2.0 and 2.5 <= outer <= 3.0
     assert annulus_edges(r, np.zeros(5), w) == (0.0, 0.0)
+
+
+# --- fem-3d -------------------------------------------------------------------------------
+# fem-3d against fem-axisym on one pillar with floor contact, both at mesh_size 4 (fem-3d's
+# discretisation error there: F -3.4 %, the floor's share -0.85 points, the floor area
+# (vertex weights) -9 %; at mesh_size 2.83 F +1.3 %, share -0.07 points).
+RTOL_3D_FORCE = 0.05
+ATOL_3D_SHARE = 0.015
+
+
+def test_fem3d_floor_agrees_with_fem_axisym_on_one_pillar():
+    from fem_reference import solid3d
+
+    scene = deep(load_scene("single-pillar", ["pillars.height_um=0.2",
+                                              "load.indentation_um=0.1"]), 0.5e-6)
+    ref = axisym.solve(scene, mesh_size=4.0)
+    res = solid3d.solve(scene, mesh_size=4.0)
+    assert res.converged, res.diagnostics["message"]
+    d, dr = res.diagnostics, ref.diagnostics
+    assert d["regime"] == dr["regime"] == "mixed"
+    assert d["operator_asymmetry"] < 1e-10
+    assert res.total_force_N == pytest.approx(ref.total_force_N, rel=RTOL_3D_FORCE)
+    share, share_ref = (r.diagnostics["floor_force_N"] / r.total_force_N for r in (res, ref))
+    assert share == pytest.approx(share_ref, abs=ATOL_3D_SHARE)
+    assert d["floor_force_N"] + res.pillar_forces[0].force_N == pytest.approx(
+        res.total_force_N, rel=1e-12)
+    reach = floor_reach(scene.lens.radius_m, 0.5e-6, 0.2e-6, 2e-6)
+    assert 0.0 < d["floor_contact_radius_m"] <= reach
+    assert len(res.pillar_top_profile["r_m"]) > 0
+    assert max(res.pillar_top_profile["r_m"]) <= 2e-6 * (1 + 1e-9)  # the top's alone
+    assert "side_wall_overlap_ratio" in d
+
+
+def test_wedge_floor_faces_match_and_clear_the_pillars():
+    from meshes import WedgeGeometry, build_wedge_mesh, floor_clear_of_pillars, sector_pillars
+
+    pillars = sector_pillars(10e-6, 4e-6, 12e-6)
+    # a circle through a pillar moves out past it; one clear of every pillar stays
+    assert floor_clear_of_pillars(9e-6, pillars, 2e-6) == pytest.approx(12.2e-6)
+    assert floor_clear_of_pillars(6e-6, pillars, 2e-6) == 6e-6
+    geo = WedgeGeometry(2e-6, 2e-2, pillars=pillars, pillar_height_m=2e-6,
+                        floor_radius_m=12.2e-6, mesh_size=4.0)
+    mesh = build_wedge_mesh(geo)  # its check: the floor's two sides match in (x, y)
+    top, low = (mesh.face_nodes(g) for g in ("contact_lens_floor", "contact_floor"))
+    assert len(top) == len(low) > 20
+    assert np.all(mesh.points[2, top] == 0.0) and np.allclose(mesh.points[2, low], -2e-6)
+    size = geo.size_callback()  # the same rule at z and -h - z
+    for x, y in ((3.0, 0.5), (5.5, 1.0), (1.2, 0.1)):
+        assert size(2, 0, x, y, 0.0, 0.0) == size(2, 0, x, y, -1.0, 0.0)
