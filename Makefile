@@ -6,8 +6,8 @@ STAMP  := $(VENV)/.installed
 OUT    ?= out
 
 .PHONY: demo study-gecit study-lattice figures test test-slow bench-bem bench-fft bench-gpu bench-fem3d \
-	bench-elastic bench-engine bench-figures bench-startup bench-force clean calibrate \
-	validate-planner extremes regimes
+	bench-elastic bench-engine bench-figures bench-startup bench-force bench-sweep bench-threads \
+	clean calibrate validate-planner extremes regimes
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -102,9 +102,24 @@ bench-elastic: $(STAMP)
 bench-force: $(STAMP)
 	$(PY) -m validation.bench.force --out $(OUT)/bench-force
 
+# Thread scaling: bem-fft at 1e6 cells and the dense BEM on 1 up to the CPUs this process may
+# use (fresh interpreters, medians of 3 interleaved runs, answers compared with 1 thread's),
+# and the FFT iteration's CPU split against the float64 pair at 3e5 and 1e6 cells (a few
+# minutes; THREADS=1,2,4,8,16 and CASES=fft,dense,fem3d for a larger machine).
+THREADS ?=
+CASES ?= fft,dense
+bench-threads: $(STAMP)
+	$(PY) -m validation.bench.threads --out $(OUT)/bench-threads --cases $(CASES) \
+		$(if $(THREADS),--threads $(THREADS),)
+
 # CLI start-up: `pillar-xval --version` and `solve --help`, median of 5 fresh processes each.
 bench-startup: $(STAMP)
 	$(PY) -m validation.bench.startup --out $(OUT)/bench-startup
+
+# Sweep grids before any solve: the dry run's time at 1e4 and 1e5 points, the memory per axis
+# value and per case of a run (the sizes a grid is checked against; seconds).
+bench-sweep: $(STAMP)
+	$(PY) -m validation.bench.sweep --out $(OUT)/bench-sweep
 
 bench-engine: $(STAMP)
 	$(PY) -m validation.bench.engine --out $(OUT)/bench-engine

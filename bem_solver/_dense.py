@@ -17,13 +17,14 @@ from pillar_xval.contact import ContactSolution, min_map_residual, solve_active_
 from pillar_xval.outcome import ContactResult, PillarForce
 from pillar_xval.scenes import Scene, ScopeError, analytic
 from pillar_xval.outcome.memory import memory_short
+from pillar_xval.threads import thread_count
 
 from ._cells import VARIANTS, cell_pattern
 from ._discretise import Discretisation, discretise, overlap_radius
 from ._elastic_pillar import (cached_excess_block, check_pillars, coupling_block, image_cells,
-                              reduced_block, representative_rows, scene_compliance,
-                              uses_coupling, uses_elastic_block)
-from ._operator import reduced_operator
+                              operator_records, reduced_block, representative_rows,
+                              scene_compliance, uses_coupling, uses_elastic_block)
+from ._operator import BYTES_PER_THREAD, reduced_operator
 
 MAX_UNKNOWNS = 12_000  # dense reduced operator: 1.2 GB at this size
 RTOL_COMPLEMENTARITY = 1e-8
@@ -34,7 +35,8 @@ RTOL_COMPLEMENTARITY = 1e-8
 BYTES_PER_IMAGE = 200.0
 BYTES_PER_OPERATOR_ENTRY = 5 * 8.0
 # Work arrays of a solve of any size: blocks of Love coefficients on two threads (measured
-# peaks of 5-40 MB on scenes with under a hundred unknowns).
+# peaks of 5-40 MB on scenes with under a hundred unknowns); each further assembly thread
+# adds its own blocks (BYTES_PER_THREAD).
 BYTES_FIXED = 48 * 2.0**20
 # Love's exact pairs of the assembly, kept until the sums are done: ~230 per unknown within
 # FAR_FIELD_RATIO sides (the upper triangle of a flat scene's 452; 179 on paper-fig3-dense),
@@ -197,7 +199,8 @@ def solve_rounds(scene: Scene, P: int, cells: str, contact: str, elastic: dict |
                                         4 * disc.cell_side))
     if elastic is not None:
         extra = {**extra, "pillars": "elastic",
-                 "pillar_compliance": _compliance_summary(elastic["modal"])}
+                 "pillar_compliance": _compliance_summary(elastic["modal"]),
+                 "operators": operator_records(elastic["modal"].diagnostics)}
     return Level(scene, P, cells, contact, elastic, disc, M, radius, sol, rounds, extra, zeta,
                  reach, reach_radius)
 
@@ -296,7 +299,8 @@ def estimate_memory(scene: Scene, elements_per_diameter: int = 11, cells: str = 
     loaded = 1.0 if scene.pillars is None else max(
         1.0, elements / len(cell_pattern(P, cells).x))
     check = 3 * 8.0 * outer / 12.0 * (loaded if scene.pillars is not None else elements)
-    peak = (BYTES_FIXED + BYTES_PER_IMAGE * (elements + outer)
+    peak = (BYTES_FIXED + BYTES_PER_THREAD * max(0, thread_count() - 2)
+            + BYTES_PER_IMAGE * (elements + outer)
             + BYTES_PER_OPERATOR_ENTRY * unknowns**2 + BYTES_PER_UNKNOWN_NEAR * unknowns)
     return {"bytes": float(peak + check), "unknowns": float(unknowns),
             "elements": float(elements), "outer_elements": float(outer)}

@@ -45,11 +45,11 @@ import scipy.fft as sfft
 import scipy.sparse as sp
 
 from pillar_xval.scenes import InputError, Scene
+from pillar_xval.threads import thread_count
 
 from ._limits import PILLAR_MODELS
 from ._love import unit_force_influence
 
-FFT_THREADS = 2  # the pillar boxes' batched transforms (this machine has two cores)
 CHUNK_CELLS = 8192  # cells per chunk of the mode projections
 
 
@@ -83,6 +83,20 @@ def scene_compliance(scene: Scene, compliance=None, modes: int | None = None,
         lambda text: progress(f"elastic pillar's compliance (once per pillar kind): {text}"))
     return modal_compliance(kind, DEFAULT_MODES if modes is None else modes, mesh_size,
                             progress=say)
+
+
+def operator_records(*diagnostics: dict) -> list[dict]:
+    """The records of the cached operators behind a result, each once: from a compliance's
+    ``diagnostics["operator"]`` or a result's ``diagnostics["operators"]`` (its store, key and
+    content hash; a compliance passed in by the caller and never stored has none).  A result
+    keeps them in ``diagnostics["operators"]``: a study reuses its cached case only while the
+    cache still holds them."""
+    out = []
+    for d in diagnostics:
+        for record in [d.get("operator")] + list(d.get("operators", [])):
+            if isinstance(record, dict) and record not in out:
+                out.append(record)
+    return out
 
 
 def _constants(scene: Scene, compliance):
@@ -290,7 +304,7 @@ def full_block(disc, X: np.ndarray, img_cell: np.ndarray) -> np.ndarray:
 
 __all__ = ["FFTPillarTerm", "PILLAR_MODELS", "cached_excess_block", "check_pillars",
            "coupling_block", "coupling_kernel", "coupling_moments", "excess_block",
-           "full_block", "image_cells", "reduced_block", "representative_rows",
+           "full_block", "image_cells", "operator_records", "reduced_block", "representative_rows",
            "scene_compliance", "uses_coupling", "uses_elastic_block"]
 
 
@@ -309,12 +323,15 @@ class FFTPillarTerm:
       partly covered cells restricted to pairs on the same pillar.
 
     Collocation points: the grid's (centroids of partly covered cells), relative to their
-    pillar's centre.  CPU only (numpy and scipy).
+    pillar's centre.  CPU only (numpy and scipy); the boxes' transforms on ``workers`` threads
+    (default :func:`pillar_xval.threads.thread_count`).
     """
 
-    def __init__(self, scene: Scene, grid, compliance, correction_builder):
+    def __init__(self, scene: Scene, grid, compliance, correction_builder,
+                 workers: int | None = None):
         import scipy.sparse as sps
 
+        self.workers = thread_count() if workers is None else int(workers)
         self.modal = compliance
         self.half_space = scene.half_space_compliance
         a = 0.5 * scene.pillars.diameter_m
@@ -502,9 +519,9 @@ class FFTPillarTerm:
         M = loc["M"]
         box = np.zeros(self.n_pillars * M * M)
         box[loc["index"]] = q
-        spec = sfft.rfft2(box.reshape(self.n_pillars, M, M), workers=FFT_THREADS)
+        spec = sfft.rfft2(box.reshape(self.n_pillars, M, M), workers=self.workers)
         spec *= loc["spectrum"]
-        u = sfft.irfft2(spec, s=(M, M), workers=FFT_THREADS).reshape(-1)[loc["index"]]
+        u = sfft.irfft2(spec, s=(M, M), workers=self.workers).reshape(-1)[loc["index"]]
         if loc["correction"] is not None:
             u += loc["correction"] @ q
         return u

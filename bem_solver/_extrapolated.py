@@ -44,6 +44,7 @@ from pillar_xval.outcome import ContactResult, PillarForce
 from pillar_xval.scenes import Scene
 
 from ._dense import solve_dense
+from ._elastic_pillar import operator_records
 
 __all__ = ["MODEL_NAME", "extrapolate", "extrapolation_order", "fine_level", "richardson",
            "solve_dense_extrapolated"]
@@ -162,6 +163,7 @@ def extrapolate(scene: Scene, coarse: ContactResult, fine: ContactResult, cells:
         "extrapolation": f"Richardson, order {order:g} in h = 1/P",
         "levels": [_level(coarse), _level(fine)],
         "pillars_extrapolated": extrapolated,
+        "operators": operator_records(coarse.diagnostics, fine.diagnostics),
         "richardson_change": {
             "total_force": (total - fine.total_force_N) / fine.total_force_N
             if fine.total_force_N else 0.0,

@@ -64,7 +64,7 @@ from pillar_xval.scenes import InputError, Scene, ScopeError
 
 from ._dense import _smooth_edge_radius
 from ._fft_grid import CellGrid, build_grid, candidate_side, estimate_host_memory
-from ._elastic_pillar import (FFTPillarTerm, check_pillars, scene_compliance,
+from ._elastic_pillar import (FFTPillarTerm, check_pillars, operator_records, scene_compliance,
                               uses_elastic_block)
 from ._fft_operator import CirculantPreconditioner, CompliancePlan, near_field_correction
 from ._limits import PRECISIONS
@@ -89,7 +89,7 @@ MIN_CELLS_ACROSS_CONTACT = 5
 
 
 def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAULT_TOLERANCE,
-              max_iterations: int | None = None, workers: int = 2,
+              max_iterations: int | None = None, workers: int | None = None,
               warm_start: bool = True, edge_correction: bool = True, progress=None,
               device: str = "cpu", backend=None, preconditioner: str = "circulant",
               pillars: str = "hooke", compliance=None, precision: str = "mixed",
@@ -109,8 +109,9 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     max_iterations : int, optional
         Iteration cap; default 20 sqrt(n_cells) + 500.  Reaching it returns
         ``converged = False`` with the reason in ``diagnostics["message"]``.
-    workers : int
-        Threads for the FFTs.
+    workers : int, optional
+        Threads for the FFTs (default: :func:`pillar_xval.threads.thread_count`, the CPUs the
+        process may use or ``PILLAR_XVAL_THREADS``).
     warm_start : bool
         Start from the solution at N // 2 cells per diameter (recursively, down to
         ``WARM_START_MIN_CELLS``), interpolated bilinearly (nested iteration).
@@ -249,7 +250,7 @@ def _prepare(scene: Scene, cells_per_diameter: int, opts: _Options, be, workspac
     term = None
     if opts.elastic:
         term = FFTPillarTerm(scene, grid, opts.compliance, lambda gamma: near_field_correction(
-            grid, gamma, backend=be) if opts.edge_correction else None)
+            grid, gamma, backend=be) if opts.edge_correction else None, workers=be.workers)
     plan = CompliancePlan(grid.shape, grid.flat_index, L, scene.half_space_compliance,
                           pillar=grid.pillar, spring_compliance=spring, workers=opts.workers,
                           correction=correction, backend=be, pillar_term=term,
@@ -316,6 +317,7 @@ def finish(scene: Scene, setup: _Setup, outcome, cells_per_diameter: int, opts: 
         " + elastic pillars" if opts.elastic else "")
     if opts.elastic:
         result.diagnostics["pillars"] = "elastic"
+        result.diagnostics["operators"] = operator_records(opts.compliance.diagnostics)
         result.discretisation["pillars"] = "elastic"
     result.diagnostics["timings_s"] = setup.timings
     return result

@@ -27,6 +27,8 @@ References
 from __future__ import annotations
 
 import math
+import os
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -39,7 +41,6 @@ try:  # scipy.fft's own transforms, which write into given arrays (scipy.fft has
 except ImportError:  # another scipy layout: the public scipy.fft path (fresh arrays per call)
     _pocketfft = None
 
-FFT_WORKERS = 2  # this machine has two cores; scipy.fft threads the 2D transforms
 # Half-width (in cells) of the stencil around a partly covered cell within which its grid
 # coefficients are replaced by the equivalent-square ones.  Beyond it the two differ by a
 # dipole of the O(L) centroid shift, ~ phi L^3 / r^2; tests/test_bem_fft.py shows the effect of
@@ -63,6 +64,29 @@ SINGLE_PRECISION_ERROR = 2e-6
 # 1/SPARSE_ROWS_FRACTION of all cells (a row slice of the sparse matrix), else its whole
 # product.
 SPARSE_ROWS_FRACTION = 16
+# Elementwise work of the numpy path on fewer elements than this runs in one piece: below it
+# handing chunks to threads costs more than it saves.
+CHUNK_MIN = 1 << 16
+
+_POOLS: dict = {}
+
+
+def in_chunks(work, n: int, workers: int, size: int = 1) -> None:
+    """``work(lo, hi)`` over [0, n) in ``workers`` contiguous chunks at once (numpy releases
+    the GIL in elementwise work, scatters and gathers): each element gets the same operations
+    in any split, so results are bit-identical whatever ``workers`` is.  ``size``: elements
+    per unit of n (a row's length); one piece for one worker or fewer than
+    :data:`CHUNK_MIN` elements."""
+    if workers <= 1 or n * size < CHUNK_MIN:
+        work(0, n)
+        return
+    key = (os.getpid(), workers)  # a pool's threads do not survive a fork
+    pool = _POOLS.get(key)
+    if pool is None:
+        pool = _POOLS[key] = ThreadPoolExecutor(workers, thread_name_prefix="fft-chunks")
+    bounds = [n * k // workers for k in range(workers + 1)]
+    for _ in pool.map(lambda k: work(bounds[k], bounds[k + 1]), range(workers)):
+        pass
 
 
 def kernel_block(shape, cell_size: float, compliance: float, xp=np):
@@ -277,9 +301,15 @@ class PrunedConvolution:
         key = "single" if single else "double"
         buffer, spectrum, work = self._state(key)
         if work is not None:
-            # Cast first: a scatter that also converts takes twice as long.
-            buffer[self.padded_index] = q if q.dtype == buffer.dtype else q.astype(buffer.dtype)
-            out = self._numpy_call(buffer, work)
+            index = self.padded_index
+
+            def scatter(lo, hi):  # cast first: a scatter that also converts takes twice as long
+                part = q[lo:hi]
+                buffer[index[lo:hi]] = part if part.dtype == buffer.dtype else \
+                    part.astype(buffer.dtype)
+
+            in_chunks(scatter, index.shape[0], self.backend.workers)
+            return self._numpy_call(buffer, work)
         else:
             ny = self.shape[0]
             my, mx = self.fft_shape
@@ -302,30 +332,40 @@ class PrunedConvolution:
         if work is None:
             n = self.padded_index.shape[0]
             return self(be.put(xp.zeros(n, dtype=xp.float64), index, values), single)
-        buffer.fill(0.0)  # zero off the candidate cells already: the same buffer as a scatter
+        # zero off the candidate cells already: the same buffer as a scatter
+        in_chunks(lambda lo, hi: buffer[lo:hi].fill(0.0), buffer.shape[0], be.workers)
         buffer[self.padded_index[index]] = values.astype(buffer.dtype)
-        out = self._numpy_call(buffer, work)
-        return out.astype(np.float64) if single else out
+        return self._numpy_call(buffer, work)
 
     def _numpy_call(self, buffer, work):
         """The generic path's transforms (scipy.fft's rfft, fft, ifft, irfft are these
         pocketfft calls, with the default norm) of the scattered ``buffer`` into the kept
-        arrays."""
+        arrays, and the result on the candidate cells in float64; the elementwise work in
+        chunks on the transforms' threads (:func:`in_chunks`)."""
         ny = self.shape[0]
-        mx = self.fft_shape[1]
+        my, mx = self.fft_shape
         spec, out, factor = work
         workers = self.backend.workers
         _pocketfft.r2c(buffer.reshape(ny, mx), (1,), True, 0, spec[:ny], workers)
-        spec[ny:] = 0.0
+        row = spec.shape[1]
+        in_chunks(lambda lo, hi: spec[ny + lo:ny + hi].fill(0.0), my - ny, workers, row)
         _pocketfft.c2c(spec, (0,), True, 0, spec, workers)
         if factor.shape == spec.shape:  # the real spectrum itself
-            np.multiply(spec, factor, out=spec)
+            product = spec
         else:  # its (re, im) pairs
             product = spec.view(out.dtype).reshape(factor.shape)
-            np.multiply(product, factor, out=product)
+        in_chunks(lambda lo, hi: np.multiply(product[lo:hi], factor[lo:hi],
+                                             out=product[lo:hi]), my, workers, row)
         _pocketfft.c2c(spec, (0,), False, 2, spec, workers)
         _pocketfft.c2r(spec[:ny], (1,), mx, False, 2, out, workers)
-        return out.reshape(-1).take(self.padded_index)
+        flat, index = out.reshape(-1), self.padded_index
+        result = np.empty(index.shape[0])
+
+        def gather(lo, hi):  # take, then widen (exact) into the float64 result
+            result[lo:hi] = flat.take(index[lo:hi])
+
+        in_chunks(gather, index.shape[0], workers)
+        return result
 
 
 class CompliancePlan:
@@ -345,8 +385,9 @@ class CompliancePlan:
         Owning pillar of each cell (for the Hooke term).
     spring_compliance : float
         c_s = 4 h / (pi d^2 E_p) (m/N); 0 for rigid pillars or a flat scene.
-    workers : int
-        Threads for scipy.fft (default backend only).
+    workers : int, optional
+        Threads for scipy.fft (default backend only; default
+        :func:`pillar_xval.threads.thread_count`).
     correction : sparse matrix, optional
         Near-field correction (m/Pa) from :func:`near_field_correction`, on the same device.
     backend : optional
@@ -362,7 +403,7 @@ class CompliancePlan:
     """
 
     def __init__(self, shape, flat_index, cell_size, compliance, pillar=None,
-                 spring_compliance=0.0, workers=FFT_WORKERS, correction=None, backend=None,
+                 spring_compliance=0.0, workers=None, correction=None, backend=None,
                  pillar_term=None, precision="mixed", workspace=None):
         if precision not in PRECISIONS:
             raise ValueError(f"precision = {precision!r}: choose one of {', '.join(PRECISIONS)}")
@@ -374,7 +415,7 @@ class CompliancePlan:
         self.shape = (ny, nx)
         self.cell_size = float(cell_size)
         self.compliance = float(compliance)
-        self.workers = workers
+        self.workers = getattr(be, "workers", workers)
         # Linear convolution of n-point sequences with an even kernel: >= 2n - 2 points.
         self.fft_shape = (padded_length(ny, be.next_fast_len),
                           padded_length(nx, be.next_fast_len))
@@ -544,6 +585,8 @@ class CompliancePlan:
         acc, scratch = self._few_grid
         block = self._block
         cells = be.to_numpy(xp.take(self._convolution_index, index)).tolist()
+        if on_numpy:  # rows in chunks on the FFT threads, each with its rows of the scratch
+            return self._table_sum_numpy(cells, values.tolist(), acc, scratch)
         for cell, d in zip(cells, be.to_numpy(values).tolist()):
             jy, jx = divmod(cell, nx)
             # Cells below/right of cell j read the table forwards from offset 0, cells
@@ -552,15 +595,47 @@ class CompliancePlan:
                                      (slice(0, jy), slice(jy, 0, -1))):
                 for cols, table_cols in ((slice(jx, nx), slice(0, nx - jx)),
                                          (slice(0, jx), slice(jx, 0, -1))):
-                    part = block[table_rows, table_cols]
-                    if on_numpy:  # no fresh temporary (page faults on large grids)
-                        part = np.multiply(part, d,
-                                           out=scratch[:part.shape[0], :part.shape[1]])
-                    else:
-                        part = part * d
-                    acc[rows, cols] += part
+                    acc[rows, cols] += block[table_rows, table_cols] * d
         u = xp.take(xp.reshape(acc, (-1,)), self._convolution_index)
         acc[...] = 0.0
+        return u
+
+    def _table_sum_numpy(self, cells, values, acc, scratch):
+        """:meth:`_table_sum` on numpy: rows of the accumulator in chunks on the FFT threads
+        (:func:`in_chunks`; every element sums the same products in the same order), the
+        products written into the chunk's rows of ``scratch`` (no fresh temporaries: page
+        faults on large grids)."""
+        ny, nx = self.shape
+        block = self._block
+        index = self._convolution_index
+        workers = self.backend.workers
+
+        def rows(r0, r1):
+            for cell, d in zip(cells, values):
+                jy, jx = divmod(cell, nx)
+                # Rows at or below cell j read the table forwards from offset 0, rows above
+                # it backwards from offset 1; the same for columns.
+                lo, hi = max(r0, jy), min(r1, jy)
+                for out_rows, table_rows in ((slice(lo, r1), slice(lo - jy, r1 - jy)),
+                                             (slice(r0, hi), slice(jy - r0, jy - hi, -1))):
+                    if out_rows.start >= out_rows.stop:
+                        continue
+                    for cols, table_cols in ((slice(jx, nx), slice(0, nx - jx)),
+                                             (slice(0, jx), slice(jx, 0, -1))):
+                        part = block[table_rows, table_cols]
+                        work = scratch[out_rows.start:out_rows.start + part.shape[0],
+                                       :part.shape[1]]
+                        acc[out_rows, cols] += np.multiply(part, d, out=work)
+
+        in_chunks(rows, ny, workers, nx)
+        flat = acc.reshape(-1)
+        u = np.empty(index.shape[0])
+
+        def gather(lo, hi):
+            u[lo:hi] = flat.take(index[lo:hi])
+
+        in_chunks(gather, index.shape[0], workers)
+        in_chunks(lambda lo, hi: acc[lo:hi].fill(0.0), ny, workers, nx)
         return u
 
     def dense_matrix(self, x, y) -> np.ndarray:

@@ -33,6 +33,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from pillar_xval.scenes import Scene
+from pillar_xval.threads import thread_count
 
 from ._discretise import Discretisation
 from ._love import FAR_FIELD_RATIO, love_square_near, unit_force_influence
@@ -42,7 +43,8 @@ from ._love import FAR_FIELD_RATIO, love_square_near, unit_force_influence
 # the largest paper scene (2564 unknowns, 29653 images) 685 blocks of 65,536 entries took
 # 0.22 s, 148 of 262,144 0.15 s (medians of 3; 1,048,576: 0.50 s).
 _BLOCK = 262_144
-_THREADS = 2
+# Each assembly thread keeps two work arrays of a block.
+BYTES_PER_THREAD = 2 * 8.0 * _BLOCK
 _NEAR_CHUNK = 8192  # near pairs per evaluation of Love's exact coefficient
 
 
@@ -112,7 +114,8 @@ def _lower_column_sums(scene: Scene, disc: Discretisation) -> np.ndarray:
 
     size = max((j1 * (start[j1] - start[j0]) for j0, j1 in blocks), default=0)
     buffers = queue.SimpleQueue()  # two work arrays per thread, reused (no page faults)
-    for _ in range(_THREADS):
+    threads = thread_count()
+    for _ in range(threads):
         buffers.put((np.empty(size), np.empty(size)))
 
     def work(block):
@@ -161,7 +164,7 @@ def _lower_column_sums(scene: Scene, disc: Discretisation) -> np.ndarray:
         return scale * love_square_near(dx * c + dy * s, -dx * s + dy * c,
                                         0.5 * disc.img_side[img])
 
-    with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(_THREADS) as pool:
+    with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(threads) as pool:
         img, col = (np.concatenate(a) for a in zip(*pool.map(work, blocks)))
         # Chunks of the near pairs small enough for their temporaries to be reused heap
         # memory (no page faults); their sums go into T as they come.

@@ -14,6 +14,7 @@ import numpy as np
 
 from pillar_xval.contact._xp import CupyArrays, NumpyArrays
 from pillar_xval.scenes import InputError
+from pillar_xval.threads import thread_count
 
 from ._fft_grid import MAX_FFT_POINTS
 from ._limits import DEVICES
@@ -26,10 +27,11 @@ GPU_BYTES_PER_FFT_POINT = 64
 
 
 class NumpyDevice(NumpyArrays):
-    """numpy + scipy.fft (threaded) + scipy.sparse on the CPU."""
+    """numpy + scipy.fft (threaded: ``workers``, default
+    :func:`pillar_xval.threads.thread_count`) + scipy.sparse on the CPU."""
 
-    def __init__(self, workers: int = 2, max_fft_points: int = MAX_FFT_POINTS):
-        self.workers = workers
+    def __init__(self, workers: int | None = None, max_fft_points: int = MAX_FFT_POINTS):
+        self.workers = thread_count() if workers is None else int(workers)
         self.max_fft_points = max_fft_points  # default ~1 GB of work arrays
 
     def rfft2(self, a):
@@ -128,9 +130,10 @@ def available_devices() -> dict:
     return {"cpu": "", "gpu": _gpu_reason()}
 
 
-def select_backend(device: str = "cpu", workers: int = 2):
+def select_backend(device: str = "cpu", workers: int | None = None):
     """The backend for ``device``: 'cpu', 'gpu' (InputError with what to install when no GPU
-    is usable) or 'auto' (the GPU when cupy finds one, else the CPU)."""
+    is usable) or 'auto' (the GPU when cupy finds one, else the CPU); ``workers``: the CPU's
+    FFT threads (default :func:`pillar_xval.threads.thread_count`)."""
     if device not in DEVICES:
         raise InputError(f"device = {device!r}: choose one of {', '.join(DEVICES)}")
     if device == "cpu":

@@ -19,14 +19,16 @@ the skeleton of :mod:`._driver` (set-up, phase clock, verdict, result):
 
 ``modal_compliance(PillarKind(h/d, E_p/E_s, nu_p, nu_s), modes, mesh_size)`` gives one
 pillar's top compliance by Fourier modes in theta (cached on disk), which the elastic-pillar
-BEM maps onto its cells (:mod:`._pillar_compliance`).
+BEM maps onto its cells (:mod:`._pillar_compliance`; its verified disk cache:
+:mod:`._compliance_store`).
 
 Weak forms: :mod:`.forms`; the reduced-unknown system both assemble: :mod:`._reduced`.
 """
 
 from . import axisym, solid3d
+from ._compliance_store import modal_compliance
 from ._pillar_compliance import (DEFAULT_MODES, ModalCompliance, PillarKind,
-                                 compute_modal_compliance, modal_compliance)
+                                 compute_modal_compliance)
 from ._reduced import SolveError
 
 __all__ = ["DEFAULT_MODES", "ModalCompliance", "PillarKind", "SolveError", "axisym",

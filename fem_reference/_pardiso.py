@@ -26,7 +26,9 @@ the matrix is factorised again the default way.
 Precision.  ``single=True`` factorises and solves in float32 (MKL's iparm[27]): half the
 factor's memory, the numeric factorisation 1.55x and a solve 1.26x faster in CPU time at
 mesh_size 2 (335k unknowns, medians of 3 interleaved); a solve is then accurate to ~1e-5,
-and the caller refines it against the float64 matrix (:mod:`.solid3d.system`).
+and the caller refines it against the float64 matrix (:mod:`.solid3d.system`).  Every call
+runs on :func:`pillar_xval.threads.thread_count` threads (MKL's, held through threadpoolctl
+once the library is loaded).
 """
 
 from __future__ import annotations
@@ -36,6 +38,8 @@ import functools
 
 import numpy as np
 import scipy.sparse as sp
+
+from pillar_xval.threads import limiter
 
 from ._reduced import SolveError
 
@@ -66,6 +70,7 @@ class Pardiso:
         solve in float32 (MKL's iparm[27]; half the factor's memory, its solves ~1e-6 of
         the exact ones: the caller refines them against ``A``)."""
         self._solver = _Handle() if solver is None else solver
+        self._threads = limiter()  # MKL is loaded by now
         self._solver.msglvl = 0
         upper = sp.triu(A, format="csr")
         upper.sort_indices()
@@ -80,7 +85,8 @@ class Pardiso:
         self._factorised = False
         self.ordering = "matching"
         if nodes is not None:
-            self._perm = node_ordering(self._solver, upper, np.asarray(nodes))
+            with self._threads():
+                self._perm = node_ordering(self._solver, upper, np.asarray(nodes))
             self._factorise(user_ordering=True)
             if self.perturbed_pivots == 0:
                 self.ordering = "nodes"
@@ -110,8 +116,9 @@ class Pardiso:
         return self._call(33, b2).astype(float, copy=False).reshape(b.shape)
 
     def _call(self, phase: int, b: np.ndarray) -> np.ndarray:
-        return _pardiso(self._solver, self._mtype, phase, self._a, self._ia, self._ja,
-                        self._perm, b)
+        with self._threads():
+            return _pardiso(self._solver, self._mtype, phase, self._a, self._ia, self._ja,
+                            self._perm, b)
 
     def _release(self) -> None:
         if self._factorised:

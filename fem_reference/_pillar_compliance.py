@@ -23,7 +23,8 @@ half-space that the BEM carries (gamma_s Love) is
 This module computes s_n as matrices on the P2 points of the top (the unit nodal loads are
 the "rings" of load: quadratic hats in r), for n = 0 .. ``modes``; :mod:`bem_solver` maps
 them onto its cells.  The operator depends on the pillar kind only (h/d, E_p/E_s, nu_p,
-nu_s) and on the discretisation, and is cached on disk under that key and the code version.
+nu_s) and on the discretisation, and is cached on disk under that key and the code version
+(:mod:`._compliance_store`).
 
 Units.  Lengths in units of a, moduli of E_p* (E_p clipped to at most 1e6 E_s, see
 RIGID_CONTRAST): a compliance matrix C here gives the physical top displacement u = C f / (E_p a)
@@ -34,11 +35,9 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import json
 import math
-import os
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -213,7 +212,7 @@ def pillar_halfspace_mesh(height_over_radius: float, mesh_size: float = 1.0,
     """(r, z) mesh in units of a: ``pillar`` [0, 1] x [-H, 0], ``collar`` [1, Rc] x [-H, 0] and
     ``substrate`` [0, L] x [-H - L, -H], conforming; boundaries ``top`` (the pillar top,
     z = 0, r <= 1), ``axis``, ``far`` (the substrate bottom) and ``pillar_base``."""
-    from meshes._session import gmsh_model
+    from meshes._session import gmsh_model, set_size_callback
 
     H, L = float(height_over_radius), float(block_factor)
     Rc = COLLAR_FACTOR * max(H, 1.0)
@@ -244,7 +243,7 @@ def pillar_halfspace_mesh(height_over_radius: float, mesh_size: float = 1.0,
             gmsh.option.setNumber(f"Mesh.{key}", 0)
         gmsh.option.setNumber("Mesh.Algorithm", 6)
         gmsh.option.setNumber("Mesh.ElementOrder", 1)
-        gmsh.model.mesh.setSizeCallback(lambda dim, tag, x, y, z, lc: size(x, y))
+        set_size_callback(gmsh, lambda dim, tag, x, y, z, lc: size(x, y))
         gmsh.model.mesh.generate(2)
         tags, xyz, _ = gmsh.model.mesh.getNodes()
         index = np.full(int(tags.max()) + 1, -1, dtype=np.int64)
@@ -423,7 +422,8 @@ def _axis_dofs(ub):
 
 def compute_modal_compliance(kind: PillarKind, modes: int = DEFAULT_MODES,
                              mesh_size: float = 1.0, progress=None) -> ModalCompliance:
-    """Solve the mode systems of ``kind`` (no cache; see :func:`modal_compliance`)."""
+    """Solve the mode systems of ``kind`` (no cache; see
+    :func:`._compliance_store.modal_compliance`)."""
     say = progress or (lambda text: None)
     t0 = time.perf_counter()
     H = 2.0 * kind.height_over_diameter
@@ -493,7 +493,7 @@ def compute_modal_compliance(kind: PillarKind, modes: int = DEFAULT_MODES,
                            np.array(Cb), diag, moments)
 
 
-# --- cache --------------------------------------------------------------------------------
+# --- what the cache key hashes ------------------------------------------------------------
 
 @functools.lru_cache(maxsize=1)
 def _source_hash() -> str:
@@ -507,61 +507,5 @@ def _source_hash() -> str:
     return h.hexdigest()[:12]
 
 
-def cache_dir() -> Path:
-    """Where compliance operators are cached: $PILLAR_XVAL_CACHE, else
-    ~/.cache/pillar-xval/pillar-compliance."""
-    root = os.environ.get("PILLAR_XVAL_CACHE")
-    base = Path(root) if root else Path.home() / ".cache" / "pillar-xval"
-    return base / "pillar-compliance"
-
-
-def cache_key(kind: PillarKind, modes: int, mesh_size: float) -> str:
-    payload = json.dumps({"kind": {k: repr(float(v)) for k, v in asdict(kind).items()},
-                          "modes": int(modes), "mesh_size": repr(float(mesh_size)),
-                          "version": COMPLIANCE_VERSION, "source": _source_hash()},
-                         sort_keys=True)
-    return hashlib.sha256(payload.encode()).hexdigest()[:20]
-
-
-def modal_compliance(kind: PillarKind, modes: int = DEFAULT_MODES, mesh_size: float = 1.0, *,
-                     cache: bool = True, progress=None) -> ModalCompliance:
-    """The mode matrices of ``kind``, from the disk cache when present (then
-    ``diagnostics["cached"]`` is True), else computed and stored atomically.
-
-    Parameters
-    ----------
-    kind : PillarKind
-    modes : int
-        Highest Fourier mode n kept; [0, 64].
-    mesh_size : float
-        Refinement factor of the 2D mesh (0.5 halves every element); [0.1, 4].
-    """
-    if isinstance(modes, bool) or not isinstance(modes, (int, np.integer)) \
-            or not 0 <= modes <= 64:
-        raise InputError(f"modes = {modes!r}: allowed range is integers in [0, 64]")
-    if not (isinstance(mesh_size, (int, float)) and 0.1 <= mesh_size <= 4.0):
-        raise InputError(f"mesh_size = {mesh_size!r}: allowed range is [0.1, 4]")
-    path = cache_dir() / f"{cache_key(kind, modes, mesh_size)}.npz"
-    if cache and path.exists():
-        try:
-            with np.load(path, allow_pickle=False) as z:
-                diag = json.loads(str(z["diagnostics"]))
-                diag["cached"] = True
-                return ModalCompliance(kind, int(modes), float(mesh_size), z["r_top"],
-                                       z["pillar"], z["halfspace"], diag,
-                                       z["base_moments"])
-        except (OSError, ValueError, KeyError):
-            pass  # a damaged file: recompute and replace it
-    result = compute_modal_compliance(kind, modes, mesh_size, progress)
-    result.diagnostics["cached"] = False
-    if cache:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
-        np.savez(tmp, r_top=result.r_top, pillar=result.pillar, halfspace=result.halfspace,
-                 base_moments=result.base_moments, diagnostics=json.dumps(result.diagnostics))
-        os.replace(tmp, path)
-    return result
-
-
-__all__ = ["DEFAULT_MODES", "ModalCompliance", "PillarKind", "cache_dir", "cache_key",
-           "compute_modal_compliance", "modal_compliance", "pillar_halfspace_mesh"]
+__all__ = ["DEFAULT_MODES", "ModalCompliance", "PillarKind", "compute_modal_compliance",
+           "pillar_halfspace_mesh"]

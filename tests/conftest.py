@@ -1,5 +1,6 @@
 """Shared fixtures: the fake models (tests/fakes.py) and the CLI run in-process."""
 
+import os
 import sys
 import types
 
@@ -7,6 +8,11 @@ import pytest
 
 import fakes as fake_models
 from validation.cli import main
+
+# Plans with the cost fits' own seconds (no machine calibration): the same plans on every
+# machine and under any load, in this process and the commands it starts;
+# tests/test_planner_machine.py calibrates on purpose.
+os.environ.setdefault("PILLAR_XVAL_MACHINE", "reference")
 
 
 @pytest.fixture

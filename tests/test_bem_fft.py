@@ -177,6 +177,36 @@ def test_numpy_convolution_into_kept_arrays_is_the_generic_path():
                 conv._pocket, conv._arrays = True, kept
 
 
+def test_the_numpy_paths_threads_change_no_bit(monkeypatch):
+    """The numpy path's elementwise work (scatter, zero fill, spectrum product, gather, the
+    kernel table's sums) runs in chunks on the FFT threads: on 1, 2 or 3 threads the
+    operator, the preconditioner, a few cells' convolution and the table's update give the
+    same bits (every element gets the same operations in any split)."""
+    import bem_solver._fft_operator as operator
+    from bem_solver._fft_operator import CirculantPreconditioner
+
+    monkeypatch.setattr(operator, "CHUNK_MIN", 1)  # chunks on this small grid too
+    _, grid, plan = _small_plan("paper-fig3-dense", ["load.indentation_um=0.02"], 6)
+    pre = CirculantPreconditioner(plan)
+    rng = np.random.default_rng(7)
+    q = rng.random(grid.n_cells)
+    free = q > 0.3
+    index = np.sort(rng.choice(grid.n_cells, 40, replace=False))
+    few = index[:min(5, plan.few_max)]
+
+    def answers():
+        return [plan._convolution(q, single).copy() for single in (False, True)] + [
+            pre(q, free).copy(), plan._convolution.few(index, q[index], True).copy(),
+            plan._table_sum(few, q[few]).copy()]
+
+    plan.backend.workers = 1
+    one = answers()
+    for workers in (2, 3):
+        plan.backend.workers = workers
+        for a, b in zip(answers(), one):
+            assert np.array_equal(a, b)
+
+
 def test_convolution_of_a_few_cells_is_the_whole_field_convolution():
     """``few(index, values)`` (the clipping update's convolution: the scatter buffer cleared
     and only the given cells put in it) equals the convolution of the whole field that is

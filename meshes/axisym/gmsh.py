@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._common import MeshError
-from .._session import gmsh_model
+from .._session import gmsh_model, set_size_callback
 from .geometry import AxisymmetricGeometry
 from .mesh import AxisymmetricMesh
 
@@ -132,7 +132,7 @@ def _mesh(gmsh, geo: AxisymmetricGeometry) -> None:
         gmsh.option.setNumber(f"Mesh.{key}", 0)
     gmsh.option.setNumber("Mesh.Algorithm", 6)  # Frontal-Delaunay: good angles when graded
     gmsh.option.setNumber("Mesh.ElementOrder", 1)  # scikit-fem raises the order itself
-    gmsh.model.mesh.setSizeCallback(lambda dim, tag, x, y, z, lc: geo.size_at(x, y))
+    set_size_callback(gmsh, lambda dim, tag, x, y, z, lc: geo.size_at(x, y))
     gmsh.model.mesh.generate(2)
 
 

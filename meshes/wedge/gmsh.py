@@ -22,7 +22,7 @@ import math
 import numpy as np
 
 from .._common import MeshError
-from .._session import gmsh_model
+from .._session import gmsh_model, set_size_callback
 from .mesh import MIN_QUALITY_3D, WedgeMesh
 from .geometry import WedgeGeometry
 
@@ -350,7 +350,7 @@ def _mesh(gmsh, geo: WedgeGeometry, pairs) -> None:
     gmsh.option.setNumber("Mesh.Algorithm3D", 1)  # Delaunay volumes
     gmsh.option.setNumber("Mesh.ElementOrder", 1)  # scikit-fem raises the order itself
     gmsh.option.setNumber("Mesh.Optimize", 1)
-    gmsh.model.mesh.setSizeCallback(geo.size_callback())
+    set_size_callback(gmsh, geo.size_callback())
     for lens_face, lower_face, dz in pairs:
         if dz == 0.0:  # a pillar top (or the flat candidate) copied onto the lens
             gmsh.model.mesh.setPeriodic(2, [lens_face], [lower_face], IDENTITY)

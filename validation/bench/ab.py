@@ -9,7 +9,7 @@ alike.  Per case and side: the median and the spread of the solve's wall time an
 (``time.process_time``, both threads), the iterations, and the answers F_T, sigma0 and a with
 their largest relative difference between the sides; for the FFT, the operator applications
 and the fine level's solve time per iteration over the bare FFT pair (scipy.fft rfft2 + irfft2,
-2 workers, as :func:`validation.bench.fft.fft_floor`, timed right after the solve): wall over
+on the solver's threads, as :func:`validation.bench.fft.fft_floor`, timed right after the solve): wall over
 wall on the model's own padded grid, wall over wall on the 2 n - 1 zero-padded grid (the
 same yardstick for two sides that pad differently), and the fine CG's CPU time over the
 pair's (both threads; steadier than wall times on a loaded machine).  With ``--warm`` each
@@ -46,7 +46,7 @@ PER_ITERATION = ("per_iteration_over_fft_pair", "per_iteration_over_2n1_pair",
 ROOT = Path(__file__).resolve().parents[2]
 
 WORKER = r"""
-import json, sys, time
+import json, os, sys, time
 case, warm = json.loads(sys.argv[1]), sys.argv[2] == "1"
 from pillar_xval.scenes import load_scene
 scene = load_scene(case["scene"], case["overrides"])
@@ -84,13 +84,15 @@ if case["model"] == "fft":  # the fine level's time per iteration over the bare 
     import statistics
     import numpy as np
     import scipy.fft as sfft
-    def pair(shape, repeats=7):  # validation.bench.fft.fft_floor, wall and CPU (both threads)
+    # The solver's threads (pillar_xval.threads, read here without it: a baseline may lack it).
+    W = int(os.environ.get("PILLAR_XVAL_THREADS") or len(os.sched_getaffinity(0)))
+    def pair(shape, repeats=7):  # validation.bench.fft.fft_floor, wall and CPU (all threads)
         a = np.random.default_rng(0).random(tuple(shape))
-        sfft.irfft2(sfft.rfft2(a, workers=2), s=a.shape, workers=2)
+        sfft.irfft2(sfft.rfft2(a, workers=W), s=a.shape, workers=W)
         walls, cpus = [], []
         for _ in range(repeats):
             t, c = time.perf_counter(), time.process_time()
-            sfft.irfft2(sfft.rfft2(a, workers=2), s=a.shape, workers=2)
+            sfft.irfft2(sfft.rfft2(a, workers=W), s=a.shape, workers=W)
             walls.append(time.perf_counter() - t)
             cpus.append(time.process_time() - c)
         return statistics.median(walls), statistics.median(cpus)

@@ -18,7 +18,7 @@ after come from one run.
 
 For each case: grid cells; our CG iterations on the finest grid (and on the coarser
 warm-start levels); our time per fine iteration against the floor, the bare FFT pair
-(scipy.fft rfft2 + irfft2, 2 workers) on our padded grid timed in the same process before and
+(scipy.fft rfft2 + irfft2, on the solver's threads) on our padded grid timed in the same process before and
 after the solve, as scipy.fft's own calls (fresh output arrays, page faults included) and as
 the same transforms into kept arrays (the transforms' work alone, as the solver runs them);
 convolutions per fine iteration; our wall time and ContactMechanics', their ratio, ContactMechanics' iterations and
@@ -54,16 +54,20 @@ SCALING_LEVELS = (8, 12, 16, 24, 32, 48, 64)
 CM_LEVELS = (32, 58)
 TOL = 1e-8
 FLOOR_REPEATS = 7
-WORKERS = 2
 
 
-def fft_floor(shape, workers=WORKERS, repeats=FLOOR_REPEATS) -> float:
+def fft_floor(shape, workers=None, repeats=FLOOR_REPEATS) -> float:
     """Median wall time (s) of the bare FFT pair, rfft2 then irfft2 with scipy.fft on a float64
     array of ``shape``: what one convolution on that padded grid cannot go below.  scipy.fft
     returns fresh arrays: on grids of 1e6 points each call page-faults some 30-60 MB in,
-    which this time includes (see :func:`fft_floor_kept`)."""
+    which this time includes (see :func:`fft_floor_kept`).  ``workers``: the solver's own
+    (:func:`pillar_xval.threads.thread_count`) unless given."""
     import numpy as np
     import scipy.fft as sfft
+
+    from pillar_xval.threads import thread_count
+
+    workers = thread_count() if workers is None else workers
 
     a = np.random.default_rng(0).random(tuple(shape))
 
@@ -74,17 +78,20 @@ def fft_floor(shape, workers=WORKERS, repeats=FLOOR_REPEATS) -> float:
     return median_time(pair, repeats)[0]
 
 
-def fft_floor_kept(shape, workers=WORKERS, repeats=FLOOR_REPEATS) -> float | None:
+def fft_floor_kept(shape, workers=None, repeats=FLOOR_REPEATS) -> float | None:
     """The same pair as :func:`fft_floor` (the same pocketfft transforms scipy.fft runs, its
     default norm) written into arrays kept between calls: the transforms' own work, without
     the page faults of fresh arrays, as the solver runs them.  None where scipy's layout
     lacks the kernels."""
     import numpy as np
 
+    from pillar_xval.threads import thread_count
+
     try:
         from scipy.fft._pocketfft import pypocketfft as pocketfft
     except ImportError:
         return None
+    workers = thread_count() if workers is None else workers
     ny, nx = (int(v) for v in shape)
     a = np.random.default_rng(0).random((ny, nx))
     spec = np.empty((ny, nx // 2 + 1), dtype=np.complex128)
@@ -114,7 +121,7 @@ def _ours(scene_name, overrides, n, tol, edge_correction=True, precision="mixed"
     padded = (padded_length(ny, fast), padded_length(nx, fast))
     before = (fft_floor(padded), fft_floor_kept(padded))
     start = time.perf_counter()
-    res = solve_fft(scene, n, tol=tol, edge_correction=edge_correction, workers=WORKERS,
+    res = solve_fft(scene, n, tol=tol, edge_correction=edge_correction,
                     precision=precision)
     wall = time.perf_counter() - start
     d = res.diagnostics
@@ -295,13 +302,19 @@ def main(argv=None) -> int:
         scaling.append(_median([run_case("bem-fft", SCENE, (), n, pillars="preset")
                                 for _ in range(args.repeats)]))
     meta = {"scene": SCENE, "pillars": {k: list(PILLARS[k]) for k in args.pillars},
-            "tolerance": TOL, "repeats": args.repeats, "fft_workers": WORKERS,
+            "tolerance": TOL, "repeats": args.repeats, "fft_workers": _threads(),
             "python": platform.python_version(), "machine": platform.machine(),
             "load_average": _load(), "contactmechanics": _version("contactmechanics"),
             "contactmechanics_skipped": reason}
     table = write_report(args.out, runs, scaling, meta)
     print(table)
     return 0
+
+
+def _threads() -> int:
+    from pillar_xval.threads import thread_count
+
+    return thread_count()
 
 
 def _load() -> list:
@@ -454,8 +467,8 @@ def format_table(rows: list, meta: dict) -> str:
               "conv/it: convolutions per fine iteration (one for the step, one more after a "
               "step that clips more pressures than the kernel table updates directly, and the "
               "float64 refreshes of the gap); "
-              "FFT pair: rfft2 + irfft2 (scipy.fft, 2 workers) on our padded grid, timed in the "
-              "same process before and after the solve (median of 2 x 7), fresh: scipy.fft's "
+              f"FFT pair: rfft2 + irfft2 (scipy.fft, {meta.get('fft_workers', '?')} workers) "
+              "on our padded grid, timed in the same process before and after the solve (median of 2 x 7), fresh: scipy.fft's "
               "own calls, which page-fault their fresh output arrays in, kept: the same "
               "transforms into arrays kept between calls, as the solver runs them; ours s: the "
               "whole solve_fft call (grid, kernel table, "

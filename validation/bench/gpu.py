@@ -31,6 +31,8 @@ import sys
 import time
 from pathlib import Path
 
+from pillar_xval.threads import thread_count
+
 from .fft import run_worker
 
 SCENE = "paper-fig3-dense"
@@ -134,7 +136,7 @@ def main(argv=None) -> int:
     gpu_reason = available_devices()["gpu"]
     levels = args.levels or list(LEVELS if not gpu_reason else CPU_ONLY_LEVELS)
     devices = ["cpu"] + ([] if gpu_reason else ["gpu"])
-    base = {"workers": os.cpu_count() or 1, "cpu_max_fft_points": _cpu_max_fft_points()}
+    base = {"workers": thread_count(), "cpu_max_fft_points": _cpu_max_fft_points()}
     meta = {"scene": SCENE, "tolerance": TOL, "edge_correction": True,
             "python": platform.python_version(), "machine": platform.machine(),
             "cpu_workers": base["workers"], "cpu_max_fft_points": base["cpu_max_fft_points"],

@@ -18,6 +18,9 @@ line on stderr, never a traceback.
 130   interrupted (Ctrl-C)
 143   terminated (SIGTERM): one line, and the finished cases of a study stay on disk
 ====  ===========================================================================
+
+A signal ends a command at once, also inside a library call that runs for minutes (gmsh,
+PARDISO): :mod:`._signals`.
 """
 
 from __future__ import annotations
@@ -33,8 +36,8 @@ import warnings
 # registry) is loaded inside main(), where a failure to load it (out of memory under a tight
 # `ulimit -v`: "failed to map segment", MemoryError) is one line and exit 3, not a traceback
 # from the console script's own import.
-from ._exit import (DEBUG_ENV, EXIT_BAD_INPUT, EXIT_INTERNAL_ERROR, EXIT_INTERRUPTED,
-                    EXIT_TERMINATED, EXIT_TOOL_FAILURE)
+from ._exit import DEBUG_ENV, EXIT_BAD_INPUT, EXIT_INTERNAL_ERROR, EXIT_TOOL_FAILURE
+from ._signals import Terminated, Watchdog, final_line
 
 __all__ = ["COMMANDS", "DEBUG_ENV", "EXIT_INTERNAL_ERROR", "add_scene_arguments",
            "build_parser", "main"]
@@ -95,19 +98,10 @@ def _one_line_warnings(prog: str):
     from ._args import one_line
 
     def show(message, category, filename, lineno, file=None, line=None):
-        print(f"{prog}: warning: {category.__name__}: {one_line(message, 200)}",
+        print(f"{prog}: warning: {category.__name__}: {one_line(message, 400)}",
               file=file or sys.stderr)
 
     return show
-
-
-class Terminated(KeyboardInterrupt):
-    """SIGTERM, raised in the main thread: it unwinds like Ctrl-C (the engine kills its
-    workers, finished cases stay on disk) and exits 143."""
-
-
-def _terminate(signum, frame):
-    raise Terminated()
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -116,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
         print("pillar-xval: error: standard output is closed; redirect it to a file or "
               "/dev/null", file=sys.stderr or sys.__stderr__)
         return EXIT_BAD_INPUT
-    previous = _install(signal.SIGTERM, _terminate)
+    watchdog = Watchdog()
     errors = _tolerant(sys.stdout)
     try:
         try:
@@ -128,9 +122,14 @@ def main(argv: list[str] | None = None) -> int:
                 raise
             print(f"pillar-xval: failure: {_load_failure(exc)}", file=sys.stderr)
             return EXIT_TOOL_FAILURE
-        return _main(argv)
+        return _main(argv, watchdog)
+    except KeyboardInterrupt as exc:  # before a command ran (loading the toolkit)
+        signum = signal.SIGTERM if isinstance(exc, Terminated) else signal.SIGINT
+        status, line = final_line("pillar-xval", signum)
+        print(line, file=sys.stderr)
+        return status
     finally:
-        _install(signal.SIGTERM, previous)
+        watchdog.stop()
         _tolerant(sys.stdout, errors)
 
 
@@ -169,15 +168,7 @@ def _tolerant(stream, errors: str = "backslashreplace") -> str | None:
     return before
 
 
-def _install(signum, handler):
-    """Set a signal handler where Python allows it (the main thread); returns the old one."""
-    try:
-        return signal.signal(signum, handler)
-    except (ValueError, TypeError):  # not the main thread, or no handler to restore
-        return None
-
-
-def _main(argv: list[str] | None) -> int:
+def _main(argv: list[str] | None, watchdog: Watchdog) -> int:
     from pillar_xval.scenes import InputError, ToolError
 
     from ._args import one_line
@@ -187,19 +178,22 @@ def _main(argv: list[str] | None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # --help, --version, or a one-line usage error (status 2)
         return exc.code if isinstance(exc.code, int) else EXIT_BAD_INPUT
+    from pillar_xval.threads import threads_override
+
     prog = f"pillar-xval {args.command}"
+    watchdog.prog = prog
     debug = _debugging(args)
     with warnings.catch_warnings():
         if not debug:
             warnings.showwarning = _one_line_warnings(prog)
         try:
-            return int(args.func(args) or 0)
-        except Terminated:
-            print(f"{prog}: terminated (SIGTERM); finished cases are kept", file=sys.stderr)
-            return EXIT_TERMINATED
-        except KeyboardInterrupt:
-            print(f"{prog}: interrupted", file=sys.stderr)
-            return EXIT_INTERRUPTED
+            with threads_override(getattr(args, "threads", None)):
+                return int(args.func(args) or 0)
+        except KeyboardInterrupt as exc:  # Terminated (SIGTERM) too
+            status, line = final_line(prog, signal.SIGTERM if isinstance(exc, Terminated)
+                                      else signal.SIGINT)
+            print(line, file=sys.stderr)
+            return status
         except InputError as exc:  # SceneError, ScopeError too
             print(f"{prog}: error: {one_line(exc)}", file=sys.stderr)
             return EXIT_BAD_INPUT

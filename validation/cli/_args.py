@@ -15,8 +15,9 @@
   option are those the models declare (:func:`validation.registry.option_vocabulary`);
 - output: ``--out DIR`` and ``--json`` (:func:`add_output_arguments`, :func:`check_out`,
   :func:`print_json`);
-- engine: ``--executor``, ``--workers``, ``--scheduler``, ``--fresh``
-  (:func:`add_engine_arguments`);
+- engine: ``--executor``, ``--workers``, ``--scheduler``, ``--fresh``, ``--threads``
+  (:func:`add_engine_arguments`); ``--threads`` alone for a command that solves in its own
+  process (:func:`add_threads_argument`);
 - outcomes: :func:`not_converged` (exit 1 and its line), :func:`study_status` (a study of many
   cases), :func:`failure_status`; an old spelling: :class:`Renamed`.
 
@@ -38,13 +39,15 @@ from pathlib import Path
 from ._exit import (DEBUG_ENV, EXIT_BAD_INPUT, EXIT_INTERNAL_ERROR, EXIT_NOT_CONVERGED,
                     EXIT_TOOL_FAILURE)
 from pillar_xval.scenes import InputError, preset_names
+from pillar_xval.threads import MAX_THREADS, THREADS_ENV, cpu_count
 
-from ..engine import add_engine_arguments, engine_from_args
+from ..engine import add_engine_arguments as _engine_arguments
+from ..engine import engine_from_args
 from ..registry import family_options, flag, option_vocabulary
 
 __all__ = [
     "DEBUG_ENV", "EXIT_INTERNAL_ERROR", "Parser", "Renamed", "add_choice_arguments",
-    "add_engine_arguments", "add_levels_argument", "add_model_argument",
+    "add_engine_arguments", "add_levels_argument", "add_model_argument", "add_threads_argument",
     "add_models_argument", "add_output_arguments", "add_refinement_arguments",
     "add_scene_arguments", "check_out", "engine_from_args", "failure_status", "flag", "integer",
     "not_converged", "number", "one_line", "option_type", "print_json", "refuse_inapplicable",
@@ -215,6 +218,22 @@ def add_choice_arguments(parser, names=None) -> None:
         spec = vocabulary[name]
         parser.add_argument(flag(name), dest=name, choices=spec.choices, default=None,
                             help=spec.help)
+
+
+def add_threads_argument(parser) -> None:
+    """``--threads N``: the threads the command may use in all (the CLI applies it:
+    :func:`pillar_xval.threads.threads_override`)."""
+    parser.add_argument("--threads", type=integer(1, MAX_THREADS), default=None, metavar="N",
+                        help="threads the command may use in all; a study shares them among "
+                             "its workers (default: the CPUs this process may use, "
+                             f"{cpu_count()} here, or {THREADS_ENV})")
+
+
+def add_engine_arguments(parser, fresh_help: str = "recompute cached cases") -> None:
+    """The engine's options (:func:`validation.engine.add_engine_arguments`) and
+    ``--threads``."""
+    _engine_arguments(parser, fresh_help)
+    add_threads_argument(parser)
 
 
 def add_levels_argument(parser, default: int, lo: int, hi: int, what: str) -> None:

@@ -9,8 +9,8 @@ from pathlib import Path
 
 from pillar_xval.scenes import ScopeError, load_scene
 
-from ._args import (add_engine_arguments, add_scene_arguments, check_out, engine_from_args,
-                    integer, number, print_json)
+from ._args import (add_engine_arguments, add_scene_arguments, add_threads_argument,
+                    check_out, engine_from_args, integer, number, print_json)
 
 
 def add_parser(sub) -> None:
@@ -36,6 +36,7 @@ def _add_plan(sub) -> None:
                                            "when none is left, one line naming the budget "
                                            "and the cheapest candidate's time, exit 2")
     p.add_argument("--json", action="store_true", help="print the plan as one JSON document")
+    add_threads_argument(p)  # the plan's times are for a solve on that many threads
     p.set_defaults(func=run)
 
 

@@ -6,8 +6,8 @@ from pillar_xval.scenes import load_scene
 
 from ..registry import model_names
 from ._args import (add_choice_arguments, add_model_argument, add_output_arguments,
-                    add_refinement_arguments, add_scene_arguments, check_out, not_converged,
-                    number, print_json, refuse_inapplicable)
+                    add_refinement_arguments, add_scene_arguments, add_threads_argument,
+                    check_out, not_converged, number, print_json, refuse_inapplicable)
 
 # What `solve --out DIR` writes (result.json last: its presence means the folder is whole).
 OUTPUTS = ("elements.csv", "pillars.csv", "pressure.png", "fields.vtu", "fields.json",
@@ -29,6 +29,7 @@ def add_parser(sub) -> None:
     add_refinement_arguments(p, ladder=False)
     add_choice_arguments(p)
     add_request_arguments(p)
+    add_threads_argument(p)
     add_output_arguments(p, "folder for result.json, element and pillar CSVs, pressure.png "
                             "(and fields.vtu for the FEM)",
                          "print the result as exactly one JSON document")

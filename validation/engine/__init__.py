@@ -60,7 +60,8 @@ def add_engine_arguments(parser, fresh_help: str = "recompute cached cases") -> 
                    help="where cases run: serial (this process), pool (local processes, the "
                         "default) or dask (--scheduler ADDRESS, or a local cluster)")
     g.add_argument("--workers", type=int, default=None, metavar="N",
-                   help=f"pool or local Dask processes (default {default_workers()})")
+                   help="pool or local Dask processes (default: one per thread the command "
+                        "may use, see --threads; the threads are shared among them)")
     g.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
                    help="a running Dask scheduler to send the cases to (implies "
                         "--executor dask)")

@@ -13,7 +13,6 @@ compute each case once between them, and a killed process leaves nothing half-wr
 from __future__ import annotations
 
 import dataclasses
-import os
 import time
 from collections import deque
 from concurrent.futures.process import BrokenProcessPool
@@ -22,9 +21,10 @@ from pathlib import Path
 
 from pillar_xval.outcome import ContactResult
 from pillar_xval.scenes import InputError, ToolError
+from pillar_xval.threads import cpu_count, thread_count
 
 from ._case import Case, compute_case
-from ._executors import EXECUTORS, default_workers, make_executor
+from ._executors import EXECUTORS, default_workers, make_executor, threads_per_worker
 from ._progress import Progress
 from ._store import CaseStore
 
@@ -71,8 +71,9 @@ class Outcome:
 
 
 def max_workers() -> int:
-    """Local processes beyond 4 per core only slow a study down (and may exhaust memory)."""
-    return 4 * (os.cpu_count() or 1)
+    """Local processes beyond 4 per CPU this process may use only slow a study down (and may
+    exhaust memory)."""
+    return 4 * cpu_count()
 
 
 def _check_executor(executor: str | None, workers: int | None, scheduler: str | None) -> None:
@@ -87,7 +88,7 @@ def _check_executor(executor: str | None, workers: int | None, scheduler: str | 
     if isinstance(workers, bool) or not isinstance(workers, int) or \
             not 1 <= workers <= max_workers():
         raise InputError(f"--workers {workers!r}: allowed range is [1, {max_workers()}] "
-                         f"(4 per core on this machine)")
+                         f"(4 per CPU this process may use)")
     if executor == "serial":
         raise InputError(f"--workers {workers}: --executor serial runs every case in this "
                          "process; workers are for --executor pool or dask")
@@ -105,7 +106,9 @@ class Engine:
         Where cases run: this process, a pool of local processes, or a Dask cluster.  The
         CLI's default is ``pool``; a library call defaults to ``serial``.
     workers : int, optional
-        Pool processes, or the processes of a local Dask cluster (default 2 on this machine).
+        Pool processes, or the processes of a local Dask cluster (default: one per thread
+        the command may use, :func:`pillar_xval.threads.thread_count`; each gets its share of
+        the threads).
     scheduler : str, optional
         Address of a running Dask scheduler (``tcp://host:port``); implies ``dask``.
     fresh : bool
@@ -156,6 +159,16 @@ class Engine:
         if self.executor_name == "serial" or self.scheduler:
             return 1
         return self.workers or default_workers()
+
+    @property
+    def threads(self) -> int | None:
+        """Threads each case runs on: the command's (this process), a local worker's share
+        (:func:`._executors.threads_per_worker`), None on a remote Dask cluster."""
+        if self.scheduler:
+            return None
+        if self.executor_name == "serial":
+            return thread_count()
+        return threads_per_worker(self.workers or default_workers())
 
     def describe(self) -> str:
         if self.executor_name == "dask":
@@ -221,11 +234,10 @@ class Engine:
 
     def _capacity(self) -> int:
         # A serial executor computes inside submit: no need to start anything to know that.
-        if self.executor_name == "serial" or (self.executor_name == "pool"
-                                              and (self.workers or 2) == 1):
+        workers = self.workers or default_workers()
+        if self.executor_name == "serial" or (self.executor_name == "pool" and workers == 1):
             return 1
-        return self.executor.capacity if self._executor is not None else max(
-            1, self.workers or 2)
+        return self.executor.capacity if self._executor is not None else workers
 
     def _use_cache(self, case: Case) -> bool:
         return not self.fresh or case.key in self._computed

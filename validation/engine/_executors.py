@@ -23,20 +23,45 @@ import threading
 import time
 
 from pillar_xval.scenes import InputError, ToolError
+from pillar_xval.threads import THREADS_ENV, limited, thread_count
 
 EXECUTORS = ("serial", "pool", "dask")
 PR_SET_PDEATHSIG = 1
 
 
 def default_workers() -> int:
-    """2 on this machine: one per core, at most 2 (a BLAS thread each)."""
-    return max(1, min(2, os.cpu_count() or 1))
+    """One local worker per thread the command may use
+    (:func:`pillar_xval.threads.thread_count`), each on one thread: cases are independent,
+    and a process per case scales where a solver's threads may not."""
+    return thread_count()
+
+
+def threads_per_worker(workers: int) -> int:
+    """Threads each of ``workers`` local workers may use: the command's count shared out,
+    so that workers times threads never exceeds it (at least one each: more workers than
+    threads, which only an explicit ``--workers`` asks for, get one thread apiece)."""
+    return max(1, thread_count() // max(1, int(workers)))
+
+
+def _start_worker(parent_pid: int, threads: int) -> None:
+    """Pool worker initializer: die with the parent (:func:`_die_with_parent`) and solve on
+    ``threads`` threads (the count every solver reads, and the libraries loaded now)."""
+    _die_with_parent(parent_pid)
+    os.environ[THREADS_ENV] = str(threads)
+    try:
+        limited(threads).__enter__()  # for the worker's life
+    except ImportError:
+        pass
 
 
 def _die_with_parent(parent_pid: int) -> None:
-    """Pool worker initializer: end this process when ``parent_pid`` ends."""
+    """End this process when ``parent_pid`` ends."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)  # not the CLI's handler, if forked from it
+    try:  # nor the CLI's signal watchdog's descriptor (its signals are not the parent's)
+        signal.set_wakeup_fd(-1)
+    except ValueError:
+        pass
     armed = False
     if sys.platform.startswith("linux"):
         try:
@@ -53,12 +78,6 @@ def _die_with_parent(parent_pid: int) -> None:
             os._exit(1)
 
         threading.Thread(target=watch, daemon=True, name="parent-watchdog").start()
-    try:  # one BLAS thread per worker: the workers already fill the cores
-        from threadpoolctl import threadpool_limits
-
-        threadpool_limits(1)
-    except ImportError:
-        pass
 
 
 def _noop() -> int:
@@ -89,16 +108,18 @@ class SerialExecutor:
 
 
 class PoolExecutor:
-    """A local pool of ``workers`` forked processes."""
+    """A local pool of ``workers`` forked processes, each on its share of the threads
+    (:func:`threads_per_worker`)."""
 
     name = "pool"
 
     def __init__(self, workers: int):
         ctx = mp.get_context("fork") if "fork" in mp.get_all_start_methods() else None
         self.capacity = workers
+        self.threads = threads_per_worker(workers)
         self._pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx,
-                                            initializer=_die_with_parent,
-                                            initargs=(os.getpid(),))
+                                            initializer=_start_worker,
+                                            initargs=(os.getpid(), self.threads))
         # Start every worker now, from this thread (the death signal follows the thread that
         # forked) and before the engine holds any lock (a fork copies descriptors).
         for f in [self._pool.submit(_noop) for _ in range(workers)]:
@@ -130,7 +151,9 @@ class PoolExecutor:
 
 class DaskExecutor:
     """A Dask distributed cluster: ``address`` (``tcp://host:port``) or, without one, a local
-    cluster of ``workers`` single-threaded processes on 127.0.0.1."""
+    cluster of ``workers`` processes on 127.0.0.1, each running one case at a time on its
+    share of the threads (:func:`threads_per_worker`; a remote cluster's workers count their
+    own)."""
 
     name = "dask"
 
@@ -149,7 +172,9 @@ class DaskExecutor:
                 self._cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
                                              processes=True, host="127.0.0.1",
                                              dashboard_address="127.0.0.1:0",
-                                             silence_logs=logging.ERROR)
+                                             silence_logs=logging.ERROR,
+                                             env={THREADS_ENV: str(threads_per_worker(
+                                                 workers))})
                 self._client = Client(self._cluster)
         except (OSError, TimeoutError) as exc:
             raise ToolError(f"dask: cannot reach the scheduler {address or '(local)'}: "

@@ -8,16 +8,19 @@ Layout of a folder::
     .locks/<key>.lock      held (fcntl.flock) while a process computes the case
     journal.jsonl          one line per start, finish or failure: who computed what
 
-A record is trusted only if it passes :meth:`CaseStore.load`'s checks, the last of which
-is the SHA-256 of its own content; anything else is recomputed.  Records and companions are written atomically (companions first, the record
-last, naming their sizes and SHA-256), so the presence of a valid record means the whole case
-is on disk.  Locks are advisory ``flock`` locks, which the kernel releases when their holder
-dies, even by ``kill -9``: no stale lock survives a crash.
+A record is trusted only if it passes :meth:`CaseStore.load`'s checks: the SHA-256 of its
+own content, then the cached operators its result was computed with (an elastic pillar's
+compliance: their content hashes, in the result's ``diagnostics["operators"]``, must be the
+ones the caches hold now, so a case computed with an operator that was since replaced or
+repaired is not reused); anything else is recomputed.  Records and companions are written
+atomically (companions first, the record last, naming their sizes and SHA-256), so the
+presence of a valid record means the whole case is on disk.  Locks are advisory ``flock``
+locks, which the kernel releases when their holder dies, even by ``kill -9``: no stale lock
+survives a crash.
 """
 
 from __future__ import annotations
 
-import fcntl
 import hashlib
 import json
 import math
@@ -25,7 +28,7 @@ import os
 import time
 from pathlib import Path
 
-from pillar_xval.outcome import ContactResult, write_atomic
+from pillar_xval.outcome import ContactResult, FileLock, write_atomic
 from pillar_xval.scenes import ToolError
 
 from ._case import Case, accepts_vtu, code_version
@@ -37,22 +40,6 @@ RECORD_FORMAT = 2
 # converged force-controlled result carries the given force within its solver's tolerance
 # (1e-8 at most, the secants'; the others to round-off): the same bound holds it.
 RTOL_FORCE_SUM = 1e-6
-
-
-class CaseLock:
-    """An exclusive ``flock`` on a case's lock file; ``release`` (or the holder's death)
-    frees it."""
-
-    def __init__(self, fd: int):
-        self._fd = fd
-
-    def release(self) -> None:
-        if self._fd is not None:
-            try:
-                fcntl.flock(self._fd, fcntl.LOCK_UN)
-            finally:
-                os.close(self._fd)
-                self._fd = None
 
 
 def _no_constants(name: str):
@@ -90,6 +77,20 @@ def _sha256(path: Path) -> str:
         for block in iter(lambda: fh.read(1 << 20), b""):
             h.update(block)
     return h.hexdigest()
+
+
+def _operator_changed(record: dict) -> str:
+    """'' while the caches still hold every operator the case was computed with (the content
+    hashes its result names in ``diagnostics["operators"]``), else which one they do not."""
+    from ..registry import stored_operator
+
+    for used in record["result"].get("diagnostics", {}).get("operators", []):
+        now = stored_operator(used.get("store"), used.get("key"))
+        if now != used.get("sha256"):
+            held = "no valid one" if now is None else f"content {now[:12]}"
+            return (f"computed with the {used.get('store')} operator {used.get('key')} of "
+                    f"content {str(used.get('sha256'))[:12]}, the cache now holds {held}")
+    return ""
 
 
 class CaseStore:
@@ -168,7 +169,7 @@ class CaseStore:
                 return reason
         if record.get("digest") != _digest(record):
             return "content changed after it was written (its digest does not match)"
-        return ""
+        return _operator_changed(record)
 
     def _check_companion(self, case: Case, name: str, meta: dict) -> str:
         path = self.companion_path(case, name)
@@ -221,20 +222,13 @@ class CaseStore:
         return record
 
     # --- locks and journal ---
-    def try_lock(self, case: Case) -> CaseLock | None:
+    def try_lock(self, case: Case) -> FileLock | None:
         """The case's lock, or None while another process holds it."""
         path = self._lock_path(case)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            os.close(fd)
-            return None
-        except OSError as exc:
-            os.close(fd)
+            return FileLock.acquire(path, wait=False)
+        except (OSError, ValueError) as exc:
             raise ToolError(f"cannot lock {path}: {exc}") from None
-        return CaseLock(fd)
 
     def journal(self, event: str, case: Case, **extra) -> None:
         """Append one line (a single small O_APPEND write: lines of concurrent processes never

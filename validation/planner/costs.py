@@ -82,19 +82,17 @@ SIZES = {"dense-unknowns": _dense, "fft-grid": _fft, "fem-dofs": _fem, "fem3d-do
 
 
 def compliance_cached(scene: Scene) -> bool:
-    """Whether the elastic-pillar BEM finds the scene's pillar compliance in the disk cache
-    (``fem_reference.modal_compliance`` at the BEM's modes and mesh), or needs none (no
-    pillars, or pillars and substrate both rigid: the Hooke and elastic models coincide)."""
+    """Whether the elastic-pillar BEM finds the scene's pillar compliance in the disk cache,
+    valid (``fem_reference._compliance_store.stored`` at the modes and mesh the BEMs ask
+    for: a damaged or foreign file there is rebuilt, so its time is charged), or needs none
+    (no pillars, or pillars and substrate both rigid: the Hooke and elastic models
+    coincide)."""
     if scene.pillars is None or (scene.pillars.material.rigid and scene.substrate.rigid):
         return True
-    # The lookup modal_compliance makes first (its cache_dir / cache_key), at the modes and
-    # mesh the BEMs ask for (bem_solver._elastic_pillar.scene_compliance).  Not a function of
-    # fem_reference._pillar_compliance: its source is hashed into every cached operator's key.
-    from fem_reference import DEFAULT_MODES, PillarKind
-    from fem_reference._pillar_compliance import cache_dir, cache_key
+    from fem_reference import PillarKind
+    from fem_reference._compliance_store import stored
 
-    key = cache_key(PillarKind.of_scene(scene), DEFAULT_MODES, 1.0)
-    return (cache_dir() / f"{key}.npz").exists()
+    return stored(PillarKind.of_scene(scene)) is not None
 
 
 # One-off set-up costs a candidate may carry (cost_models.json, a "setup" of a scaled cost):

@@ -12,7 +12,8 @@ planner predicts, per requested quantity,
 and adds them with their leave-one-out margins (:mod:`.tables`), with their signs where
 both have a systematic sign (:func:`combined_error`: a coarse BEM's sigma0 high, the Hooke
 pillar's low, so they partly cancel); its time and memory
-come from the cost fits (:mod:`.costs`). The choice is the cheapest candidate
+come from the cost fits (:mod:`.costs`), their seconds carried to this machine and thread
+count by its calibration (:mod:`.machine`). The choice is the cheapest candidate
 predicted within tolerance for every requested quantity.
 
 A candidate's ``physics`` drops the model-error components it does not carry
@@ -40,13 +41,15 @@ import math
 
 from pillar_xval.outcome.memory import memory_short
 from pillar_xval.scenes import InputError, Scene, ScopeError, analytic
+from pillar_xval.threads import thread_count
 
 from ..registry import QUANTITIES
+from . import machine
 from .features import features, regime
-from .tables import PlannerData, load_data
+from .tables import PlannerData, load_data, machine_data
 
 __all__ = ["DEFAULT_QUANTITIES", "DEFAULT_TOLERANCE", "check_request", "combined_error",
-           "hooke_error", "plan", "plan_text", "solve_auto"]
+           "default_data", "hooke_error", "plan", "plan_text", "solve_auto"]
 
 DEFAULT_TOLERANCE = 0.01
 DEFAULT_QUANTITIES = ("F_T", "sigma0")
@@ -58,16 +61,22 @@ REMOVED_BY = {"elastic-pillar": ("hooke",)}
 # error is within this factor of the smallest worst error count as equally close.
 CLOSEST_SLACK = 1.1
 
-_DATA: PlannerData | None = None
+# The shipped data carried to this machine, per (mode, thread count).
+_DATA: dict = {}
+
+
+def default_data() -> PlannerData:
+    """The shipped error and cost models, their seconds carried to this machine at
+    :func:`pillar_xval.threads.thread_count` threads (:mod:`.machine`; its calibration runs
+    once per machine and thread count, a few seconds, then comes from its cache)."""
+    key = (machine.mode(), thread_count())
+    if key not in _DATA:
+        _DATA[key] = machine_data(load_data(), machine.seconds_here())
+    return _DATA[key]
 
 
 def _data(data: PlannerData | None) -> PlannerData:
-    global _DATA
-    if data is not None:
-        return data
-    if _DATA is None:
-        _DATA = load_data()
-    return _DATA
+    return default_data() if data is None else data
 
 
 def check_request(tolerance, quantities, budget=None) -> tuple[float, tuple, float | None]:
@@ -205,7 +214,8 @@ def plan(scene: Scene, tolerance: float = DEFAULT_TOLERANCE, quantities=DEFAULT_
     budget : float, optional
         Wall time (s) a candidate may take at most.
     data : PlannerData, optional
-        Error and cost models (default: the shipped ones).
+        Error and cost models (default: the shipped ones, carried to this machine:
+        :func:`default_data`).
     """
     tolerance, quantities, budget = check_request(tolerance, quantities, budget)
     data = _data(data)
@@ -273,7 +283,18 @@ def plan(scene: Scene, tolerance: float = DEFAULT_TOLERANCE, quantities=DEFAULT_
                 "options": choice["options"], "within_tolerance": within,
                 "predicted_errors": {q: choice["errors"][q]["total"] for q in quantities},
                 "time_s": choice["time_s"], "memory_MB": choice["memory_MB"]},
-            "reason": reason, "data": data.provenance}
+            "reason": reason, "data": data.provenance, "machine": _machine_note(data)}
+
+
+def _machine_note(data: PlannerData) -> dict | None:
+    """How the predicted seconds were carried to this machine: its thread count and each
+    model's speed factor (time here over time where its fit was measured); None when they
+    are the fits' own."""
+    factors = {k: fit.speed for k, fit in data.costs.items()
+               if getattr(fit, "here", None) is not None and hasattr(fit, "workload")}
+    if not factors:
+        return None
+    return {"threads": thread_count(), "speed": factors}
 
 
 def planning_scene(scene: Scene) -> Scene:
@@ -371,6 +392,11 @@ def plan_text(p: dict) -> str:
         lines.append(f"{c['label']:<22}{t:>9}{m:>9}{errs}  {note}")
     lines += ["", f"choice    {p['choice']['label'] if p['choice'] else 'none'}",
               f"reason    {p['reason']}"]
+    m = p.get("machine")
+    lines.append("times     " + (
+        "the fits' own seconds (PILLAR_XVAL_MACHINE=reference, or no calibration)" if not m
+        else f"this machine's at {m['threads']} thread(s): each model's fitted time times "
+             + ", ".join(f"{k} {v:.2g}" for k, v in sorted(m["speed"].items()))))
     return "\n".join(lines)
 
 

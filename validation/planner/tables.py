@@ -35,7 +35,6 @@ discretisation error and a model error with their signs (:func:`.plan.combined_e
 
 from __future__ import annotations
 
-import json
 import math
 import threading
 from collections import OrderedDict
@@ -46,9 +45,8 @@ from pathlib import Path
 
 import numpy as np
 
-from pillar_xval.scenes import InputError
-
-__all__ = ["CostFit", "DATA_FORMAT", "ErrorTable", "PlannerData", "ScaledCost", "load_data"]
+__all__ = ["CostFit", "DATA_FORMAT", "ErrorTable", "PlannerData", "ScaledCost", "load_data",
+           "machine_data"]
 
 DATA_FORMAT = "pillar-xval planner data 1"
 # Errors below this are round-off, not discretisation: floor of the log10 interpolation.
@@ -379,13 +377,18 @@ def _along_grid_lines(table: np.ndarray, axes: list, at: tuple, order: list) -> 
 
 @dataclass
 class CostFit:
-    """Time and memory of one model's solves on this machine.
+    """Time and memory of one model's solves, carried to this machine.
 
     time (s) = sum_k coef_k n^powers_k with n = exp(``term``) of the size function ``size``
     of :mod:`.costs` applied to the model option ``option`` (n: the dense BEM's
     unknowns, the FFT's padded points, the FEM's unknowns; a constant for closed forms), so
     that a fixed start-up, assembly (n^2) and dense solves (n^3) each keep their own law when
-    extrapolated; ``rms`` is the fit's residual in ln(time).  ``memory``:
+    extrapolated; ``rms`` is the fit's residual in ln(time).  Those are seconds of the machine
+    it was measured on, whose calibration ``machine`` holds (``{"threads", "seconds"}``, the
+    document's unless the fit has its own); ``workload`` says which reference workloads of
+    :mod:`.machine` its time follows (shares summing to 1), and ``here`` (set by
+    :func:`.machine_data`, never stored) this machine's seconds of them: the prediction is
+    the time times :func:`.machine.speed_factor` (1 without a calibration).  ``memory``:
     ``{"kind": "estimate"}`` takes the size function's own estimate,
     ``{"kind": "per_point", "fixed": B, "per_point": b}`` a line in the FFT's padded points,
     ``{"kind": "fixed", "fixed": B}`` a constant (bytes).
@@ -401,16 +404,26 @@ class CostFit:
     memory: dict = field(default_factory=dict)
     samples: int = 0
     note: str = ""
+    workload: dict = field(default_factory=dict)
+    machine: dict = field(default_factory=dict)
+    here: dict | None = field(default=None, compare=False, repr=False)
 
     def to_dict(self) -> dict:
         out = {k: getattr(self, k) for k in ("model", "size", "option", "term", "powers",
-                                              "coef", "rms", "memory", "samples")}
+                                              "coef", "rms", "memory", "samples", "workload")}
         if self.note:
             out["note"] = self.note
         return out
 
     def time(self, n: float) -> float:
         return float(sum(c * n**p for c, p in zip(self.coef, self.powers)))
+
+    @property
+    def speed(self) -> float:
+        """Time here over time on the fit's machine (:func:`.machine.speed_factor`)."""
+        from .machine import speed_factor
+
+        return speed_factor(self.workload, self.machine, self.here)
 
     def setup_time(self, scene) -> float:
         """Seconds of a one-off set-up still to pay on ``scene`` (none for a fit)."""
@@ -431,16 +444,17 @@ class CostFit:
                 terms["log_points"])
         else:
             memory = self.memory.get("fixed", 0.0)
-        return self.time(n), float(memory)
+        return self.time(n) * self.speed, float(memory)
 
 
 @dataclass
 class ScaledCost:
     """A variant of a measured model: its ``base`` fit's time times ``factor`` (one number,
     or one per regime with ``"default"``), the base's memory, plus a one-off ``setup``
-    (``{"kind": K, "time_s": t}``, :data:`.costs.SETUPS`: t seconds unless already paid on
-    the scene, e.g. the elastic pillar's compliance in the disk cache).  Written by hand where
-    a variant's own timings are a ratio measured against its base (``note`` says where)."""
+    (``{"kind": K, "time_s": t, "workload": {...}}``, :data:`.costs.SETUPS`: t seconds of
+    the base's machine, carried here by its own workload, unless already paid on the scene,
+    e.g. the elastic pillar's compliance in the disk cache).  Written by hand where a
+    variant's own timings are a ratio measured against its base (``note`` says where)."""
 
     key: str
     base_fit: CostFit
@@ -470,8 +484,12 @@ class ScaledCost:
 
         if not self.setup:
             return 0.0
+        from .machine import speed_factor
+
         paid = SETUPS[self.setup["kind"]](scene)
-        return 0.0 if paid else float(self.setup["time_s"])
+        speed = speed_factor(self.setup.get("workload", {}), self.base_fit.machine,
+                             self.base_fit.here)
+        return 0.0 if paid else float(self.setup["time_s"]) * speed
 
     def predict(self, scene, options: dict, regime: str | None = None) -> tuple[float, float]:
         """(wall time s, peak memory bytes): the base's, the time scaled, the set-up added."""
@@ -496,40 +514,48 @@ class PlannerData:
         return sorted(found, key=lambda t: -len(t.option))
 
 
+def machine_data(data: "PlannerData", here: dict | None) -> "PlannerData":
+    """``data`` with this machine's seconds per workload (``here``, from
+    :func:`.machine.seconds_here`) given to every fit: its predictions carried here; the
+    same object where ``here`` is None."""
+    if here is None:
+        return data
+    from dataclasses import replace
+
+    costs = {}
+    for key, fit in data.costs.items():
+        if isinstance(fit, ScaledCost):
+            base = replace(fit.base_fit, here=here)
+            costs[key] = replace(fit, base_fit=base)
+        else:
+            costs[key] = replace(fit, here=here)
+    return replace(data, costs=costs)
+
+
 def data_dir() -> Path:
     return Path(str(resources.files("validation.planner") / "data"))
 
 
 def load_data(folder: str | Path | None = None) -> PlannerData:
-    """Read ``error_models.json`` and ``cost_models.json`` (default: the shipped ones)."""
+    """Read ``error_models.json`` and ``cost_models.json`` (default: the shipped ones),
+    every entry checked first (:mod:`.data_checks`: a damaged file is one line naming it and
+    the entry)."""
+    from .data_checks import check_cost_models, check_error_models, read_json
+
     folder = Path(folder) if folder is not None else data_dir()
-    try:
-        errors = json.loads((folder / "error_models.json").read_text())
-        costs = json.loads((folder / "cost_models.json").read_text())
-    except FileNotFoundError as exc:
-        raise InputError(f"planner data: {exc.filename} is missing; run "
-                         "`pillar-xval calibrate --out validation/planner/data` (make calibrate)") \
-            from None
-    for doc, name in ((errors, "error_models.json"), (costs, "cost_models.json")):
-        if doc.get("format") != DATA_FORMAT:
-            raise InputError(f"planner data: {folder / name} is not in the format "
-                             f"{DATA_FORMAT!r}; regenerate it with make calibrate")
-    fits = {m: CostFit(**c) for m, c in costs["models"].items()}
+    errors = read_json(folder / "error_models.json")
+    costs = read_json(folder / "cost_models.json")
+    check_error_models(errors, folder / "error_models.json")
+    check_cost_models(costs, folder / "cost_models.json")
+    fits = {m: CostFit(**{"machine": costs.get("machine", {}), **c})
+            for m, c in costs["models"].items()}
     for key, c in costs.get("variants", {}).items():
-        if c["base"] not in fits:
-            raise InputError(f"planner data: cost variant {key!r} names the base "
-                             f"{c['base']!r}, which {folder / 'cost_models.json'} lacks")
         fits[key] = ScaledCost(key, fits[c["base"]], c.get("factor", 1.0), c.get("setup", {}),
                                c.get("note", ""))
-    policy = {**DEFAULT_POLICY, **errors.get("policy", {})}
-    share = policy["sign_share"]
-    if not (isinstance(share, (int, float)) and 0.5 < share <= 1.0):
-        raise InputError(f"planner data: {folder / 'error_models.json'} policy sign_share "
-                         f"{share!r}: must be in (0.5, 1] (a share of a table's points)")
     return PlannerData(
         candidates=errors["candidates"],
         tables=[ErrorTable(**t) for t in errors["tables"]],
         costs=fits,
         provenance={"errors": errors.get("provenance", {}),
                     "costs": costs.get("provenance", {})},
-        policy=policy)
+        policy={**DEFAULT_POLICY, **errors.get("policy", {})})

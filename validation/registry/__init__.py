@@ -14,6 +14,8 @@ vocabulary, :func:`option_vocabulary`), :func:`ladders`, :func:`candidates` (the
 
 from __future__ import annotations
 
+import importlib
+
 from pillar_xval.outcome import ContactResult
 from pillar_xval.scenes import InputError, Scene
 
@@ -25,7 +27,7 @@ from .options import OptionSpec, check_option, flag
 __all__ = ["LOAD_QUANTITIES", "MODELS", "QUANTITIES", "CostLaw", "Ladder", "Model",
            "OptionSpec", "Quantity", "candidates", "check_option", "family_options", "flag",
            "get_model", "ladder_for", "ladders", "model_names", "option_vocabulary",
-           "quantity_values", "run_model"]
+           "quantity_values", "run_model", "stored_operator"]
 
 # Every model by its --model name, in declaration order (tests register fakes here).
 MODELS: dict[str, Model] = {m.name: m for m in DECLARED}
@@ -49,6 +51,22 @@ def run_model(name: str, scene: Scene, *, vtu_path=None, progress=None,
     Options the model does not take, and those that are None (the model's default), are left
     out; ``vtu_path`` and ``progress`` go to a solver that has them (:meth:`Model.run`)."""
     return get_model(name).run(scene, options, vtu_path=vtu_path, progress=progress)
+
+
+# The stores of cached operators a result may name in its diagnostics["operators"] (records
+# {"store", "key", "sha256"}): each a "module:function" that gives the content hash of the valid
+# operator the store holds under a key now (None: none, or a damaged one), imported on first
+# use like the solvers.
+OPERATOR_STORES = {"pillar-compliance": "fem_reference._compliance_store:stored_digest"}
+
+
+def stored_operator(store, key) -> str | None:
+    """The content hash of the operator that ``store`` holds under ``key`` now (None: no
+    such store, or no valid operator under that key)."""
+    if store not in OPERATOR_STORES:
+        return None
+    module, name = OPERATOR_STORES[store].split(":")
+    return getattr(importlib.import_module(module), name)(key)
 
 
 def option_vocabulary() -> dict[str, OptionSpec]:

@@ -9,6 +9,7 @@ from typing import Callable
 
 from pillar_xval.outcome import ContactResult
 from pillar_xval.scenes import Scene
+from pillar_xval.threads import limited
 
 from .ladders import Ladder
 from .options import OptionSpec
@@ -26,12 +27,15 @@ class CostLaw:
     """How a model's wall time grows (the planner's cost fit, measured by ``calibrate``):
     time = sum_k c_k n^powers[k], n = exp(terms[term]) of the size function ``size`` of
     :mod:`validation.planner.costs` at the ladder's option; ``memory`` says where the memory
-    estimate comes from (``{"kind": "estimate"}``: the size function's own), None: fitted."""
+    estimate comes from (``{"kind": "estimate"}``: the size function's own), None: fitted;
+    ``workload``: the reference workloads of :mod:`validation.planner.machine` its time
+    follows from one machine or thread count to another, as (name, share) pairs."""
 
     size: str
     term: str | None
     powers: tuple
     memory: dict | None = None
+    workload: tuple = (("assembly", 1.0),)
 
 
 @dataclass(frozen=True)
@@ -134,17 +138,20 @@ class Model:
     def run(self, scene: Scene, options: dict, *, vtu_path=None,
             progress=None) -> ContactResult:
         """Solve ``scene``: the options it takes (others are ignored: a study may hand every
-        model the same set) and the run arguments its solver has."""
+        model the same set) and the run arguments its solver has, with BLAS, MKL and OpenMP
+        held to :func:`pillar_xval.threads.thread_count` threads (the solvers' own threads
+        read the same count)."""
         kwargs = self.solver_options(options)
         for name, value in zip(RUN_ARGUMENTS, (vtu_path, progress)):
             if value is not None and self.takes(name):
                 kwargs[name] = value
-        if scene.force_N is not None and self.force_control != "native":
-            from pillar_xval.contact import solve_at_force
-            from pillar_xval.scenes import analytic
+        with limited():
+            if scene.force_N is not None and self.force_control != "native":
+                from pillar_xval.contact import solve_at_force
+                from pillar_xval.scenes import analytic
 
-            return solve_at_force(lambda at: self.function(at, **kwargs), scene,
-                                  guess=analytic.indentation_estimate(scene),
-                                  how=f"{self.name}, by solves under indentations")
-        return self.function(scene, **kwargs)
+                return solve_at_force(lambda at: self.function(at, **kwargs), scene,
+                                      guess=analytic.indentation_estimate(scene),
+                                      how=f"{self.name}, by solves under indentations")
+            return self.function(scene, **kwargs)
 

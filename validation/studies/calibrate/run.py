@@ -631,7 +631,7 @@ def _cost_fits(samples: list) -> dict:
             else:
                 memory = {"kind": "fixed", "fixed": float(np.median(mem)) if mem else 0.0}
         fits[model] = CostFit(model, size, option, term, list(powers), coef, rms, memory,
-                              len(mine))
+                              len(mine), workload=dict(law.workload))
     return fits
 
 
@@ -717,11 +717,28 @@ def calibrate(out: Path, engine: Engine | None = None, *, n_lattice: int = 40,
               "candidates": CANDIDATES, "tables": [t.to_dict() for t in tables]}
     costs = {"format": DATA_FORMAT, "provenance": provenance,
              "models": {m: f.to_dict() for m, f in fits.items()}}
+    reference = machine_reference(engine)
+    if reference is not None:
+        costs["machine"] = reference
     keep_hand_entries(errors, costs)
     report = {"provenance": provenance, "scenes": records, "gecit": gecit_doc["rows"],
               "truncation": truncation,
               "hooke_check": _hooke_check(lattice_records, tables)}
     return {"errors": errors, "costs": costs, "report": report}
+
+
+def machine_reference(engine: Engine) -> dict | None:
+    """This machine's calibration (:mod:`validation.planner.machine`, measured afresh) at
+    the threads each case of ``engine`` ran on: the reference the new fits' seconds are
+    carried from; None on a remote cluster, whose workers' threads are their own."""
+    from ...planner.machine import calibration
+
+    threads = engine.threads
+    if threads is None:
+        return None
+    found = calibration(threads, fresh=True)
+    return {"threads": threads, "seconds": found["seconds"],
+            "note": "measured by calibrate after its cases, at each case's threads"}
 
 
 HAND = "hand"
@@ -766,7 +783,8 @@ def keep_hand_entries(errors: dict, costs: dict, folder: Path | None = None) -> 
         and t not in errors["tables"] and not measured(t)]
     for name, fit in old_costs.get("models", {}).items():
         if name not in costs["models"] and is_hand(fit, "note"):
-            costs["models"][name] = fit
+            # its seconds are of the machine the installed data was measured on
+            costs["models"][name] = {"machine": old_costs.get("machine", {}), **fit}
     variants = {k: v for k, v in old_costs.get("variants", {}).items()
                 if is_hand(v, "note") and v["base"] in costs["models"]}
     if variants:

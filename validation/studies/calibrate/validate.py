@@ -85,7 +85,7 @@ from ...analysis.verification import gci_three
 from .run import CALIBRATION_SEED, FEM3D_BAND_MAX, is_hand
 from .scenes import PAPER_RANGES, drawn_scenes, flat_scenes, lattice_scenes
 from ...planner.features import regime
-from ...planner.plan import DEFAULT_QUANTITIES, DEFAULT_TOLERANCE, plan
+from ...planner.plan import DEFAULT_QUANTITIES, DEFAULT_TOLERANCE, default_data, plan
 from ...planner.tables import PlannerData, load_data
 from ..lattice import FEM_LEVELS
 from ..tradeoff import reference_values
@@ -180,7 +180,8 @@ def validation_scenes(n_scenes: int = DEFAULT_SCENES, n_lattice: int = DEFAULT_L
 def fem3d_fits(scene, data: PlannerData | None = None) -> bool:
     """Whether several pillars touch ``scene`` and fem-3d's finest level fits the memory
     available and is predicted (the planner's fem-3d cost law) to take at most
-    :data:`FEM3D_FINEST_MAX_S`."""
+    :data:`FEM3D_FINEST_MAX_S` (on the fits' own machine: the seeded draw is the same
+    everywhere)."""
     if regime(scene)["name"] != "multi":
         return False
     fit = (data or load_data()).costs[FEM3D]
@@ -300,7 +301,7 @@ def prepare(scenes: list, tolerance: float = DEFAULT_TOLERANCE, quantities=DEFAU
     (entry, plan, reference cases, candidate cases).  The lattice-sigma0 scenes are planned
     with every candidate of ``data`` (default the shipped data) and request sigma0 too; the
     others with its measured candidates only (:func:`judged_data`)."""
-    full = load_data() if data is None else data
+    full = default_data() if data is None else data
     out = []
     for e in scenes:
         kind = _reference_kind(e)
@@ -316,7 +317,7 @@ def estimate(prepared: list, data: PlannerData | None = None) -> dict:
     case ``prepared`` holds (a case under :data:`SINGLE_ABOVE` s counted :data:`REPEATS`
     times, a one-off set-up once a scene), run one after the other, before any cache; the
     fem-3d part, and the longest finest fem-3d level."""
-    data = load_data() if data is None else data
+    data = default_data() if data is None else data
     total = fem3d = finest = 0.0
     cases = 0
     for entry, p, ref, cands in prepared:

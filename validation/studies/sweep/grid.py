@@ -16,6 +16,15 @@ from ...engine import Case
 from ...registry import check_option
 
 _RANGE_KEYS = {"linear", "log", "num"}
+# What a grid holds in memory, measured by `python -m validation.bench.sweep` (make
+# bench-sweep): each value of an axis (its float, and its text while repeated values are
+# looked for) 144 bytes; each case of a run (its scene, the engine's case, its outcome, its
+# table row and the written table) 39.8 kB with the densest paper scene's result (151 pillar
+# forces; 11 kB with the sparse scene's).  A grid is sized from its spec before any of it is
+# built, and refused when that cannot fit in the memory a process may take
+# (pillar_xval.outcome.memory).
+BYTES_PER_AXIS_VALUE = 150
+BYTES_PER_CASE = 40_000
 
 
 def linear(start: float, stop: float, num: int) -> list[float]:
@@ -43,6 +52,37 @@ def _check_range(kind, start, stop, num) -> None:
     for v in (start, stop):
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
             raise InputError(f"{kind} = [{start}, {stop}]: ends must be finite numbers")
+
+
+def _length(key: str, spec) -> int:
+    """How many values ``spec`` (as :func:`_values` reads it) stands for, without them."""
+    if isinstance(spec, list):
+        return len(spec)
+    if isinstance(spec, dict) and set(spec) <= _RANGE_KEYS and "num" in spec:
+        num = spec["num"]
+        # An invalid num is refused by _values, which reads it next.
+        return num if isinstance(num, int) and not isinstance(num, bool) and num > 0 else 1
+    return 1
+
+
+def check_size(points: int, values: int, cases: int | None = None) -> None:
+    """Refuse a grid that cannot fit: its axes' ``values`` (always built), and with
+    ``cases`` the cases of a whole run (a dry run samples a few)."""
+    from pillar_xval.outcome.memory import memory_short
+
+    short = memory_short(values * BYTES_PER_AXIS_VALUE)
+    if short is not None:
+        raise InputError(f"sweep grid: its axes hold {values:,} values (about "
+                         f"{values * BYTES_PER_AXIS_VALUE / 2**30:.3g} GiB), {short}; "
+                         "use fewer values")
+    if cases is None:
+        return
+    short = memory_short(cases * BYTES_PER_CASE)
+    if short is not None:
+        raise InputError(f"sweep grid: {points:,} points give {cases:,} cases; a run holds "
+                         f"each in memory (about {BYTES_PER_CASE / 1e3:.0f} kB): "
+                         f"{cases * BYTES_PER_CASE / 2**30:.3g} GiB, {short}; split it into "
+                         "smaller sweeps")
 
 
 def _values(key: str, spec) -> list:
@@ -74,8 +114,11 @@ class Axis:
             raise InputError("an axis needs at least one key")
         if len(set(lengths.values())) != 1:
             raise InputError(f"zipped keys need equal lengths; got {lengths}")
-        points = [repr(p) for p in zip(*self.values.values())]
-        repeated = sorted({p for p in points if points.count(p) > 1})
+        seen, repeated = set(), set()
+        for p in zip(*self.values.values()):
+            text = repr(p)
+            (repeated if text in seen else seen).add(text)
+        repeated = sorted(repeated)
         if repeated:
             raise InputError(f"{', '.join(self.values)}: value(s) given more than once "
                              f"({', '.join(repeated)}); each point of the grid is one case")
@@ -154,6 +197,12 @@ class Sweep:
         """How many grid points (the product of the axes' lengths), without listing them."""
         return math.prod(len(a) for a in self.axes)
 
+    def case_count(self) -> int:
+        """How many cases a run holds: the points times every model's option sets."""
+        return self.point_count() * sum(
+            math.prod(len(v) if isinstance(v, list) else 1 for v in m.options.values())
+            for m in self.models)
+
     def point(self, index: int) -> dict:
         """Grid point ``index`` in :meth:`points` order (mixed radix, the last axis fastest)."""
         point = {}
@@ -190,6 +239,8 @@ class Sweep:
             for opts in m.option_sets():  # values the model would refuse, before any solve
                 for k, v in opts.items():
                     check_option(k, v, where=f"[[models]] {m.name}: {k} =", spec=declared[k])
+        if indices is None:
+            check_size(self.point_count(), sum(len(a) for a in self.axes), self.case_count())
         out, skipped = [], []
         load = scene_loader(self.scene)  # the scene file is read once, not once per point
         points = self.points() if indices is None else [self.point(i) for i in indices]
@@ -238,9 +289,15 @@ class Sweep:
         overrides = data.get("set", [])
         if not isinstance(overrides, list) or not all(isinstance(s, str) for s in overrides):
             raise InputError("sweep spec: 'set' must be a list of \"table.key=value\" strings")
-        axes = [Axis({k: _values(k, v)}) for k, v in _flatten(data.get("grid", {})).items()]
-        for group in data.get("zip", []):
-            axes.append(Axis({k: _values(k, v) for k, v in _flatten(group).items()}))
+        grid = _flatten(data.get("grid", {}))
+        groups = [_flatten(group) for group in data.get("zip", [])]
+        # The grid's size from the spec alone, before a value is built (a zipped group's
+        # keys have equal lengths, or Axis refuses them).
+        spec_axes = [{k: v} for k, v in grid.items()] + groups
+        lengths = [{k: _length(k, v) for k, v in axis.items()} for axis in spec_axes]
+        check_size(math.prod(max(n.values(), default=1) for n in lengths),
+                   sum(sum(n.values()) for n in lengths))
+        axes = [Axis({k: _values(k, v) for k, v in axis.items()}) for axis in spec_axes]
         models = []
         for m in data.get("models", []):
             if not isinstance(m, dict) or "name" not in m:

@@ -79,16 +79,16 @@ RESULT_COLUMNS = ("load_control", "indentation_m", "total_force_N", "centre_pres
 UNMEASURED_SECONDS = 1.0
 
 
-def estimate_seconds(case: Case) -> float:
+def estimate_seconds(case: Case, data=None) -> float:
     """The predicted wall time (s) of a case: the planner's cost fit of its model, measured
-    by ``pillar-xval calibrate`` on this machine (the model's default resolution where the
-    case gives none; a force-controlled scene at its estimated indentation, as the planner
-    reads it); :data:`UNMEASURED_SECONDS` without a fit."""
-    from ...planner.plan import planning_scene
-    from ...planner.tables import load_data
+    by ``pillar-xval calibrate`` and carried to this machine (the model's default resolution
+    where the case gives none; a force-controlled scene at its estimated indentation, as the
+    planner reads it); :data:`UNMEASURED_SECONDS` without a fit.  ``data``: the planner's
+    data (default: :func:`validation.planner.plan.default_data`)."""
+    from ...planner.plan import default_data, planning_scene
     from ...registry import get_model
 
-    fit = load_data().costs.get(case.model)
+    fit = (data or default_data()).costs.get(case.model)
     if fit is None:
         return UNMEASURED_SECONDS
     options = dict(case.options)
@@ -109,6 +109,9 @@ def estimate_cost(cases: list[SweepCase], folder: Path | None, workers: int) -> 
     """Case count, how many are cached already, and the estimated time of the rest."""
     import random
 
+    from ...planner.plan import default_data
+
+    data = default_data()
     store = CaseStore(folder) if folder is not None else None
     per_model: dict[str, dict] = {}
     todo: dict[str, list] = {}
@@ -122,7 +125,7 @@ def estimate_cost(cases: list[SweepCase], folder: Path | None, workers: int) -> 
     for model, pending in todo.items():
         sample = pending if len(pending) <= COST_SAMPLE else \
             random.Random(0).sample(pending, COST_SAMPLE)
-        mean = sum(estimate_seconds(case) * case.repeats for case in sample) / len(sample)
+        mean = sum(estimate_seconds(case, data) * case.repeats for case in sample) / len(sample)
         per_model[model]["seconds"] = mean * len(pending)
         per_model[model]["sampled"] = len(sample) < len(pending)
     total = sum(m["seconds"] for m in per_model.values())
