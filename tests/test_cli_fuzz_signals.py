@@ -62,7 +62,8 @@ BUILDERS = {
         ["solve", "--model", "fem-axisym", "--scene", "single-pillar", "--json"]),
     "sector (fem-3d)": (
         "import meshes.wedge.geometry as g\n"
-        "g.WedgeGeometry.size_at = counting(g.WedgeGeometry.size_at, AT, SIG)",
+        "rule = g.WedgeGeometry.size_callback\n"
+        "g.WedgeGeometry.size_callback = lambda self: counting(rule(self), AT, SIG)",
         ["solve", "--model", "fem-3d", "--scene", "single-pillar", "--mesh-size", "4",
          "--json"]),
     "pillar compliance": (

@@ -27,7 +27,6 @@ of which clips pressures and costs a second application of C.
 
 from __future__ import annotations
 
-import functools
 import math
 
 import numpy as np
@@ -36,6 +35,7 @@ from scipy.spatial import cKDTree
 from scipy.spatial.distance import cdist
 
 from pillar_xval.contact import constrained_cg
+from pillar_xval.threads import limited
 
 # The degree-2 rule on a triangle: barycentric coordinates of its three points (rows), each
 # of weight a third of the area.
@@ -105,20 +105,13 @@ class HalfSpaceModel:
 
 
 def serial_dense_algebra():
-    """A context in which the model's dense algebra (the OpenBLAS that numpy and scipy
-    load) runs on one thread; PARDISO's MKL threads are left alone.  The contact solve's
-    one thread setting: its factorisations and solves are of a few thousand unknowns at most,
-    where two threads cost more than they gain (a Cholesky factorisation at n = 381, 1544
-    and 4700 took 0.11, 0.14-0.24 and 1.7-2.4 CPU s on two threads against 0.001-0.005,
-    0.05 and 0.9-1.0 on one, on this 2-core machine under a load average of 7-9)."""
-    return _openblas().limit(limits=1)
-
-
-@functools.lru_cache(maxsize=1)
-def _openblas():
-    from threadpoolctl import ThreadpoolController
-
-    return ThreadpoolController().select(internal_api="openblas")
+    """A context in which the model's dense algebra runs on one thread (through
+    :func:`pillar_xval.threads.limited`; PARDISO holds its own count inside it for each of its
+    calls).  Its factorisations and solves are of a few thousand unknowns at most, where two
+    threads cost more than they gain (a Cholesky factorisation at n = 381, 1544 and 4700 took
+    0.11, 0.14-0.24 and 1.7-2.4 CPU s on two threads against 0.001-0.005, 0.05 and 0.9-1.0
+    on one, on a 2-core machine under a load average of 7-9)."""
+    return limited(1)
 
 
 def half_space_compliance(vertex_points, weights, triangles, compliance: float,
