@@ -8,8 +8,9 @@ every other package stands on it.
 
 from ._files import (CACHE_ENV, CacheWarning, FileLock, UnusableFile, atomic_path, cache_root,
                      read_regular, write_atomic)
-from ._schema import SCHEMA_VERSION, ContactResult, PillarForce, package_version
+from ._schema import (REGIMES, SCHEMA_VERSION, ContactResult, PillarForce, package_version,
+                      regime_of)
 
-__all__ = ["CACHE_ENV", "SCHEMA_VERSION", "CacheWarning", "ContactResult", "FileLock",
+__all__ = ["CACHE_ENV", "REGIMES", "SCHEMA_VERSION", "CacheWarning", "ContactResult", "FileLock",
            "PillarForce", "UnusableFile", "atomic_path", "cache_root", "package_version",
-           "read_regular", "write_atomic"]
+           "read_regular", "regime_of", "write_atomic"]

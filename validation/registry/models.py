@@ -72,7 +72,7 @@ DECLARED = (
         # 3000 CG iterations in extremes: the default, 20 sqrt(cells) + 500, reaches 14000 on
         # the widest corners, an hour of a stagnating solve where a verdict is wanted.
         robustness={"cells_per_diameter": 16, "max_iterations": 3000}, keeps_fields=True,
-        force_control="native"),
+        force_control="native", floor=True),
     Model(
         "fem-axisym", "fem_reference.axisym:solve",
         "axisymmetric FEM with one elastic pillar (scikit-fem, Taylor-Hood P2/P1)",
@@ -125,5 +125,5 @@ DECLARED = (
         options={"tolerance": PLANNED, "quantities": PLANNED, "budget": PLANNED},
         # The plan comes from the planner's code and its data (validation/planner/data).
         code=("validation.planner",),
-        force_control="native"),
+        force_control="native", floor=True),
 )
