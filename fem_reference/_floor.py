@@ -1,5 +1,5 @@
-"""The floor between pillars in both FEMs: where it is a contact candidate, the regime a
-solution is in, and the side walls' validity diagnostic.
+"""The floor between pillars in both FEMs: where it is a contact candidate, the contact's
+extent on a floor line, and the side walls' validity diagnostic.
 
 The lens's bottom is the plane z = 0 with its curvature in the gap; the floor lies at z = -h,
 so a floor point's gap is u_z(lens) - u_z(floor) + g(r) + h - zeta.  Pressure on either body
@@ -46,16 +46,6 @@ def floor_candidate(radius_m: float, indentation_m: float, height_m: float,
     when the floor is out of reach."""
     reach = floor_reach(radius_m, indentation_m, height_m, rim_m)
     return None if reach is None else FLOOR_MARGIN * reach
-
-
-def regime(scene, pillar_force: float, floor_force: float, pillars_in_contact: int) -> str:
-    """"flat" (the lens on a flat substrate or on the floor alone), "single-pillar",
-    "multi-pillar" or "mixed" (pillars and the floor)."""
-    if scene.is_flat or (pillar_force <= 0.0 and floor_force > 0.0):
-        return "flat"
-    if floor_force > 0.0:
-        return "mixed"
-    return "single-pillar" if pillars_in_contact <= 1 else "multi-pillar"
 
 
 def side_wall_overlap(lens_r, lens_z, pillar_top_z: float, wall_r,

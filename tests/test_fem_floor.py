@@ -18,7 +18,6 @@ to 1.0 in h.
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 import math
 
@@ -26,29 +25,17 @@ import numpy as np
 import pytest
 
 from fem_reference import axisym
-from fem_reference._floor import (annulus_edges, floor_reach, regime, side_wall_diagnostics,
+from fem_reference._floor import (annulus_edges, floor_reach, side_wall_diagnostics,
                                   side_wall_overlap)
 from meshes import build_axisymmetric_mesh, pillar_geometry
-from pillar_xval.scenes import SceneError, analytic, load_scene
+from pillar_xval.scenes import analytic, load_scene
 
 RTOL_MESH = 2e-3
 RTOL_SOLVER = 1e-8
 
 
-def deep(scene, zeta):
-    """``scene`` at the indentation ``zeta`` (m), at or beyond the pillar height where the
-    scene's own check still refuses it (that check is lifted with the BEMs' floor)."""
-    try:
-        return scene.at_indentation(zeta)
-    except SceneError:
-        out = copy.copy(scene)
-        object.__setattr__(out, "indentation_m", zeta)
-        return out
-
-
 def short_pillar(height_um, *extra):
-    return load_scene("single-pillar", [f"pillars.height_um={height_um}",
-                                        "load.indentation_um=0.001", *extra])
+    return load_scene("single-pillar", [f"pillars.height_um={height_um}", *extra])
 
 
 def hertz_force(scene, zeta):
@@ -71,21 +58,20 @@ def test_short_pillars_tend_to_hertz(extra):
     zeta = 0.8e-6
     errors = []
     for h_um in (0.1, 0.05):
-        scene = deep(short_pillar(h_um, *extra), zeta)
+        scene = short_pillar(h_um, *extra).at_indentation(zeta)
         h = scene.pillars.height_m
         res = axisym.solve(scene, mesh_size=4.0)
         assert_verified(res)
         upper, lower = hertz_force(scene, zeta), hertz_force(scene, zeta - h)
         F = res.total_force_N
         assert lower * (1 - RTOL_MESH) <= F <= upper * (1 + RTOL_MESH)
-        d = res.diagnostics
-        assert d["regime"] == "mixed" and d["floor_force_N"] > 0.5 * F
-        assert d["floor_force_N"] + res.pillar_forces[0].force_N == pytest.approx(F)
+        assert res.regime == "mixed" and res.floor_force_N > 0.5 * F
+        assert res.floor_force_N + res.pillar_forces[0].force_N == pytest.approx(F)
         # the floor contact's outer radius: Hertz's on the floor, the pillar holding the
         # lens up by a little
         a_floor = math.sqrt(scene.lens.radius_m * (zeta - h))
-        assert d["floor_contact_radius_m"] == pytest.approx(a_floor, rel=RTOL_MESH)
-        assert res.contact_radius_m == d["floor_contact_radius_m"]
+        assert res.floor_contact_radius_m == pytest.approx(a_floor, rel=RTOL_MESH)
+        assert res.contact_radius_m == res.floor_contact_radius_m
         errors.append(1.0 - F / upper)
     # the distance to Hertz(zeta) is first order in h: order 1 over the halving of h
     assert math.log2(errors[0] / errors[1]) == pytest.approx(1.0, abs=0.1)
@@ -96,21 +82,20 @@ def test_floor_contact_starts_beyond_the_reach_and_is_an_annulus():
     h, R, rim = 0.2e-6, base.lens.radius_m, 2e-6
     onset = h + R - math.sqrt(R * R - rim * rim)  # the rigid lens touches the floor's rim
     assert floor_reach(R, 0.99 * onset, h, rim) is None
-    below = axisym.solve(deep(base, 0.99 * onset), mesh_size=2.0)
+    below = axisym.solve(base.at_indentation(0.99 * onset), mesh_size=2.0)
     assert_verified(below)
-    assert below.diagnostics["regime"] == "single-pillar"
-    assert below.diagnostics["floor_force_N"] == 0.0
-    above = axisym.solve(deep(base, 2.5 * h), mesh_size=2.0)
+    assert below.regime == "single-pillar"
+    assert below.floor_force_N == 0.0
+    above = axisym.solve(base.at_indentation(2.5 * h), mesh_size=2.0)
     assert_verified(above)
-    d = above.diagnostics
-    assert d["regime"] == "mixed" and 0.0 < d["floor_force_N"] < above.total_force_N
+    assert above.regime == "mixed" and 0.0 < above.floor_force_N < above.total_force_N
     # the pillar holds the lens up beside it: the floor contact is an annulus
     r, p = above.fields["floor_r_m"], above.fields["floor_pressure_Pa"]
     assert p[0] == 0.0 and p.max() > 0.0
     inner = r[np.nonzero(p > 0)[0][0]]
-    outer = d["floor_contact_radius_m"]
-    assert d["floor_contact_area_m2"] < math.pi * (outer**2 - (0.9 * inner)**2)
-    assert d["floor_contact_area_m2"] > math.pi * (outer**2 - inner**2) * (1 - RTOL_MESH)
+    outer = above.floor_contact_radius_m
+    assert above.floor_contact_area_m2 < math.pi * (outer**2 - (0.9 * inner)**2)
+    assert above.floor_contact_area_m2 > math.pi * (outer**2 - inner**2) * (1 - RTOL_MESH)
     # contact lies within the rigid reach (pressure only opens gaps)
     assert outer <= floor_reach(R, 2.5 * h, h, rim)
 
@@ -155,13 +140,7 @@ def test_side_wall_overlap_grows_with_the_indentation():
         deeper["side_wall_overlap_ratio"] * base.pillars.height_m)
 
 
-def test_regime_and_annulus_helpers():
-    flat = load_scene("hertz")
-    pillar = load_scene("single-pillar")
-    assert regime(flat, 0.0, 1.0, 0) == "flat"
-    assert regime(pillar, 1.0, 0.0, 1) == "single-pillar"
-    assert regime(pillar, 1.0, 0.0, 3) == "multi-pillar"
-    assert regime(pillar, 1.0, 1.0, 3) == "mixed"
+def test_annulus_helper():
     r = np.linspace(1.0, 3.0, 9)  # P2 points: vertices 1, 1.5, ..., 3
     lam = np.array([0.0, 0.0, 1.0, 1.0, 0.0])
     w = np.array([1.0, 0.5, 0.2, 0.1, 0.0, 0.0, 0.0, 0.0, 0.0])
@@ -182,21 +161,20 @@ ATOL_3D_SHARE = 0.015
 def test_fem3d_floor_agrees_with_fem_axisym_on_one_pillar():
     from fem_reference import solid3d
 
-    scene = deep(load_scene("single-pillar", ["pillars.height_um=0.2",
-                                              "load.indentation_um=0.1"]), 0.5e-6)
+    scene = load_scene("single-pillar", ["pillars.height_um=0.2", "load.indentation_um=0.5"])
     ref = axisym.solve(scene, mesh_size=4.0)
     res = solid3d.solve(scene, mesh_size=4.0)
     assert res.converged, res.diagnostics["message"]
-    d, dr = res.diagnostics, ref.diagnostics
-    assert d["regime"] == dr["regime"] == "mixed"
+    d = res.diagnostics
+    assert res.regime == ref.regime == "mixed"
     assert d["operator_asymmetry"] < 1e-10
     assert res.total_force_N == pytest.approx(ref.total_force_N, rel=RTOL_3D_FORCE)
-    share, share_ref = (r.diagnostics["floor_force_N"] / r.total_force_N for r in (res, ref))
+    share, share_ref = (r.floor_force_N / r.total_force_N for r in (res, ref))
     assert share == pytest.approx(share_ref, abs=ATOL_3D_SHARE)
-    assert d["floor_force_N"] + res.pillar_forces[0].force_N == pytest.approx(
+    assert res.floor_force_N + res.pillar_forces[0].force_N == pytest.approx(
         res.total_force_N, rel=1e-12)
     reach = floor_reach(scene.lens.radius_m, 0.5e-6, 0.2e-6, 2e-6)
-    assert 0.0 < d["floor_contact_radius_m"] <= reach
+    assert 0.0 < res.floor_contact_radius_m <= reach
     assert len(res.pillar_top_profile["r_m"]) > 0
     assert max(res.pillar_top_profile["r_m"]) <= 2e-6 * (1 + 1e-9)  # the top's alone
     assert "side_wall_overlap_ratio" in d

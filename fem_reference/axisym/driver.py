@@ -42,8 +42,7 @@ from pillar_xval.scenes import InputError, Scene, ScopeError, analytic
 
 from .._driver import (HERTZ_CANDIDATE, RTOL_COMPLEMENTARITY, PhaseClock, contact_radius,
                        fem_result, flat_candidate, refuse_rigid_pair, scaled_materials, verdict)
-from .._floor import (annulus_edges, floor_candidate, floor_reach, regime,
-                      side_wall_diagnostics)
+from .._floor import annulus_edges, floor_candidate, floor_reach, side_wall_diagnostics
 from .contact import mortar_matrix
 from .fields import cell_stresses, lens_in_side_wall, write_vtu
 from .system import assemble
@@ -142,8 +141,9 @@ def solve(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None,
         ``pillar_translation_m`` (its vertical displacement, negative downwards); with a
         pillar, the side walls' diagnostic (:func:`.._floor.side_wall_diagnostics`); the
         floor's ``floor_force_N``, ``floor_contact_area_m2``, ``floor_contact_radius_m`` and
-        the ``regime`` (:mod:`.._floor`: the floor is a contact line where the lens can reach
-        it, ``fields`` then hold ``floor_r_m`` and ``floor_pressure_Pa``).
+        the ``regime`` are the result's own fields (:mod:`.._floor`: the floor is a contact
+        line where the lens can reach it, ``fields`` then hold ``floor_r_m`` and
+        ``floor_pressure_Pa``).
         ``fields`` holds the arrays (pressure at the vertices, gaps and nodal forces at the
         P2 points, the condensed compliance).
 
@@ -346,8 +346,6 @@ def _result(scene: Scene, setup: dict, mesh, system, compliance: dict, contact: 
         diagnostics.update(side_wall_diagnostics(
             tuple(v * ell for v in lens_in_side_wall(scene, setup, system, x)),
             scene.pillars.height_m))
-    diagnostics.update(floor, regime=regime(scene, pillar_force, floor["floor_force_N"],
-                                            int(pillar_force > 0.0)))
     floor_fields = {}
     if setup["floor"]:
         floor_fields = {"floor_r_m": system.contact_r[n_top::2] * ell,
@@ -365,7 +363,7 @@ def _result(scene: Scene, setup: dict, mesh, system, compliance: dict, contact: 
                 "gap_r_m": contact["r_m"], "gap_m": w * ell,
                 "contact_force_N_per_rad": f * E_ref * ell**2,
                 "mortar_compliance": compliance["C"], **floor_fields},
-        discretisation={}, diagnostics=diagnostics)
+        discretisation={}, diagnostics=diagnostics, floor=floor)
 
 
 def _write_fields(vtu_path, scene: Scene, setup: dict, mesh, system, x, result) -> None:

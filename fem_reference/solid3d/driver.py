@@ -41,7 +41,7 @@ from pillar_xval.scenes.lattice import lattice_indices
 
 from .._driver import (RTOL_COMPLEMENTARITY, PhaseClock, contact_radius, fem_result,
                        flat_candidate, refuse_rigid_pair, scaled_materials, verdict)
-from .._floor import FLOOR_MARGIN, floor_candidate, regime, side_wall_diagnostics
+from .._floor import FLOOR_MARGIN, floor_candidate, side_wall_diagnostics
 from .contact import contact_area_share, contact_faces, line_profile
 from .half_space import HalfSpaceModel, serial_dense_algebra
 from .fields import cell_stresses, lens_in_side_walls, write_vtu3d
@@ -351,7 +351,7 @@ def _result(scene: Scene, setup: dict, mesh, system, faces, contact: dict, mesh_
     tops = ~faces.floor_vertices
     r0, p0 = line_profile(faces.vertex_points[:, tops], pressure[tops], 0.0, tol_line)
     r1, p1 = line_profile(faces.vertex_points[:, tops], pressure[tops], sector_angle, tol_line)
-    pillar_forces, per_sector_pillar = [], {}
+    pillar_forces, per_sector_pillar, floor = [], {}, {}
     if scene.is_flat:
         a = _flat_radius(faces, lam, w, tol_line) * ell
         area = math.pi * a * a
@@ -379,14 +379,8 @@ def _result(scene: Scene, setup: dict, mesh, system, faces, contact: dict, mesh_
     failures = verdict([force, a, sigma0, residual, sol.residual, *pressure], residual, sol,
                        force, zeta, penetration,
                        "contact reached the end of the candidate zone" if reaches_end else "")
-    if not scene.is_flat:
-        pillar_force = force - floor["floor_force_N"]
-        diagnostics_floor = {**floor, "regime": regime(scene, pillar_force, floor[
-            "floor_force_N"], len(pillar_forces)), **side_wall_diagnostics(
-            lens_in_side_walls(scene, setup, system, contact["x"]), scene.pillars.height_m)}
-    else:
-        diagnostics_floor = {"floor_force_N": 0.0, "floor_contact_area_m2": 0.0,
-                             "floor_contact_radius_m": 0.0, "regime": "flat"}
+    walls = {} if scene.is_flat else side_wall_diagnostics(
+        lens_in_side_walls(scene, setup, system, contact["x"]), scene.pillars.height_m)
     diagnostics = {
         "cg_iterations": int(sol.iterations), "cg_reentries": int(sol.reentries),
         "operator_asymmetry": contact["asymmetry"], "preconditioner": contact["preconditioner"],
@@ -399,7 +393,7 @@ def _result(scene: Scene, setup: dict, mesh, system, faces, contact: dict, mesh_
         "peak_rss_GiB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20,
         "pillar_top_profile_alpha": {"theta_rad": float(sector_angle),
                                      "r_m": (r1 * ell).tolist(), "pressure_Pa": p1.tolist()},
-        **diagnostics_floor,
+        **walls,
     }
     return fem_result(
         MODEL, scene, clock, failures, mesh=mesh, system=system, mesh_size=mesh_size,
@@ -413,7 +407,8 @@ def _result(scene: Scene, setup: dict, mesh, system, faces, contact: dict, mesh_
                 "gap_m": w * ell, "sector_pillar_force_N": per_sector_pillar,
                 "floor_vertex": faces.floor_vertices,
                 "residual_history": np.asarray(sol.history)},
-        discretisation={"sector_angle_rad": float(sector_angle)}, diagnostics=diagnostics)
+        discretisation={"sector_angle_rad": float(sector_angle)}, diagnostics=diagnostics,
+        floor=floor)
 
 
 def _write_fields(vtu_path, scene: Scene, setup: dict, mesh, skmesh, system, x,
