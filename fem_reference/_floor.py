@@ -4,7 +4,8 @@ extent on a floor line, and the side walls' validity diagnostic.
 The lens's bottom is the plane z = 0 with its curvature in the gap; the floor lies at z = -h,
 so a floor point's gap is u_z(lens) - u_z(floor) + g(r) + h - zeta.  Pressure on either body
 only opens a gap (the lens's surface moves up, the floor's down), so contact is confined to
-where the rigid gap g(r) + h - zeta is <= 0: within the radius :func:`floor_reach`.
+where the rigid gap g(r) + h - zeta is <= 0: within :func:`pillar_xval.scenes.floor.
+floor_reach`.
 
 Side walls.  The model is linear with small slopes: the lens's surface beside a pillar moves
 as if the pillar had no side wall, so the deformed lens surface may lie inside the pillar
@@ -15,9 +16,9 @@ model neglects the wall's contact force, which acts over the overlap's depth.  B
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
+
+from pillar_xval.scenes.floor import floor_reach, floor_reachable
 
 # Candidate floor radius over the rigid reach (contact lies within the reach; the margin
 # leaves room for the contact radius fit, which reads gaps outside the edge).
@@ -29,23 +30,13 @@ FLOOR_MARGIN = 1.25
 SIDE_WALL_SMALL = 0.05
 
 
-def floor_reach(radius_m: float, indentation_m: float, height_m: float,
-                rim_m: float) -> float | None:
-    """Radius (m) within which the rigid gap g(r) + h - zeta on the floor is <= 0, or None
-    when it is positive everywhere beyond the pillar rim ``rim_m`` (the floor out of reach).
-    """
-    dip = indentation_m - height_m
-    if dip <= radius_m - math.sqrt(radius_m**2 - rim_m**2):
+def floor_candidate(scene, indentation_m: float) -> float | None:
+    """End of the candidate floor (m) at ``indentation_m``: :data:`FLOOR_MARGIN` times the
+    floor's reach (:func:`pillar_xval.scenes.floor.floor_reach`), or None where the floor is
+    out of reach (zeta <= h + g(d/2))."""
+    if not floor_reachable(scene, indentation_m):
         return None
-    return math.sqrt(max(2.0 * radius_m * dip - dip * dip, 0.0))
-
-
-def floor_candidate(radius_m: float, indentation_m: float, height_m: float,
-                    rim_m: float) -> float | None:
-    """End of the candidate floor segment (m): :data:`FLOOR_MARGIN` times the reach, or None
-    when the floor is out of reach."""
-    reach = floor_reach(radius_m, indentation_m, height_m, rim_m)
-    return None if reach is None else FLOOR_MARGIN * reach
+    return FLOOR_MARGIN * floor_reach(scene, indentation_m)
 
 
 def side_wall_overlap(lens_r, lens_z, pillar_top_z: float, wall_r,

@@ -25,10 +25,10 @@ import numpy as np
 import pytest
 
 from fem_reference import axisym
-from fem_reference._floor import (annulus_edges, floor_reach, side_wall_diagnostics,
-                                  side_wall_overlap)
+from fem_reference._floor import annulus_edges, side_wall_diagnostics, side_wall_overlap
 from meshes import build_axisymmetric_mesh, pillar_geometry
 from pillar_xval.scenes import analytic, load_scene
+from pillar_xval.scenes.floor import floor_reach, floor_reachable
 
 RTOL_MESH = 2e-3
 RTOL_SOLVER = 1e-8
@@ -81,7 +81,7 @@ def test_floor_contact_starts_beyond_the_reach_and_is_an_annulus():
     base = short_pillar(0.2)
     h, R, rim = 0.2e-6, base.lens.radius_m, 2e-6
     onset = h + R - math.sqrt(R * R - rim * rim)  # the rigid lens touches the floor's rim
-    assert floor_reach(R, 0.99 * onset, h, rim) is None
+    assert not floor_reachable(base, 0.99 * onset)
     below = axisym.solve(base.at_indentation(0.99 * onset), mesh_size=2.0)
     assert_verified(below)
     assert below.regime == "single-pillar"
@@ -97,7 +97,7 @@ def test_floor_contact_starts_beyond_the_reach_and_is_an_annulus():
     assert above.floor_contact_area_m2 < math.pi * (outer**2 - (0.9 * inner)**2)
     assert above.floor_contact_area_m2 > math.pi * (outer**2 - inner**2) * (1 - RTOL_MESH)
     # contact lies within the rigid reach (pressure only opens gaps)
-    assert outer <= floor_reach(R, 2.5 * h, h, rim)
+    assert outer <= floor_reach(base, 2.5 * h)
 
 
 def test_floor_lines_match_node_for_node():
@@ -173,7 +173,7 @@ def test_fem3d_floor_agrees_with_fem_axisym_on_one_pillar():
     assert share == pytest.approx(share_ref, abs=ATOL_3D_SHARE)
     assert res.floor_force_N + res.pillar_forces[0].force_N == pytest.approx(
         res.total_force_N, rel=1e-12)
-    reach = floor_reach(scene.lens.radius_m, 0.5e-6, 0.2e-6, 2e-6)
+    reach = floor_reach(scene)
     assert 0.0 < res.floor_contact_radius_m <= reach
     assert len(res.pillar_top_profile["r_m"]) > 0
     assert max(res.pillar_top_profile["r_m"]) <= 2e-6 * (1 + 1e-9)  # the top's alone
@@ -196,3 +196,10 @@ def test_wedge_floor_faces_match_and_clear_the_pillars():
     size = geo.size_callback()  # the same rule at z and -h - z
     for x, y in ((3.0, 0.5), (5.5, 1.0), (1.2, 0.1)):
         assert size(2, 0, x, y, 0.0, 0.0) == size(2, 0, x, y, -1.0, 0.0)
+
+
+def test_the_registry_runs_the_fems_on_a_floor_scene():
+    from validation.registry import run_model
+
+    res = run_model("fem-axisym", short_pillar(0.1).at_indentation(0.8e-6), mesh_size=4.0)
+    assert res.converged and res.regime == "mixed" and res.floor_force_N > 0.0

@@ -181,7 +181,6 @@ def test_force_control_crosses_onto_the_floor_and_back():
 
 @pytest.mark.parametrize("model, options", [("bem", {"elements_per_diameter": 5}),
                                             ("bem-richardson", {"elements_per_diameter": 5}),
-                                            ("fem-axisym", {"mesh_size": 4.0}),
                                             ("spring", {})])
 def test_models_without_the_floor_refuse_a_scene_that_reaches_it(model, options):
     scene = load_scene("paper-fig3-sparse", ["load.indentation_um=3"])

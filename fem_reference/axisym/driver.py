@@ -39,10 +39,11 @@ from meshes import build_axisymmetric_mesh, flat_geometry, pillar_geometry
 from pillar_xval.outcome import ContactResult, PillarForce
 from pillar_xval.outcome.memory import memory_short
 from pillar_xval.scenes import InputError, Scene, ScopeError, analytic
+from pillar_xval.scenes.floor import floor_reach, floor_reachable
 
 from .._driver import (HERTZ_CANDIDATE, RTOL_COMPLEMENTARITY, PhaseClock, contact_radius,
                        fem_result, flat_candidate, refuse_rigid_pair, scaled_materials, verdict)
-from .._floor import annulus_edges, floor_candidate, floor_reach, side_wall_diagnostics
+from .._floor import annulus_edges, floor_candidate, side_wall_diagnostics
 from .contact import mortar_matrix
 from .fields import cell_stresses, lens_in_side_wall, write_vtu
 from .system import assemble
@@ -212,9 +213,9 @@ def solve(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None,
 def _floor_holds(scene: Scene, setup: dict, zeta: float) -> bool:
     """Whether the meshed floor segment (or its absence) holds the rigid reach of the floor
     at the indentation ``zeta`` (m), beyond which there is no contact."""
-    reach = floor_reach(scene.lens.radius_m, zeta, scene.pillars.height_m, setup["ell"])
     end = setup["geometry"].floor_radius_m
-    return reach is None or (end is not None and reach <= end)
+    return not floor_reachable(scene, zeta) or (end is not None
+                                                and floor_reach(scene, zeta) <= end)
 
 
 def _implied(scene: Scene, zeta: float, how: str, bound: bool = False) -> Scene:
@@ -414,7 +415,7 @@ def _setup(scene: Scene, mesh_size: float, block_factor: float, scope: bool = Tr
         ell = 0.5 * p.diameter_m
         bodies = tuple(b for b, m in (("lens", lens), ("pillar", pillar), ("substrate", sub))
                        if not m.rigid)
-        floor = floor_candidate(scene.lens.radius_m, scene.indentation_m, p.height_m, ell)
+        floor = floor_candidate(scene, scene.indentation_m)
         geometry = pillar_geometry(p.diameter_m, p.height_m, block_factor * ell,
                                    bodies=bodies, mesh_size=mesh_size, floor_radius_m=floor)
         lower = ("contact_pillar" if not pillar.rigid

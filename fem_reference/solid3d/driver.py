@@ -451,8 +451,7 @@ def _setup(scene: Scene, mesh_size, sector_angle, block_factor, reach_factor, gr
         pillars = sector_pillars(p.pitch_m, p.diameter_m, reach, sector_angle)
         bodies = tuple(b for b, m in (("lens", lens), ("pillar", pillar), ("substrate", sub))
                        if not m.rigid)
-        floor = floor_candidate(scene.lens.radius_m, reach_factor * scene.indentation_m,
-                                p.height_m, ell)
+        floor = floor_candidate(scene, reach_factor * scene.indentation_m)
         if floor is not None:  # within the pillars' reach, its circle clear of them
             floor = floor_clear_of_pillars(min(floor, reach), pillars, ell)
             if lens.rigid and sub.rigid:
