@@ -8,12 +8,12 @@ substrate with material removed (less force), and its gaps are at most those of 
 substrate at the floor with material added (more force).  So
 Hertz(zeta - h) <= F <= Hertz(zeta), and F tends to Hertz(zeta) as h -> 0.
 
-Tolerances: RTOL_MESH (2e-3), the discretisation error at mesh_size 4, where the short
-pillars' tests run: measured at zeta = 0.8 um, h = 0.1, 0.05, 0.025 um (elastic, and a
-rigid pillar on a rigid floor), F above Hertz(zeta - h) by 3.7e-4 to 7.1e-4 (the pillar's
-share), the floor contact radius below Hertz's sqrt(R (zeta - h)) by 0.9e-3 to 1.2e-3
-(1.3e-4 to 3.6e-4 at mesh_size 2); 1 - F / Hertz(zeta) = 0.181, 0.092, 0.046, order 0.98
-to 1.0 in h.
+Tolerances: RTOL_MESH (2e-3), the bounds' allowance for the discretisation at mesh_size 4,
+where the short pillars' tests run: measured at zeta = 0.8 um, h = 0.1, 0.05, 0.025 um
+(elastic, and a rigid pillar on a rigid floor), F above Hertz(zeta - h) by 5.8e-3 to 8.0e-3
+(the pillar's share and the coarse mesh's +0.6 %: 3.7e-4 to 7.1e-4 on a finer far field)
+and below Hertz(zeta), the floor contact radius within 3.3e-4 of Hertz's sqrt(R (zeta - h));
+1 - F / Hertz(zeta) = 0.177, 0.086, 0.039: order 1.04 and 1.14 in h.
 """
 
 from __future__ import annotations
@@ -203,3 +203,19 @@ def test_the_registry_runs_the_fems_on_a_floor_scene():
 
     res = run_model("fem-axisym", short_pillar(0.1).at_indentation(0.8e-6), mesh_size=4.0)
     assert res.converged and res.regime == "mixed" and res.floor_force_N > 0.0
+
+
+def test_floor_benchmark_table():
+    from validation.bench.fem3d_floor import PHASES, table
+
+    def run(wall, rss, share):
+        return {"wall_s": wall, **{p: 1.0 for p in PHASES}, "peak_rss_GiB": rss,
+                "cg_iterations": 10, "floor_share": share, "load": 5.0}
+
+    runs = {"suspended": [run(1.0, 1.0, 0.0), run(3.0, 1.0, 0.0), run(2.0, 1.0, 0.0)],
+            "suspended-h2": [run(4.0, 2.0, 0.0)] * 3,
+            "mixed": [run(4.0, 1.5, 0.3)] * 3}
+    rows = table(runs)
+    assert rows[-2].startswith("| mixed / suspended | 2.00 |")  # medians: 4 / 2
+    assert rows[-1].startswith("| mixed / suspended-h2 | 1.00 |")
+    assert "| 0.300 |" in rows[4]

@@ -156,7 +156,7 @@ class AxisymmetricGeometry:
         if self.has_pillar:  # a short pillar: elements no larger than its height (q > 0.5)
             H = self.pillar_height_m / self.focus_radius_m
             box = math.hypot(max(r - 1.0, 0.0), max(z, -H - z, 0.0))
-            size = min(size, H + g * box)
+            size = min(size, H + self.mesh_size * g * box)
         return size
 
     def singular_points(self):
