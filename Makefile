@@ -16,12 +16,13 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e '.[dev]'
 	touch $(STAMP)
 
-# The main job: BEM (Hooke pillars) against FEM (elastic pillars) on the single-pillar and
-# Hertz scenes (axisymmetric FEM), then a three-way comparison on a lattice of 43 pillars
-# (Phi = 0.2): the Hooke BEM and the elastic-pillar BEM (its pillar compliance built once,
-# ~20 s, then cached) against one fem-3d run (mesh_size 2.83, 2, 1.41), about 3 minutes; the
-# table in compare-lattice/summary.md, the centre pillar's profiles in its profiles.png;
-# then the paper's Fig. 3 scenes with the BEM.
+# The main job: the BEM (elastic pillars, its default there: the pillar compliance of the
+# presets' one pillar kind built once, ~20 s, then cached) against the FEM on the
+# single-pillar and Hertz scenes (axisymmetric FEM), then a three-way comparison on a lattice
+# of 43 pillars (Phi = 0.2): the Hooke BEM and the elastic-pillar BEM against one fem-3d run
+# (mesh_size 2.83, 2, 1.41), about 3 minutes; the table with its verdicts in
+# compare-lattice/summary.md, the centre pillar's profiles in its profiles.png; then the
+# paper's Fig. 3 scenes with the BEM (elastic pillars).
 demo: $(STAMP)
 	$(VENV)/bin/pillar-xval compare --scene single-pillar --out $(OUT)/compare-single-pillar
 	$(VENV)/bin/pillar-xval compare --scene hertz --out $(OUT)/compare-hertz

@@ -23,8 +23,9 @@ from pillar_xval.threads import thread_count
 from ._cells import VARIANTS, cell_pattern
 from ._discretise import Discretisation, discretise, overlap_radius
 from ._elastic_pillar import (cached_excess_block, check_pillars, coupling_block, image_cells,
-                              operator_records, reduced_block, representative_rows,
-                              scene_compliance, uses_coupling, uses_elastic_block)
+                              operator_records, pillar_record, reduced_block,
+                              representative_rows, scene_compliance, uses_coupling,
+                              uses_elastic_block)
 from ._operator import BYTES_PER_THREAD, reduced_operator
 
 MAX_UNKNOWNS = 12_000  # dense reduced operator: 1.2 GB at this size
@@ -90,7 +91,7 @@ def solve_dense(scene: Scene, elements_per_diameter: int = 11, cells: str = "cov
         ``progress(text)`` hears of a compliance build (once per pillar kind, then cached).
     """
     _check_options(elements_per_diameter, cells, contact)
-    check_pillars(pillars)
+    check_pillars(pillars, scene)
     t0 = time.perf_counter()
     P = int(elements_per_diameter)
     if scene.force_N is not None:
@@ -101,14 +102,16 @@ def solve_dense(scene: Scene, elements_per_diameter: int = 11, cells: str = "cov
     _refuse_if_too_large(scene, P, cells, contact)
     elastic = elastic_setup(scene, P, cells, pillars, compliance, progress)
     level = solve_rounds(scene, P, cells, contact, elastic)
-    return level_result(scene, level, time.perf_counter() - t0)
+    return level_result(scene, level, time.perf_counter() - t0, pillars)
 
 
-def level_result(scene: Scene, level: "Level", wall: float) -> ContactResult:
+def level_result(scene: Scene, level: "Level", wall: float, pillars: str) -> ContactResult:
     """The result of ``level`` for ``scene`` (indentation-controlled: the given indentation,
-    or the one a force-controlled solve found); ``wall``: its time (s)."""
+    or the one a force-controlled solve found); ``wall``: its time (s); ``pillars``: the
+    pillar model asked for, recorded with the notes on its moduli."""
+    kind = None if level.elastic is None else level.elastic["modal"].kind
     return _result(scene, level.disc, level.sol, level.P, level.cells, level.contact,
-                   level.rounds, level.extra, wall)
+                   level.rounds, {**level.extra, **pillar_record(scene, pillars, kind)}, wall)
 
 
 def elastic_setup(scene: Scene, P: int, cells: str, pillars: str, compliance=None,
@@ -200,8 +203,7 @@ def solve_rounds(scene: Scene, P: int, cells: str, contact: str, elastic: dict |
         radius = min(r_max, violated + (scene.pillars.diameter_m if scene.pillars else
                                         4 * disc.cell_side))
     if elastic is not None:
-        extra = {**extra, "pillars": "elastic",
-                 "pillar_compliance": _compliance_summary(elastic["modal"]),
+        extra = {**extra, "pillar_compliance": _compliance_summary(elastic["modal"]),
                  "operators": operator_records(elastic["modal"].diagnostics)}
     return Level(scene, P, cells, contact, elastic, disc, M, radius, sol, rounds, extra, zeta,
                  reach, reach_radius)

@@ -73,7 +73,7 @@ def solve_under_force(scene: Scene, P: int, cells: str, contact: str, pillars: s
                              f"then {zeta:.6g} m)")
     check_floor_scope(scene, "bem", zeta, f"bem at P = {P}")
     solved = scene.implied(zeta, f"bem at P = {P}")
-    result = level_result(solved, level, time.perf_counter() - t0)
+    result = level_result(solved, level, time.perf_counter() - t0, pillars)
     return result.for_force(scene.to_dict(), zeta, design_rounds=rounds)
 
 

@@ -53,9 +53,34 @@ from ._love import unit_force_influence
 CHUNK_CELLS = 8192  # cells per chunk of the mode projections
 
 
-def check_pillars(pillars: str) -> None:
+def check_pillars(pillars: str, scene: Scene | None = None) -> None:
+    """InputError for a pillar model that is not one of :data:`PILLAR_MODELS`, or for the
+    elastic pillar on a flat ``scene`` (no pillar to model: refused, not run as Hooke)."""
     if pillars not in PILLAR_MODELS:
         raise InputError(f"pillars = {pillars!r}: allowed values are {', '.join(PILLAR_MODELS)}")
+    if pillars == "elastic" and scene is not None and scene.pillars is None:
+        raise InputError("pillars = 'elastic': the scene is flat, it has no pillars to model "
+                         "(leave the pillar model out)")
+
+
+def pillar_record(scene: Scene, pillars: str, kind=None) -> dict:
+    """What a BEM result records of its pillar model: ``pillars`` ("hooke" or "elastic"; none
+    on a flat scene) and, where the elastic pillar (of ``kind``, its compliance's
+    ``PillarKind``) solves a moduli contrast beyond its cap as the cap, ``notes`` saying so:
+    E_p/E_s = 1e9 is modelled as 1e6, where the stiffer body's compliance is 1e-6 of the
+    other's, below any discretisation error, and beyond which the mode solves lose accuracy
+    (fem_reference's RIGID_CONTRAST)."""
+    if scene.pillars is None:
+        return {}
+    out = {"pillars": pillars}
+    if kind is not None and not kind.rigid_substrate \
+            and kind.modulus_ratio != kind.modelled_ratio:
+        given = ("rigid pillars" if kind.rigid_pillar else
+                 f"E_p/E_s = {kind.modulus_ratio:.3g}")
+        out["notes"] = [f"{given} modelled as E_p/E_s = {kind.modelled_ratio:.3g} (the elastic "
+                        "pillar's moduli contrast is capped there: the stiffer body's "
+                        "compliance is below the discretisation error)"]
+    return out
 
 
 def uses_elastic_block(scene: Scene, pillars: str) -> bool:
@@ -304,7 +329,8 @@ def full_block(disc, X: np.ndarray, img_cell: np.ndarray) -> np.ndarray:
 
 __all__ = ["FFTPillarTerm", "PILLAR_MODELS", "cached_excess_block", "check_pillars",
            "coupling_block", "coupling_kernel", "coupling_moments", "excess_block",
-           "full_block", "image_cells", "operator_records", "reduced_block", "representative_rows",
+           "full_block", "image_cells", "operator_records", "pillar_record", "reduced_block",
+           "representative_rows",
            "scene_compliance", "uses_coupling", "uses_elastic_block"]
 
 

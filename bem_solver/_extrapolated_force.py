@@ -66,7 +66,7 @@ def solve_under_force(scene: Scene, p1: int, cells: str, pillars: str, complianc
         design = zeta
     solved = scene.implied(zeta, f"bem-richardson at P = {p1}, {resolutions[1]}")
     now = time.perf_counter() - t0
-    coarse, fine = (level_result(solved, level, now) for level in levels)
+    coarse, fine = (level_result(solved, level, now, pillars) for level in levels)
     result = extrapolate(solved, coarse, fine, cells, t0)
     if not met:
         result.converged = False

@@ -63,9 +63,10 @@ from pillar_xval.outcome.memory import memory_short
 from pillar_xval.scenes import InputError, Scene, ScopeError
 
 from ._dense import _smooth_edge_radius
-from ._fft_grid import CellGrid, build_grid, candidate_side, estimate_host_memory
+from ._fft_grid import (CellGrid, build_grid, candidate_side, check_grid_side,
+                        estimate_host_memory)
 from ._elastic_pillar import (FFTPillarTerm, TopsOnlyTerm, check_pillars, operator_records,
-                              scene_compliance, tops_grid, uses_elastic_block)
+                              pillar_record, scene_compliance, tops_grid, uses_elastic_block)
 from ._fft_operator import CirculantPreconditioner, CompliancePlan, near_field_correction
 from ._limits import PRECISIONS
 from ._xp import NumpyDevice, select_backend
@@ -125,7 +126,8 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
         phases of an elastic pillar's compliance build.
     device : {"cpu", "gpu", "auto"}
         Where to solve: numpy on the CPU (default), cupy on a CUDA GPU (``InputError`` saying
-        what to install when none is usable), or the GPU when cupy finds one.
+        what to install when none is usable), or the GPU when cupy finds one ("auto"; the
+        CPU for the elastic pillar, which runs there only).
     backend : optional
         An array backend object (:mod:`bem_solver._xp`) used instead of ``device``: another
         array library, or a strict one in the tests.
@@ -162,14 +164,19 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     .. [1] I. A. Polonsky, L. M. Keer, Wear 231 (1999) 206-219.
     """
     start = time.perf_counter()
-    check_pillars(pillars)
+    check_pillars(pillars, scene)
     if precision not in PRECISIONS:
         raise InputError(f"precision = {precision!r}: choose one of {', '.join(PRECISIONS)}")
-    be = select_backend(device, workers) if backend is None else backend
     elastic = uses_elastic_block(scene, pillars)
+    # The elastic pillar runs on the CPU only: 'auto' takes the CPU for it, 'gpu' is refused.
+    be = select_backend("cpu" if elastic and device == "auto" else device, workers) \
+        if backend is None else backend
     if elastic:
         if not isinstance(be, NumpyDevice):
-            raise InputError(f"pillars = 'elastic' runs on the CPU only (device = {device!r})")
+            raise InputError(f"pillars = 'elastic' runs on the CPU only (device = {device!r}); "
+                             "pillars = 'hooke' runs on the GPU")
+        if scene.force_N is None:  # a refused grid never waits for a compliance build
+            _refuse_grid(scene, cells_per_diameter, be)
         compliance = scene_compliance(scene, compliance, progress=progress)
     opts = _Options(tol, max_iterations, workers, warm_start, edge_correction, progress,
                     preconditioner, pillars, compliance if elastic else None, precision,
@@ -230,14 +237,7 @@ def _prepare(scene: Scene, cells_per_diameter: int, opts: _Options, be, workspac
              start: float) -> _Setup:
     """Grid, operator and preconditioner of ``scene`` (indentation-controlled: its
     indentation sets the candidate region, and on a flat scene the cell size)."""
-    # A grid beyond the FFT size limit is refused by build_grid, by its size; one within it
-    # is refused here, before any array is built, when it would not fit in memory.
-    need = estimate_host_memory(scene, cells_per_diameter, isinstance(be, NumpyDevice))
-    side = candidate_side(scene, cells_per_diameter)
-    short = memory_short(need) if side * side <= 4 * be.max_fft_points else None
-    if short is not None:
-        raise ScopeError(f"cells_per_diameter = {cells_per_diameter}: this grid needs about "
-                         f"{need / 2**30:.3g} GiB, {short}; choose fewer cells per diameter")
+    _refuse_grid(scene, cells_per_diameter, be)
     grid = build_grid(scene, cells_per_diameter, max_fft_points=be.max_fft_points)
     if not opts.edge_correction:
         grid = _plain_grid(grid, scene)
@@ -264,6 +264,18 @@ def _prepare(scene: Scene, cells_per_diameter: int, opts: _Options, be, workspac
     be.synchronize()
     timings["kernel_table"] = time.perf_counter() - lap
     return _Setup(grid, plan, _preconditioner(plan, opts.preconditioner), timings)
+
+
+def _refuse_grid(scene: Scene, cells_per_diameter: int, be) -> None:
+    """Refuse, before any array is built, a grid of ``scene`` beyond the FFT size limit (by
+    its side) or one that would not fit in the memory this process may take."""
+    side = candidate_side(scene, cells_per_diameter)
+    check_grid_side(side, cells_per_diameter, be.max_fft_points)
+    need = estimate_host_memory(scene, cells_per_diameter, isinstance(be, NumpyDevice))
+    short = memory_short(need)
+    if short is not None:
+        raise ScopeError(f"cells_per_diameter = {cells_per_diameter}: this grid needs about "
+                         f"{need / 2**30:.3g} GiB, {short}; choose fewer cells per diameter")
 
 
 def _coarser(scene: Scene, cells_per_diameter: int, opts: _Options, be, workspace):
@@ -321,8 +333,9 @@ def finish(scene: Scene, setup: _Setup, outcome, cells_per_diameter: int, opts: 
     result.diagnostics["preconditioner"] = _PRECONDITIONERS[opts.preconditioner] + (
         " + pillar springs" if plan.has_spring else
         " + elastic pillars" if opts.elastic else "")
+    result.diagnostics.update(pillar_record(scene, opts.pillars, opts.compliance.kind
+                                            if opts.elastic else None))
     if opts.elastic:
-        result.diagnostics["pillars"] = "elastic"
         result.diagnostics["operators"] = operator_records(opts.compliance.diagnostics)
         result.discretisation["pillars"] = "elastic"
     result.diagnostics["timings_s"] = setup.timings

@@ -177,6 +177,15 @@ def estimate_host_memory(scene: Scene, cells_per_diameter: int, on_cpu: bool = T
     return n * (CPU_SOLVE_BYTES_PER_POINT if on_cpu else GRID_BYTES_PER_POINT)
 
 
+def check_grid_side(n_side: int, cells_per_diameter: int, max_fft_points: int) -> None:
+    """Refuse (SceneError) a candidate square of ``n_side`` cells a side whose padded FFT
+    would exceed ``max_fft_points`` points."""
+    if n_side**2 > 4 * max_fft_points:
+        raise SceneError(
+            f"cells_per_diameter = {cells_per_diameter}: the candidate disk would span "
+            f"{n_side} x {n_side} cells; choose fewer cells per diameter")
+
+
 def build_grid(scene: Scene, cells_per_diameter: int,
                max_fft_points: int = MAX_FFT_POINTS) -> CellGrid:
     """Candidate cells of ``scene`` with ``cells_per_diameter`` cells across a pillar (or
@@ -186,10 +195,7 @@ def build_grid(scene: Scene, cells_per_diameter: int,
     flat = scene.pillars is None
     L, r_cand, half = _candidate(scene, cells_per_diameter)
     n_side = 2 * half + 1
-    if n_side**2 > 4 * max_fft_points:
-        raise SceneError(
-            f"cells_per_diameter = {cells_per_diameter}: the candidate disk would span "
-            f"{n_side} x {n_side} cells; choose fewer cells per diameter")
+    check_grid_side(n_side, cells_per_diameter, max_fft_points)
     # Cell (row iy, column ix) of the candidate square, flat index iy n_side + ix, has its
     # centre at (ax[ix], ax[iy]): the square's coordinates are never stored whole.
     ax = (np.arange(n_side) - half) * L

@@ -112,6 +112,8 @@ def fem_result(model: str, scene, clock: PhaseClock, failures: list, *, mesh, sy
         "mesh_min_quality": float(mesh.quality().min()),
         "time_s": clock.durations(),
     }
+    if scene.pillars is not None:
+        common["pillars"] = "elastic"  # the FEMs mesh the pillar as a body
     return ContactResult(
         model=model, scene=scene.to_dict(), discretisation=disc, total_force_N=force,
         centre_pressure_Pa=centre_pressure, contact_radius_m=contact_radius_m,

@@ -97,6 +97,51 @@ def test_issue_10_cases(fakes, tmp_path, cli, argv, code, fragment):
         assert fakes == []  # refused before any solve
 
 
+# --- the cases of issue 35: refused before anything is solved, or said --------------------
+@pytest.mark.parametrize("argv, fragment", [
+    # the elastic pillar on a flat scene was run as the Hooke one, without a word
+    (["solve", "--scene", "hertz", "--pillars", "elastic"], "the scene is flat"),
+    (["compare", "--scene", "hertz", "--pillars", "elastic"], "--pillars elastic: the scene is "
+                                                              "flat"),
+    (["compare", "--scene", "hertz", "--pillars", "both"], "the scene is flat"),
+    (["converge", "--scene", "hertz", "--pillars", "elastic"], "the scene is flat"),
+    (["tradeoff", "--scene", "hertz", "--pillars", "elastic"], "the scene is flat"),
+    # an empty entry of a list was dropped
+    (["solve", "--model", "auto", "--scene", "hertz", "--quantities", "F_T,,sigma0"],
+     "none empty"),
+    (["plan", "--scene", "hertz", "--quantities", "F_T,,sigma0"], "none empty"),
+    (["plan", "--scene", "hertz", "--quantities", ","], "none empty"),
+    # fem-axisym refuses a lattice naming the model that holds it
+    (["solve", "--model", "fem-axisym", "--scene", "paper-fig3-sparse"], "use fem-3d"),
+])
+def test_issue_35_cases(tmp_path, cli, argv, fragment):
+    got, _, line = outcome(cli, *argv, *([] if argv[0] == "plan" else
+                                         _common(argv[0], tmp_path)))
+    assert got == 2 and fragment in line, line
+    assert not (tmp_path / argv[0] / "cases").exists()  # nothing was solved
+
+
+def test_the_model_line_names_the_pillar_model_and_the_hooke_error(tmp_path, cli):
+    """The summary's model line read the same for both pillar models, and nothing said that
+    the Hooke pillar's sigma0 is about a third low on the sparse paper scene."""
+    from validation.planner.plan import hooke_error
+
+    code, out, _ = outcome(cli, "solve", "--scene", "paper-fig3-sparse", "--pillars", "hooke",
+                           "--out", tmp_path / "s")
+    assert code == 0
+    assert out.startswith("model            bem, Hooke pillars  (")
+    expected = hooke_error(load_scene("paper-fig3-sparse"), "sigma0")
+    note = next(ln for ln in out.splitlines() if ln.startswith("note "))
+    assert f"sigma0 off by up to {100 * expected:.2g} %" in note
+    assert note.endswith("--pillars elastic removes it")
+    doc = json.loads((tmp_path / "s" / "result.json").read_text())
+    assert doc["diagnostics"]["pillars"] == "hooke"
+    assert doc["diagnostics"]["notes"] == [note.removeprefix("note").strip()]
+    # a flat scene has no pillar model to name
+    code, out, _ = outcome(cli, "solve", "--scene", "hertz", "--elements-per-diameter", "5")
+    assert code == 0 and out.startswith("model            bem  (") and "note" not in out
+
+
 def _common(command: str, tmp_path) -> list[str]:
     """Options that make a command cheap and observable: its own folder, serial engine."""
     if command == "solve":
@@ -353,3 +398,15 @@ def test_fuzz_the_cli(fake_fft, tmp_path, cli, monkeypatch):
         codes[code] += 1
     # the seeded inputs reach every kind of outcome that input can cause
     assert codes[2] > 100 and min(codes.values()) > 0, codes
+
+
+def test_a_slow_plan_says_what_it_does(cli, monkeypatch):
+    """`plan --scene paper-fig3-sparse` was silent for 13 s on a cold start: a plan slower
+    than PROGRESS_AFTER_S says its step (here: every plan)."""
+    import importlib
+
+    monkeypatch.setattr(importlib.import_module("validation.cli.plan"), "PROGRESS_AFTER_S", 0.0)
+    code, out, err = cli("plan", "--scene", "paper-fig3-sparse")
+    assert code == 0 and "choice" in out
+    steps = [ln for ln in err.splitlines() if ln.startswith("[plan] ")]
+    assert steps and "reading the planner's error and cost tables" in steps[0], err

@@ -11,7 +11,7 @@ from validation.cli import main
 
 def test_json_is_one_document_and_round_trips(tmp_path, capsys):
     code = main(["solve", "--scene", "paper-fig3-sparse", "--elements-per-diameter", "7",
-                 "--json", "--out", str(tmp_path)])
+                 "--pillars", "hooke", "--json", "--out", str(tmp_path)])
     assert code == 0
     doc = json.loads(capsys.readouterr().out)  # exactly one JSON document
     for key in ("model", "scene", "discretisation", "total_force_N", "centre_pressure_Pa",
@@ -32,7 +32,7 @@ def test_json_is_one_document_and_round_trips(tmp_path, capsys):
 
 def test_paper_search_and_centre_cells_from_the_cli(capsys):
     assert main(["solve", "--scene", "single-pillar", "--contact", "paper", "--cells",
-                 "centre", "--json"]) == 0
+                 "centre", "--pillars", "hooke", "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["discretisation"]["contact"] == "paper"
     assert doc["discretisation"]["cells"] == "centre"
@@ -167,7 +167,8 @@ def test_fft_precision_from_the_cli(capsys):
     docs = {}
     for precision in ("double", "mixed"):
         assert main(["solve", "--scene", "paper-fig3-sparse", "--model", "bem-fft",
-                     "--cells-per-diameter", "12", "--precision", precision, "--json"]) == 0
+                     "--cells-per-diameter", "12", "--precision", precision, "--pillars",
+                     "hooke", "--json"]) == 0
         docs[precision] = json.loads(capsys.readouterr().out)
     assert docs["double"]["diagnostics"]["single_precision_applications"] == 0
     assert docs["mixed"]["diagnostics"]["single_precision_applications"] > 0
@@ -178,3 +179,91 @@ def test_fft_precision_from_the_cli(capsys):
                  "--precision", "single"]) != 0
     err = capsys.readouterr().err
     assert "--precision" in err and "mixed" in err and "double" in err
+
+
+# --- which model answered (issue 35, item 8) -----------------------------------------------
+def fake_bem_pillars(scene, elements_per_diameter=11, cells="covered", contact="exact",
+                     pillars="hooke"):
+    """A fake dense BEM with a pillar model, which its result records as the BEMs do."""
+    from fakes import CALLS, _result
+
+    CALLS.append(("bem", pillars))
+    result = _result("bem", scene, 1.0, {"elements_per_diameter": elements_per_diameter})
+    if scene.pillars is not None:
+        result.diagnostics["pillars"] = pillars
+    return result
+
+
+@pytest.fixture
+def pillar_bem(fakes, monkeypatch):
+    from fakes import register
+    from validation.registry.options import CELLS, CONTACT, ELEMENTS_PER_DIAMETER, PILLARS
+
+    register(monkeypatch, "bem", f"{__name__}:fake_bem_pillars",
+             {"elements_per_diameter": ELEMENTS_PER_DIAMETER, "cells": CELLS,
+              "contact": CONTACT, "pillars": PILLARS})
+    return fakes
+
+
+@pytest.mark.parametrize("sets, given, said", [
+    ([], [], "bem, elastic pillars"),                     # elastic pillars: the elastic model
+    (["pillars.rigid=true"], [], "bem, Hooke pillars"),   # rigid ones: the paper's spring
+    ([], ["--pillars", "hooke"], "bem, Hooke pillars"),   # as asked
+])
+def test_the_pillar_model_defaults_to_the_scenes(pillar_bem, cli, sets, given, said):
+    argv = ["solve", "--scene", "single-pillar", *given]
+    for s in sets:
+        argv += ["--set", s]
+    code, out, err = cli(*argv)
+    assert code == 0, err
+    assert out.splitlines()[0].startswith(f"model            {said}  (")
+    assert pillar_bem == [("bem", said.split(", ")[1].split()[0].lower())]
+
+
+def test_auto_names_the_elastic_pillar_it_chose(pillar_bem, cli, monkeypatch):
+    import importlib
+
+    planner = importlib.import_module("validation.planner.plan")
+
+    choice = {"model": "bem", "options": {"elements_per_diameter": 11, "pillars": "elastic"},
+              "label": "bem P=11 elastic"}
+    monkeypatch.setattr(planner, "plan", lambda *a, **k: {"choice": choice, "reason": "why"})
+    monkeypatch.setattr(planner, "compact", lambda p: p)
+    code, out, err = cli("solve", "--scene", "single-pillar", "--model", "auto")
+    assert code == 0, err
+    assert out.splitlines()[0].startswith("model            bem, elastic pillars  (")
+    assert "auto: chose bem P=11 elastic: why" in out
+
+
+def test_a_capped_moduli_contrast_is_said_in_the_result_and_its_summary():
+    """E_p/E_s = 1e9 was modelled as 1e6 without a word."""
+    from bem_solver._elastic_pillar import pillar_record
+    from fem_reference import PillarKind
+    from pillar_xval.scenes import load_scene
+
+    scene = load_scene("single-pillar", ["pillars.E_Pa=1.6e15"])
+    record = pillar_record(scene, "elastic", PillarKind.of_scene(scene))
+    assert record["pillars"] == "elastic"
+    (note,) = record["notes"]
+    assert note.startswith("E_p/E_s = 1e+09 modelled as E_p/E_s = 1e+06")
+    assert "notes" not in pillar_record(load_scene("single-pillar"), "elastic",
+                                        PillarKind.of_scene(load_scene("single-pillar")))
+    result = ContactResult(model="bem", scene=scene.to_dict(), discretisation={},
+                           total_force_N=1.0, centre_pressure_Pa=1.0, contact_radius_m=1.0,
+                           real_contact_area_m2=1.0, pillars_in_contact=1, pillar_forces=[],
+                           converged=True, iterations=1, wall_time_s=0.0, diagnostics=record)
+    assert f"note             {note}" in result.summary()
+    assert result.summary().startswith("model            bem, elastic pillars  (")
+
+
+def test_the_gpu_keeps_the_hooke_spring_by_default():
+    """The elastic pillar runs on the CPU only: on --device gpu the default stays Hooke (the
+    elastic default would refuse every GPU solve of a scene with elastic pillars)."""
+    from pillar_xval.scenes import load_scene
+    from validation.registry import scene_defaults
+
+    scene = load_scene("single-pillar")
+    assert scene_defaults("bem-fft", scene, {"device": "gpu"})["pillars"] == "hooke"
+    assert scene_defaults("bem-fft", scene, {"device": "cpu"})["pillars"] == "elastic"
+    assert scene_defaults("bem-fft", scene, {"device": "gpu", "pillars": "elastic"}) == \
+        {"device": "gpu", "pillars": "elastic"}  # as asked: the solver refuses it, saying why

@@ -256,11 +256,13 @@ def test_progress_plain_lines_have_count_rate_and_eta(tmp_path):
 
 # --- processes -------------------------------------------------------------------------------
 def _spec(folder: Path, n: int, p: int = 5, scene: str = "paper-fig3-dense") -> Path:
-    """A sweep of ``n`` indentations with the dense BEM at P = ``p``."""
+    """A sweep of ``n`` indentations with the dense BEM at P = ``p`` (Hooke pillars: the
+    engine's tests need no pillar compliance built)."""
     spec = folder / "spec.toml"
     spec.write_text(f'name = "t"\nscene = "{scene}"\n'
                     f'[grid]\n"load.indentation_um" = {{ linear = [0.1, 0.5], num = {n} }}\n'
-                    f'[[models]]\nname = "bem"\nelements_per_diameter = {p}\n')
+                    f'[[models]]\nname = "bem"\nelements_per_diameter = {p}\n'
+                    'pillars = "hooke"\n')
     return spec
 
 

@@ -51,3 +51,25 @@ def test_unlimited_process_quotes_the_machine():
     assert free > 0 and what
     assert memory_short(0.5 * MEMORY_SHARE * free) is None
     assert what in memory_short(2.0 * free)
+
+
+@pytest.mark.parametrize("solver", ["dense", "fft"])
+def test_a_grid_too_large_is_refused_before_any_compliance_build(monkeypatch, solver):
+    """The elastic pillar (the default on the presets) built its compliance, 20-140 s, before
+    the FFT model refused the grid by its memory: the refusal comes first."""
+    from bem_solver import _dense, _fft
+    from pillar_xval.scenes import ScopeError, load_scene
+
+    def build(*args, **kwargs):
+        raise AssertionError("the compliance was built for a grid that is refused")
+
+    monkeypatch.setattr(_fft, "scene_compliance", build)
+    monkeypatch.setattr(_dense, "scene_compliance", build)
+    monkeypatch.setattr("pillar_xval.outcome.memory.memory_limit",
+                        lambda: (1e9, "a test's 1 GB"), raising=True)
+    scene = load_scene("paper-fig3-dense")
+    with pytest.raises(ScopeError, match="1 GB"):
+        if solver == "fft":
+            _fft.solve_fft(scene, 256, pillars="elastic")
+        else:
+            _dense.solve_dense(scene, 41, pillars="elastic")

@@ -18,6 +18,16 @@ from pillar_xval.scenes import InputError, ScopeError, load_scene
 
 
 # --- helpers ------------------------------------------------------------------------------
+@pytest.fixture(autouse=True)
+def _close_figures():
+    """Close the figures a test leaves open (captured ones, pressure_plot's): a worker
+    holding more than 20 warns, and their memory adds up."""
+    yield
+    import matplotlib.pyplot as plt
+
+    plt.close("all")
+
+
 def _capture(monkeypatch, module) -> list:
     """Figures that ``module.save_figure`` would have written (they stay open)."""
     figures = []
@@ -131,7 +141,7 @@ def test_lattice_table_has_no_column_headed_none():
 
     text = table_text([_row("F_T"), _row("sigma0")], "none", "d/2")
     head = text.splitlines()[0]
-    assert head.split()[-1] == "U" and "none" not in head  # ... 'exceeds U', nothing after
+    assert head.split()[-1] == "verdict" and "none" not in head  # nothing after the verdict
     assert len(text.splitlines()[2].split()) < len(table_text(
         [_row("F_T")], "spring model", "d/2").splitlines()[2].split()) + 1
     assert table_text([_row("F_T")], "Hertz", "a_Hertz").splitlines()[0].split()[-1] == "Hertz"
@@ -341,3 +351,204 @@ def test_engine_progress_uses_the_reports_verdicts(fakes, monkeypatch, tmp_path,
     assert not outcome.ok
     err = capsys.readouterr().err
     assert f": {word}: " in err and "FAILED" not in err, err
+
+
+def test_tradeoff_says_which_extrapolation_is_the_reference():
+    """Two extrapolated sigma0 with two orders were printed side by side, neither named as
+    the reference."""
+    from validation.studies.tradeoff import pareto_table
+
+    est = {"bem": {"f_exact": 1.0, "order": 1.02, "band": 0.01, "status": "ok",
+                   "pre_asymptotic": [], "assumed": None},
+           "bem-fft": {"f_exact": 1.03, "order": 0.61, "band": 0.05, "status": "ok",
+                       "pre_asymptotic": ["observed order 0.61, expected 1"],
+                       "assumed": {"f_exact": 1.01, "order": 1.0, "band": 0.03}}}
+    ref = {"value": 1.0, "model": "bem", "order": 1.02, "band": 0.01, "status": "richardson",
+           "basis": "the narrowest of agreeing estimates (asymptotic)", "flags": [],
+           "per_model": est}
+    doc = {**_tradeoff_doc([(5, 0.01, 1e-2), (7, 0.02, 5e-3), (9, 0.03, 2e-3)]),
+           "references": {"hooke-pillar": {"sigma0": ref}}}
+    lines = pareto_table(doc).splitlines()
+    bem = next(ln for ln in lines if "extrapolated by bem:" in ln)
+    fft = next(ln for ln in lines if "extrapolated by bem-fft:" in ln)
+    assert bem.endswith(": the reference") and "order 1.02" in bem
+    assert "not used: pre-asymptotic (observed order 0.61, expected 1)" in fft
+    assert any("sigma0 = 1 from bem (the narrowest of agreeing estimates" in ln for ln in lines)
+
+
+# --- issue 35, item 10: axes that show their data, legends that list what is seen ---------
+def _hidden_listed(ax) -> list[str]:
+    """Legend entries of ``ax`` whose curve a later solid curve covers at every drawn vertex
+    and midpoint, measured vertically in pixels (within half its width plus a pixel)."""
+    fig = ax.figure
+    _agg(fig)
+    fig.canvas.draw()
+    listed = set(legend_texts(ax))
+    lines = sorted(ax.get_lines(), key=lambda ln: ln.zorder)
+    out = []
+    for i, line in enumerate(lines):
+        if line.get_label() not in listed or line.get_marker() not in ("None", "", " ", None):
+            continue
+        xy = line.get_transform().transform(np.column_stack(line.get_data()))
+        xy = np.concatenate([xy, 0.5 * (xy[1:] + xy[:-1])])
+        box = ax.get_window_extent()
+        xy = xy[(xy[:, 0] >= box.x0) & (xy[:, 0] <= box.x1)
+                & (xy[:, 1] >= box.y0) & (xy[:, 1] <= box.y1)]
+        for top in lines[i + 1:]:
+            if top.get_linestyle() != "-":
+                continue
+            t = top.get_transform().transform(np.column_stack(top.get_data()))
+            order = np.argsort(t[:, 0])
+            under = (xy[:, 0] >= t[order, 0].min()) & (xy[:, 0] <= t[order, 0].max())
+            y = np.interp(xy[:, 0], t[order, 0], t[order, 1])
+            reach = 0.5 * top.get_linewidth() * fig.dpi / 72 + 1.0
+            if xy.size and np.all(under & (np.abs(xy[:, 1] - y) <= reach)):
+                out.append(line.get_label())
+                break
+    return out
+
+
+def _hertz_curves():
+    """A compare of the Hertz scene: BEM, three FEM levels (the two finest 0.05 % apart, one
+    under the other) and Hertz, in compare's styles."""
+    from pillar_xval.scenes import analytic
+
+    hz = analytic.hertz(load_scene("hertz"))
+    r = np.linspace(0.0, 1.0, 60) * hz.contact_radius
+    p = hz.pressure(r)
+    return hz.contact_radius, [
+        {"label": "BEM, elements_per_diameter=47", "style": "o-", "r_m": r, "pressure_Pa": p},
+        {"label": "FEM mesh_size=2", "style": ":", "r_m": r, "pressure_Pa": 1.06 * p},
+        {"label": "FEM mesh_size=1", "style": ":", "r_m": r, "pressure_Pa": 1.0005 * p},
+        {"label": "FEM mesh_size=0.5 (finest)", "style": "-", "r_m": r, "pressure_Pa": p},
+        {"label": "Hertz", "style": "k--", "r_m": r, "pressure_Pa": p}]
+
+
+def test_hertz_profiles_fill_their_axis_and_list_only_visible_curves(tmp_path, monkeypatch):
+    """The Hertz profiles left 45 % of the axis empty (1.8 x the peak, room for a pillar's
+    edge singularity that a flat contact has not), and listed a FEM level drawn under the
+    finest one."""
+    from validation.output import plots
+
+    radius, curves = _hertz_curves()
+    figures = _capture(monkeypatch, plots)
+    plots.plot_profiles(curves, radius, tmp_path / "p.png", "hertz", "a_Hertz")
+    (fig,) = figures
+    ax = fig.axes[0]
+    peak = 1.06 * max(curves[0]["pressure_Pa"]) * 1e-3
+    assert ax.get_ylim()[1] <= 1.1 * peak
+    assert _hidden_listed(ax) == []
+    texts = legend_texts(ax)
+    assert "FEM mesh_size=1" not in texts
+    assert "FEM mesh_size=0.5 (finest) (hides FEM mesh_size=1)" in texts
+    assert "FEM mesh_size=2" in texts and "Hertz" in texts
+    assert covered_points(ax) == [] and clipped_texts(fig) == []
+
+
+def test_a_lattice_solve_draws_no_single_pillar_curve_and_fills_its_axis():
+    """pressure.png drew the single-pillar spring model on the dense scene's 151 pillars and
+    sized the pressure axis to it (6 sigma0: 45 % of it empty)."""
+    from bem_solver import solve_dense
+
+    from validation.output.report import pressure_plot
+
+    result = solve_dense(load_scene("paper-fig3-dense"), 7, pillars="hooke")
+    fig = pressure_plot(result)
+    ax = next(a for a in fig.axes if a.get_legend() is not None)
+    assert not any("spring" in t for t in legend_texts(ax)), legend_texts(ax)
+    peak = max(result.fields["pressure_Pa"]) * 1e-3
+    assert ax.get_ylim()[1] <= 1.15 * peak
+    assert "bem, Hooke pillars" in fig.axes[0].get_title()  # the map names the pillar model
+
+
+def test_the_colour_bar_label_stands_apart_from_the_profiles_axis():
+    """pressure.png set the colour bar's "pressure (kPa)" beside the profile's "pressure
+    (kPa)": two scales, one label, side by side."""
+    from bem_solver import solve_dense
+
+    from validation.output.report import pressure_plot
+
+    fig = pressure_plot(solve_dense(load_scene("paper-fig3-sparse"), 7, pillars="hooke"))
+    _agg(fig)
+    fig.tight_layout()
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    bar = next(a for a in fig.axes if a.get_label() == "<colorbar>")
+    profile = next(a for a in fig.axes if a.get_legend() is not None)
+    labels = [t for t in (bar.xaxis.label, bar.yaxis.label) if t.get_text()]
+    (label,) = labels
+    assert label.get_text() != profile.yaxis.label.get_text()
+    a, b = label.get_window_extent(renderer), profile.yaxis.label.get_window_extent(renderer)
+    side_by_side = a.y0 < b.y1 and b.y0 < a.y1 and min(abs(a.x1 - b.x0), abs(b.x1 - a.x0)) < 80
+    assert not side_by_side, (a, b)
+
+
+def test_tradeoff_axes_label_at_least_two_decades(tmp_path, monkeypatch):
+    """tradeoff.png spanned less than a decade (times 0.02-0.05 s) with no tick label."""
+    from validation.output import plots
+
+    doc = _tradeoff_doc([(5, 0.021, 3e-3), (7, 0.032, 2e-3), (9, 0.048, 1.2e-3)])
+    figures = _capture(monkeypatch, plots)
+    plots.plot_tradeoff(doc, tmp_path / "t.png")
+    (fig,) = figures
+    _agg(fig)
+    fig.canvas.draw()
+    for ax in fig.axes[:4]:
+        for axis, (lo, hi) in ((ax.xaxis, ax.get_xlim()), (ax.yaxis, ax.get_ylim())):
+            shown = [t for t, v in zip(axis.get_majorticklabels(), axis.get_majorticklocs())
+                     if lo <= v <= hi and t.get_text()]
+            assert len(shown) >= 2, (ax.get_title(), [t.get_text() for t in shown])
+
+
+def test_the_lattice_render_title_keeps_its_glyphs_and_units():
+    """The render's title lost its Phi ("( = 0.2)": VTK's fonts are Latin-1) and said "um"
+    where the ruler says µm; its colour scale was linear where the other render's is log."""
+    from validation.output.render import colour_scale
+    from validation.output.render3d import render_title
+
+    meta = {"scene": load_scene("paper-fig3-sparse", ["pillars.surface_fraction=0.2"]).to_dict()}
+    title = render_title(meta, 12, np.pi / 6, 4e-6, True)
+    title.encode("latin-1")  # every character drawable
+    assert "(Phi = 0.2)" in title and "4 µm" in title and " um" not in title
+    assert "log colour scale" in title
+    # a contact's edge peaks over the bulk: the log scale, as the axisymmetric render
+    log, (lo, hi) = colour_scale(np.concatenate([np.full(900, 0.1), np.linspace(1, 40, 100)]))
+    assert log and 0 < lo < hi
+    assert colour_scale(np.linspace(1.0, 2.0, 100))[0] is False
+
+
+def test_the_lattice_render_fills_its_frame(tmp_path):
+    """The render left a third of the picture empty around the disk."""
+    import json
+
+    pv = pytest.importorskip("pyvista")
+    from PIL import Image
+
+    from validation.output.render3d import region_of_interest, render_sector
+
+    scene = load_scene("paper-fig3-sparse", ["pillars.surface_fraction=0.2"])
+    meta = {"scene": scene.to_dict(), "discretisation": {"sector_angle_rad": np.pi / 6}}
+    roi, z0, z1 = region_of_interest(meta)
+    h = scene.pillars.height_m
+    blocks = []  # the pi/6 sector of a disk: substrate, a layer for the pillars, the lens
+    for body, (lo, hi) in ((2, (z0, -h)), (1, (-h, 0.0)), (0, (0.0, z1))):
+        r, t, z = np.meshgrid(np.linspace(0, 1.5 * roi, 12), np.linspace(0, np.pi / 6, 4),
+                              np.linspace(lo, hi, 3), indexing="ij")
+        sector = pv.StructuredGrid(r * np.cos(t), r * np.sin(t), z).cast_to_unstructured_grid()
+        sector.cell_data["body"] = np.full(sector.n_cells, body)
+        sector.cell_data["von_mises_Pa"] = np.geomspace(10.0, 4e4, sector.n_cells)
+        blocks.append(sector)
+    grid = blocks[0].merge(blocks[1:])
+    vtu = tmp_path / "f.vtu"
+    grid.save(vtu)
+    vtu.with_suffix(".json").write_text(json.dumps(meta))
+    ok, message = render_sector(vtu, tmp_path / "f.png")
+    if not ok:
+        pytest.skip(message)  # no OpenGL context on this machine
+    a = np.asarray(Image.open(tmp_path / "f.png").convert("RGB")).astype(float)
+    h_px, w_px, _ = a.shape
+    coloured = (a.max(axis=2) - a.min(axis=2) > 40)
+    coloured[:, int(0.85 * w_px):] = False  # the colour bar
+    coloured[:int(0.04 * h_px)] = False     # the title
+    ys, xs = np.nonzero(coloured)
+    assert (xs.max() - xs.min()) / w_px >= 0.7 and (ys.max() - ys.min()) / h_px >= 0.75

@@ -74,3 +74,26 @@ def test_xdist_workers_never_solve_one_case_twice(pytester):
     result.assert_outcomes(passed=4)
     result.stdout.fnmatch_lines(["*4 checks, 0 failed*",
                                  "*xval cases: 1 solved, 3 from the cache*"])
+
+
+def test_an_option_the_model_does_not_take_is_a_usage_error(pytester):
+    """Dropped silently before: the solve ran at its default, cached under a key naming the
+    option."""
+    body = ('def test_mesh_size(xval):\n'
+            '    xval.run("bem", xval.scene("hertz"), mesh_size=2.0)\n'
+            'def test_misspelt(xval):\n'
+            '    xval.run("bem", xval.scene("hertz"), elements_per_diametre=7)\n'
+            'def test_bad_value(xval):\n'
+            '    xval.run("bem", xval.scene("hertz"), elements_per_diameter=1)\n'
+            'def test_flat_elastic(xval):\n'
+            '    xval.converge("bem", xval.scene("hertz"), pillars="elastic")\n')
+    pytester.makepyfile(test_options=body)
+    result = _run(pytester)
+    result.assert_outcomes(failed=4)
+    result.stdout.fnmatch_lines([
+        "*UsageError: xval.run('bem'): bem: unknown option(s) 'mesh_size'; it takes*",
+        "*UsageError: xval.run('bem'): bem: unknown option(s) 'elements_per_diametre'*",
+        "*UsageError: xval.run('bem'): bem: elements_per_diameter = 1: allowed range*",
+        "*UsageError: xval.converge('bem'): bem: pillars = 'elastic': the scene is flat*",
+    ])
+    result.stdout.no_fnmatch_line("*xval cases: *solved*")  # nothing was solved

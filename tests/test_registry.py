@@ -135,9 +135,9 @@ def toy(monkeypatch):
 
 
 def test_a_declared_model_joins_every_command(toy, cli, tmp_path):
-    hertz = analytic.hertz(load_scene("hertz")).force
-    code, out, err = cli("solve", "--model", "toy", "--scene", "hertz", "--stiffness", "2",
-                         "--pillars", "elastic", "--json")
+    hertz = analytic.hertz(load_scene("single-pillar")).force
+    code, out, err = cli("solve", "--model", "toy", "--scene", "single-pillar", "--stiffness",
+                         "2", "--pillars", "elastic", "--json")
     assert code == 0, err
     assert json.loads(out)["total_force_N"] == pytest.approx(hertz * 2 * 0.5, rel=1e-12)
     # its options are checked with the name the user wrote, and refused for other models
@@ -158,7 +158,7 @@ def test_a_declared_model_joins_every_command(toy, cli, tmp_path):
     assert [lv["value"] for lv in levels] == [1.0, 2.0, 4.0]
     # and a sweep spec names it like any other model
     spec = tmp_path / "toy.toml"
-    spec.write_text('scene = "hertz"\n[grid]\n"load.indentation_um" = [0.1, 0.2]\n'
+    spec.write_text('scene = "single-pillar"\n[grid]\n"load.indentation_um" = [0.1, 0.2]\n'
                     '[[models]]\nname = "toy"\npillars = ["hooke", "elastic"]\n')
     code, _, err = cli("sweep", spec, "--out", tmp_path / "sweep", "--executor", "serial")
     assert code == 0, err

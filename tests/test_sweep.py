@@ -67,8 +67,11 @@ def test_grid_crosses_axes_and_zips_groups(tmp_path):
     assert first.scene.pillars.surface_fraction == pytest.approx(0.01, rel=1e-12)
     assert first.scene.indentation_m == pytest.approx(0.1e-6, rel=1e-12)
     assert first.scene.substrate.E_Pa == 1.6e6 and first.scene.pillars.material.E_Pa == 1.6e5
+    # elastic pillars: the elastic pillar by default, named in each case (and its key)
     assert [c.case.options for c in cases[:3]] == [
-        {"elements_per_diameter": 5}, {"elements_per_diameter": 7}, {"cells_per_diameter": 8}]
+        {"elements_per_diameter": 5, "pillars": "elastic"},
+        {"elements_per_diameter": 7, "pillars": "elastic"},
+        {"cells_per_diameter": 8, "pillars": "elastic"}]
 
 
 @pytest.mark.parametrize("text, message", [
@@ -90,6 +93,13 @@ def test_grid_crosses_axes_and_zips_groups(tmp_path):
     ('scene = "hertz"\nname = ".."\n[[models]]\nname = "bem"', "plain file name"),
     ('scene = "hertz"\n[grid]\n"pillars.surface_fraction" = [0.01, 0.01, 0.03]\n'
      '[[models]]\nname = "bem"', "more than once"),
+    # auto's request and NaN (exit 4 with a JSON error before), before anything is solved
+    ('scene = "hertz"\n[[models]]\nname = "auto"\ntolerance = nan', "finite"),
+    ('scene = "hertz"\n[[models]]\nname = "auto"\ntolerance = 5', "--tolerance 5"),
+    ('scene = "hertz"\n[[models]]\nname = "auto"\nquantities = "F_T,,sigma0"', "none empty"),
+    # a model out of its scope at a point, and the elastic pillar on a flat scene
+    ('scene = "paper-fig3-sparse"\n[[models]]\nname = "fem-axisym"', "fem-3d holds them"),
+    ('scene = "hertz"\n[[models]]\nname = "bem"\npillars = "elastic"', "the scene is flat"),
 ])
 def test_bad_specs_are_refused_with_the_reason(tmp_path, text, message, capsys):
     spec = _write(tmp_path, text)
@@ -113,7 +123,8 @@ def test_python_sweep_table_matches_direct_solves(tmp_path):
     sweep = Sweep("paper-fig3-sparse",
                   axes=(crossed("load.indentation_um", linear(0.2, 0.4, 2)),
                         zipped({"pillars.E_Pa": [1.6e6, 1.6e7], "pillars.nu": [0.5, 0.3]})),
-                  models=(ModelSpec("bem", {"elements_per_diameter": [3, 5]}),),
+                  models=(ModelSpec("bem", {"elements_per_diameter": [3, 5],
+                                            "pillars": "hooke"}),),
                   overrides=("lens.radius_mm=3",), name="api")
     rows = run_sweep(sweep, tmp_path, engine=Engine("serial", quiet=True))
     assert len(rows) == 8
@@ -153,6 +164,7 @@ def test_cli_sweep_dry_run_run_and_resume(tmp_path, capsys):
         [[models]]
         name = "bem"
         elements_per_diameter = 3
+        pillars = "hooke"
     """)
     out = tmp_path / "out"
     assert main(["sweep", str(spec), "--out", str(out), "--dry-run"]) == 0
@@ -183,7 +195,7 @@ def test_example_spec_is_valid():
 def test_sweep_cases_give_results_and_pressure_maps(tmp_path):
     """What a figure needs: each case's result and, on request, its arrays."""
     sweep = Sweep("paper-fig3-sparse", axes=(crossed("pillars.surface_fraction", [0.03, 0.1]),),
-                  models=(ModelSpec("bem", {"elements_per_diameter": 3}),))
+                  models=(ModelSpec("bem", {"elements_per_diameter": 3, "pillars": "hooke"}),))
     pairs = run_sweep_cases(sweep, tmp_path, engine=Engine("serial", quiet=True), fields=True)
     assert [c.point for c, _ in pairs] == [{"pillars.surface_fraction": 0.03},
                                            {"pillars.surface_fraction": 0.1}]

@@ -80,7 +80,7 @@ def test_cli_tradeoff(tmp_path, capsys):
     from validation.cli import main
 
     code = main(["tradeoff", "--scene", "single-pillar", "--models", "bem-fft",
-                 "--repeats", "1", "--out", str(tmp_path)])
+                 "--pillars", "hooke", "--repeats", "1", "--out", str(tmp_path)])
     assert code == 0
     out = capsys.readouterr()
     assert "bem-fft" in out.out and "references (hooke-pillar):" in out.out

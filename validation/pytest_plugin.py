@@ -91,20 +91,34 @@ class XVal:
         return self._engine
 
     def run(self, model: str, scene, **options):
-        """The :class:`pillar_xval.scenes.ContactResult` of ``model`` on ``scene`` (computed once, then
-        read from the cache); a case that failed raises its error."""
+        """The :class:`pillar_xval.outcome.ContactResult` of ``model`` on ``scene`` (computed
+        once, then read from the cache); a case that failed raises its error.  An option the
+        model does not take, or a value it refuses, is a pytest usage error naming it, before
+        anything is solved; the pillar model defaults to the scene's (elastic on elastic
+        pillars: :func:`validation.registry.scene_defaults`)."""
         from .engine import Case
 
+        options = _checked(f"xval.run({model!r})", model, scene, options)
         outcome = self.engine.run_one(Case(model, scene, options), self.cache_dir)
         self._count(outcome)
         return outcome.unwrap()
 
-    def converge(self, model: str, scene, levels: int = 3, coarsest=None) -> dict:
-        """A convergence study of ``model`` (``levels`` rungs of its ladder), for
+    def converge(self, model: str, scene, levels: int = 3, coarsest=None, **options) -> dict:
+        """A convergence study of ``model`` (``levels`` rungs of its ladder; ``options``: its
+        other options, the same on every rung, checked as :meth:`run` checks them), for
         :func:`validation.testing.assert_agree` and :func:`~validation.testing.assert_order`."""
         from .studies.converge import level_cases, study_levels
 
-        cases = level_cases(model, scene, levels, coarsest=coarsest, tag="xval")
+        from .registry import ladder_for
+
+        call = f"xval.converge({model!r})"
+        options = _checked(call, model, scene, options)
+        refined = ladder_for(model).option
+        if refined in options:
+            raise pytest.UsageError(f"{call}: {refined} is the ladder's refined option: give "
+                                    "its coarsest level as coarsest=")
+        cases = level_cases(model, scene, levels, coarsest=coarsest, tag="xval",
+                            options=options)
         outcomes = self.engine.run(cases, self.cache_dir)
         for outcome in outcomes:
             self._count(outcome)
@@ -116,6 +130,21 @@ class XVal:
     def close(self) -> None:
         if self._engine is not None:
             self._engine.close()
+
+
+def _checked(call: str, model: str, scene, options: dict) -> dict:
+    """``options`` with the scene's defaults, once the registry accepts them; a
+    pytest.UsageError naming the option otherwise (a misspelt option would otherwise be
+    dropped by the solver and cached under a key that names it)."""
+    from pillar_xval.scenes import InputError
+
+    from .registry import check_options, scene_defaults
+
+    try:
+        check_options(model, options, "", scene)
+    except InputError as exc:
+        raise pytest.UsageError(f"{call}: {exc}") from None
+    return scene_defaults(model, scene, options)
 
 
 @pytest.fixture

@@ -388,7 +388,8 @@ def _beyond_one_pillar(scene: Scene) -> str:
         return ""
     return (f"pillars.surface_fraction = {phi:.4g} >= Phi_S = {phi_s:.4g}: the lens, pushed "
             "by the centre pillar's flat-punch field, reaches the rim of the next ring; the "
-            "axisymmetric FEM holds the centre pillar only (use the BEM, or lower Phi)")
+            "axisymmetric FEM holds the centre pillar only (use fem-3d, the lattice's 3D FEM, or "
+            "the BEM, or lower Phi)")
 
 
 def _setup(scene: Scene, mesh_size: float, block_factor: float, scope: bool = True) -> dict:

@@ -61,7 +61,9 @@ def _result(model, scene, started, force, sigma0, radius, area, pillars, forces,
         pillars_in_contact=int(pillars), pillar_forces=forces, converged=True, iterations=0,
         wall_time_s=time.perf_counter() - started,
         pillar_top_profile={"r_m": [float(v) for v in r], "pressure_Pa": [float(v) for v in p]},
-        diagnostics={"message": "closed form", "force_balance_N": 0.0})
+        diagnostics={"message": "closed form", "force_balance_N": 0.0,
+                     **({} if scene.is_flat else
+                        {"pillars": "hooke" if model == SPRING_MODEL else "none"})})
 
 
 def _under_force(model: str, scene: Scene, zeta: float, solve) -> ContactResult:

@@ -119,11 +119,18 @@ class ContactResult:
     def from_json(cls, text: str) -> "ContactResult":
         return cls.from_dict(json.loads(text))
 
+    @property
+    def label(self) -> str:
+        """The model with its pillar model, as summaries, tables and plots name it."""
+        return model_label(self.model, self.diagnostics)
+
     def summary(self) -> str:
-        """A few readable lines for the terminal."""
+        """A few readable lines for the terminal; the model's notes (``diagnostics["notes"]``:
+        what it modelled otherwise than asked, the error its pillar model is expected to
+        carry) last."""
         s = self.scene
         lines = [
-            f"model            {self.model}  ({_fmt_disc(self.discretisation)})",
+            f"model            {self.label}  ({_fmt_disc(self.discretisation)})",
             f"scene            {s.get('name', '?')}"
             + ("" if s.get("pillars") is None
                else f"  Phi = {s['pillars']['surface_fraction']:.4g}")
@@ -150,6 +157,7 @@ class ContactResult:
             f"converged        {self.converged} after {self.iterations} iterations, "
             f"{self.wall_time_s:.3g} s",
         ]
+        lines += [f"note             {note}" for note in self.diagnostics.get("notes", [])]
         return "\n".join(lines)
 
 
@@ -161,6 +169,22 @@ def regime_of(flat: bool, pillars_in_contact: int, floor_force_N: float) -> str:
     if floor_force_N > 0.0:
         return "mixed"
     return "single-pillar" if pillars_in_contact <= 1 else "multi-pillar"
+
+
+# How a result's pillar model (``diagnostics["pillars"]``, set by every model on a scene with
+# pillars) is written.
+PILLAR_LABELS = {"hooke": "Hooke pillars", "elastic": "elastic pillars",
+                 "none": "no pillar model (a continuum)"}
+
+
+def model_label(model: str, diagnostics: dict | None = None) -> str:
+    """``model`` with its pillar model, the one way every summary, table and plot names a
+    result: "bem, elastic pillars", "bem-fft, Hooke pillars"; the model alone on a flat
+    scene (no pillar model)."""
+    pillars = (diagnostics or {}).get("pillars")
+    if not pillars:
+        return model
+    return f"{model}, {PILLAR_LABELS.get(pillars, f'{pillars} pillars')}"
 
 
 def _fmt_material(m: dict) -> str:

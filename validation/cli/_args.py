@@ -51,7 +51,7 @@ __all__ = [
     "add_models_argument", "add_output_arguments", "add_refinement_arguments",
     "add_scene_arguments", "check_out", "engine_from_args", "failure_status", "flag", "integer",
     "not_converged", "number", "one_line", "option_type", "print_json", "refuse_inapplicable",
-    "study_status",
+    "scene_pillars", "study_status",
 ]
 
 _INTEGER = re.compile(r"[+-]?[0-9]+")
@@ -270,6 +270,22 @@ def refuse_inapplicable(args, models, dests=None) -> None:
             f"{'--model' if len(models) == 1 else '--models'} {chosen}"
             + (f" (it {'refines' if family else 'is an option of'} {', '.join(owners)})"
                if owners else ""))
+
+
+def scene_pillars(given, scene):
+    """The pillar model(s) a command runs on ``scene``: ``--pillars`` as given, else the
+    scene's default (:func:`validation.registry.default_pillars`: elastic on elastic pillars);
+    None on a flat scene where none is given.  The elastic pillar on a flat scene is refused
+    (InputError, exit 2) before anything is solved."""
+    from ..registry import default_pillars
+
+    if given is None:
+        return default_pillars(scene)
+    kinds = (given,) if isinstance(given, str) else tuple(given)
+    if scene.is_flat and "elastic" in kinds:
+        raise InputError(f"--pillars {','.join(kinds)}: the scene is flat, it has no pillars "
+                         "to model (leave --pillars out)")
+    return given
 
 
 def _show(value) -> str:

@@ -30,27 +30,48 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    from ..output.report import clear_outputs
-    from ..studies.check import junit_xml, load_spec, run_checks, table_text
+    import sys
 
-    specs = load_spec(args.spec)
-    out = check_out(args.out or Path("out") / "check" / args.spec.stem)
-    clear_outputs(out, ("check.json",), "check")
+    from ..output.report import clear_outputs
+    from ..studies.check import (junit_xml, load_spec, report_name, run_checks, spec_path,
+                                 table_text)
+
+    spec = spec_path(args.spec)
+    if spec != args.spec:
+        print(f"check: {args.spec} is not in {Path.cwd()}: reading the toolkit's own {spec}",
+              file=sys.stderr)
+    specs = load_spec(spec)
+    name = report_name(spec) if args.out is None else spec.stem
+    out = check_out(args.out or Path("out") / "check" / name)
     if args.junit_xml is not None:
-        check_out(args.junit_xml.parent, "--junit-xml's folder")
+        _check_junit(args.junit_xml)
+    clear_outputs(out, ("check.json",), "check")
     start = time.perf_counter()
     with engine_from_args(args, "check") as engine:
         rows = run_checks(specs, out / "cases", engine)
     seconds = time.perf_counter() - start
     failed = [r for r in rows if not r["passed"]]
-    doc = {"spec": str(args.spec), "checks": rows, "passed": len(rows) - len(failed),
+    doc = {"spec": str(spec), "checks": rows, "passed": len(rows) - len(failed),
            "failed": len(failed)}
     write_atomic(out / "check.json", json.dumps(doc, indent=2, allow_nan=False))
     if args.junit_xml is not None:
-        write_atomic(args.junit_xml, junit_xml(rows, args.spec.stem, seconds))
+        write_atomic(args.junit_xml, junit_xml(rows, name, seconds))
     if args.json:
         print_json(doc)
     else:
         print(table_text(rows))
         print(f"{len(rows) - len(failed)} passed, {len(failed)} failed")
+        print(f"written: {out / 'check.json'}"
+              + (f", {args.junit_xml}" if args.junit_xml is not None else ""))
     return 1 if failed else 0
+
+
+def _check_junit(path: Path) -> None:
+    """--junit-xml must name a file whose folder can be made, before anything is solved."""
+    from pillar_xval.scenes import InputError
+
+    if path.is_dir():
+        raise InputError(f"--junit-xml {path}: is a folder, expected a file for the JUnit report")
+    if path.exists() and not path.is_file():
+        raise InputError(f"--junit-xml {path}: is not a regular file")
+    check_out(path.parent, "--junit-xml's folder")

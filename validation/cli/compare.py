@@ -1,5 +1,7 @@
-"""``pillar-xval compare``: BEM (Hooke pillar) against FEM (elastic pillar) on one scene, with
-each model's numerical uncertainty beside every difference (:mod:`validation.studies.compare`)."""
+"""``pillar-xval compare``: the BEM (elastic pillars by default on elastic ones, or the paper's
+Hooke spring) against FEM (elastic pillars) on one scene, with each model's numerical
+uncertainty beside every difference and a verdict against a stated tolerance
+(:mod:`validation.studies.compare`)."""
 
 from __future__ import annotations
 
@@ -12,15 +14,15 @@ from ..studies.compare import BEM, BOTH, FEM_COARSEST, FEM_MODELS, OUTPUTS, pill
 from ._args import (Renamed, add_engine_arguments, add_levels_argument,
                     add_models_argument, add_output_arguments, add_refinement_arguments,
                     add_scene_arguments, check_out, engine_from_args, not_converged, print_json,
-                    refuse_inapplicable)
+                    refuse_inapplicable, scene_pillars)
 
 
 def add_parser(sub) -> None:
     """Register ``compare`` on the CLI's subparsers."""
     p = sub.add_parser(
-        "compare", help="BEM (Hooke pillar) against FEM (elastic pillar), each with its GCI "
-                        "uncertainty",
-        description="Solve one scene with the dense BEM (Hooke-spring pillars) and an FEM "
+        "compare", help="BEM against FEM (elastic pillars), each with its GCI uncertainty",
+        description="Solve one scene with the dense BEM (--pillars: elastic or Hooke-spring "
+                    "pillars) and an FEM "
                     "with elastic pillars (the axisymmetric model on a flat scene or one pillar "
                     "alone, fem-3d on a lattice scene), each on --levels refinements, and set "
                     "every difference beside the two models' numerical uncertainty (GCI).  "
@@ -38,8 +40,9 @@ def add_parser(sub) -> None:
                                            f"{v:g} ({m})" for m, v in FEM_COARSEST.items())})
     p.add_argument("--pillars", type=_pillars, default=None, metavar="MODEL",
                    help="the BEM's pillar model: 'hooke', the paper's uniformly shortening "
-                        "spring (default), 'elastic', the whole pillar's top compliance (from a "
-                        f"Fourier-mode FEM of one pillar, cached), or '{BOTH}' (or "
+                        "spring, 'elastic', the whole pillar's top compliance (from a "
+                        "Fourier-mode FEM of one pillar, cached; the default on elastic "
+                        f"pillars, hooke on rigid ones), or '{BOTH}' (or "
                         "'hooke,elastic'): both BEMs against the one FEM, a three-way table "
                         "and profile plot")
     add_levels_argument(p, 3, 2, 8, "refinement levels of each model (3 or more give an "
@@ -64,20 +67,22 @@ def run(args) -> int:
     scene = load_scene(args.scene, args.overrides)
     fem = fem or fem_model_for(scene)
     check_options(args.levels, args.mesh_size, args.elements_per_diameter, fem)
+    pillars = scene_pillars(args.pillars, scene) or "hooke"
     out = check_out(args.out or Path("out") / "compare" / scene.name)
     with engine_from_args(args, "compare") as engine:
         report = compare_study(scene, out, engine=engine, levels=args.levels,
                                mesh_size=args.mesh_size,
                                elements_per_diameter=args.elements_per_diameter,
                                render=not args.no_render, fem_model=fem,
-                               pillars=args.pillars or "hooke")
+                               pillars=pillars)
     if args.json:
         print_json(report)
     else:
         ref = report["closed_form"]["name"]
         r_label = "d/2" if report["scene"].get("pillars") else "a_Hertz"
         print(title(scene, fem, report["pillars"]))
-        print(table_text(report["rows"], ref, r_label))
+        print(table_text(report["rows"], ref, r_label, report["levels"],
+                         None if scene.is_flat else report["pillars"]))
         print(f"render: {report['render']}")
         written = [name for name in OUTPUTS if (out / name).exists()]
         print(f"report: {out}/ ({', '.join(written)})")

@@ -11,7 +11,7 @@ from ..registry import ladders
 from ._args import (Renamed, add_choice_arguments, add_engine_arguments, add_levels_argument,
                     add_model_argument, add_output_arguments, add_refinement_arguments,
                     add_scene_arguments, check_out, engine_from_args, not_converged, print_json,
-                    refuse_inapplicable)
+                    refuse_inapplicable, scene_pillars)
 
 
 def add_parser(sub) -> None:
@@ -35,9 +35,14 @@ def add_parser(sub) -> None:
     p.set_defaults(func=run)
 
 
-def _fixed_options(args) -> dict:
-    """The model's options that every level shares (the ladder sets the refined one)."""
-    return {} if args.pillars is None else {"pillars": args.pillars}
+def _fixed_options(args, scene) -> dict:
+    """The model's options that every level shares (the ladder sets the refined one): the
+    pillar model, by default the scene's (:func:`validation.registry.scene_defaults`)."""
+    from ..registry import scene_defaults
+
+    scene_pillars(args.pillars, scene)  # the elastic pillar on a flat scene is refused
+    given = {} if args.pillars is None else {"pillars": args.pillars}
+    return scene_defaults(args.model, scene, given)
 
 
 def run(args) -> int:
@@ -51,17 +56,19 @@ def run(args) -> int:
     coarsest = getattr(args, option, None)
     check_ladder(args.model, args.levels, coarsest)
     scene = load_scene(args.scene, args.overrides)
+    fixed = _fixed_options(args, scene)
     out = check_out(args.out or Path("out") / "converge" / f"{scene.name}-{args.model}")
     clear_outputs(out, OUTPUTS, "converge")
     with engine_from_args(args, "converge") as engine:
         data = converge_study(args.model, scene, args.levels, out / "cases",
                               coarsest=coarsest, engine=engine,
-                              options=_fixed_options(args))
+                              options=fixed)
     names = write_report(data, out)
     if args.json:
         print_json({k: v for k, v in data.items() if k != "results"})
     else:
-        print(f"{args.model} on {scene.name}: {args.levels} levels of {data['ladder']['option']}")
+        print(f"{data['label']} on {scene.name}: {args.levels} levels of "
+              f"{data['ladder']['option']}")
         print(study_table(data))
         print(f"report: {out}/ ({', '.join(names)})")
     if data["all_converged"]:

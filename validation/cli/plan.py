@@ -12,6 +12,11 @@ from pillar_xval.scenes import ScopeError, load_scene
 from ._args import (add_engine_arguments, add_scene_arguments, add_threads_argument,
                     check_out, engine_from_args, integer, number, print_json)
 
+# A plan slower than this prints its step on stderr ("[plan] predicting candidate 12 of 30:
+# ..."): the first plan of a process reads the tables and imports the FEMs' memory
+# estimates, which took 13 s on a cold machine without a word.
+PROGRESS_AFTER_S = 1.0
+
 
 def add_parser(sub) -> None:
     _add_plan(sub)
@@ -47,9 +52,12 @@ def run(args) -> int:
     first."""
     from ..planner.plan import check_request, plan, plan_text
 
+    from ..engine import SolveProgress
+
     tolerance, quantities, budget = check_request(args.tolerance, args.quantities, args.budget)
     scene = load_scene(args.scene, args.overrides)
-    p = plan(scene, tolerance, quantities, budget)
+    with SolveProgress("plan", after_s=PROGRESS_AFTER_S) as progress:
+        p = plan(scene, tolerance, quantities, budget, progress=progress)
     if args.json:
         print_json(p)
     elif p["choice"] is not None:

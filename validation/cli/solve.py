@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pillar_xval.scenes import load_scene
 
-from ..registry import model_names
+from ..registry import check_options, model_names, scene_defaults
 from ._args import (add_choice_arguments, add_model_argument, add_output_arguments,
                     add_refinement_arguments, add_scene_arguments, add_threads_argument,
                     check_out, not_converged, number, print_json, refuse_inapplicable)
@@ -70,6 +70,8 @@ def run(args) -> int:
         if budget is not None:
             options["budget"] = budget
     scene = load_scene(args.scene, args.overrides)
+    options = scene_defaults(args.model, scene, options)
+    check_options(args.model, options, "", scene)
     vtu_path = None
     if args.out is not None:
         from ..output.report import clear_outputs
@@ -78,6 +80,12 @@ def run(args) -> int:
         clear_outputs(args.out, OUTPUTS, "solve")
         vtu_path = args.out / "fields.vtu"  # models with volume fields write them
     result = _solve(args.model, scene, options, vtu_path)
+    if result.diagnostics.get("pillars") == "hooke":
+        from ..planner.plan import hooke_note
+
+        note = hooke_note(scene)
+        if note:
+            result.diagnostics["notes"] = [*result.diagnostics.get("notes", []), note]
     if args.out is not None:
         from ..output.report import write_solve_report
 

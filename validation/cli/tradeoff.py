@@ -11,7 +11,7 @@ from ..registry import MODELS, ladders
 from ._args import (add_choice_arguments, add_engine_arguments, add_models_argument,
                     add_output_arguments, add_refinement_arguments, add_scene_arguments, check_out,
                     engine_from_args, integer, not_converged, number, print_json,
-                    refuse_inapplicable)
+                    refuse_inapplicable, scene_pillars)
 
 
 def _expensive() -> list[str]:
@@ -66,10 +66,11 @@ def run(args) -> int:
     options = dict(coarsest=coarsest, levels=args.levels, repeats=args.repeats,
                    single_above=args.single_above, max_time=args.max_time)
     check_options(names, **options)
-    # The pillar model of the BEMs: the elastic one is measured against the elastic pillar's
-    # reference (its physics), never against the Hooke BEMs'.
-    solver_options = {"pillars": args.pillars} if args.pillars else None
     scene = load_scene(args.scene, args.overrides)
+    # The pillar model of the BEMs (by default the scene's): the elastic one is measured
+    # against the elastic pillar's reference (its physics), never against the Hooke BEMs'.
+    pillars = scene_pillars(args.pillars, scene)
+    solver_options = {"pillars": pillars} if pillars else None
     out = check_out(args.out or Path("out") / f"tradeoff-{scene.name}")
     clear_outputs(out, OUTPUTS, "tradeoff")
     with engine_from_args(args, "tradeoff") as engine:

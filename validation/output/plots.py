@@ -97,8 +97,8 @@ def plot_convergence(data: dict, path: Path) -> Path:
     option = data["ladder"]["option"]
     ax.set_xlabel(f"relative cell size {_h_of(data['ladder'])}")
     ax.set_ylabel("relative error")
-    ax.set_title(f"{data['model']} on {scene_label(data['scene'])}: {option} = {values}",
-                 fontsize=10)
+    ax.set_title(f"{data.get('label', data['model'])} on {scene_label(data['scene'])}: "
+                 f"{option} = {values}", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     stamp_not_converged(fig, _unconverged_levels(data))
     return _save(fig, path)
@@ -116,7 +116,7 @@ def plot_profiles(curves: list[dict], radius_m: float, path: Path, title: str,
     """
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(9.6, 4.8))  # room for the legend beside the axes
-    top = 0.0
+    top, peak = 0.0, 0.0
     for c in curves:
         r = np.asarray(c["r_m"], dtype=float)
         p = np.asarray(c["pressure_Pa"], dtype=float)
@@ -133,8 +133,12 @@ def plot_profiles(curves: list[dict], radius_m: float, path: Path, title: str,
         inner = r <= 0.8 * radius_m
         if inner.any():
             top = max(top, float(np.nanmax(p[inner])))
-    if top > 0:  # edge peaks (singular or mesh-bound) run off the top, by design
-        ax.set_ylim(0, 1.8 * top * KPA)
+        shown = r <= 1.05 * radius_m
+        if shown.any():
+            peak = max(peak, float(np.nanmax(p[shown])))
+    if top > 0:  # edge peaks (singular or mesh-bound) run off the top, by design; without
+        # them (Hertz) the axis ends just above the curves, not 45 % above them
+        ax.set_ylim(0, min(1.8 * top, 1.08 * peak) * KPA)
     ax.set_xlim(0, 1.05)
     ax.set_xlabel(f"r / ({radius_label})")
     ax.set_ylabel("contact pressure (kPa)")
@@ -253,6 +257,22 @@ def pareto_front(points: list[tuple[float, float]], noise: list[float] | None = 
     return sorted(front, key=lambda i: (t[i], e[i]))
 
 
+def two_decades(ax) -> None:
+    """Widen each log axis of ``ax`` to the powers of ten around its data until two of them
+    lie inside it: the labels are on the decades, and an axis spanning less than a decade
+    (times 0.02-0.05 s) showed none at all."""
+    for get, set_ in ((ax.get_xlim, ax.set_xlim), (ax.get_ylim, ax.set_ylim)):
+        lo, hi = sorted(get())
+        if lo <= 0:
+            continue
+        k_lo, k_hi = np.floor(np.log10(lo) + 1e-9), np.ceil(np.log10(hi) - 1e-9)
+        if k_hi - k_lo < 1:
+            k_hi = k_lo + 1
+        inside = np.ceil(np.log10(lo) - 1e-9), np.floor(np.log10(hi) + 1e-9)
+        if inside[1] - inside[0] < 1:  # fewer than two decades inside: take the enclosing
+            set_(10.0 ** k_lo, 10.0 ** k_hi)
+
+
 def rung_label(option: str, level) -> str:
     """``P=11``, ``N=32``, ``S=0.5``: a rung by its refinement."""
     return f"{_OPTION_LETTER.get(option, option)}={level:g}"
@@ -283,7 +303,8 @@ def plot_tradeoff(doc: dict, path: Path) -> Path:
                 continue
             t = [r["wall_time_s"] for r in mine]
             e = [max(r[key], floor) for r in mine]  # round-off drawn at its floor
-            ax.loglog(t, e, "o-", color=colours[model], lw=0.8, alpha=0.8, label=model)
+            ax.loglog(t, e, "o-", color=colours[model], lw=0.8, alpha=0.8,
+                      label=mine[0].get("label", model))
             for r in mine:
                 ax.annotate(rung_label(r["option"], r["level"]),
                             (r["wall_time_s"], max(r[key], floor)),
@@ -316,6 +337,8 @@ def plot_tradeoff(doc: dict, path: Path) -> Path:
         ax.grid(True, which="both", alpha=0.3)
         for axis in (ax.xaxis, ax.yaxis):  # decades only: minor labels crowd a short axis
             axis.set_minor_formatter(NullFormatter())
+        if rows:
+            two_decades(ax)
     fig.suptitle(f"speed against accuracy on {scene_label(doc['scene'])}: each error "
                  "against the Richardson reference of its own physics", fontsize=11)
     refs = ["references: " + "; ".join(

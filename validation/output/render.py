@@ -82,6 +82,34 @@ def readable(name: str) -> str:
     return name.replace("_Pa", "").replace("_", " ")
 
 
+# VTK's text fonts carry Latin-1 only: other letters come out as nothing ("( = 0.2)" for
+# "(Φ = 0.2)"), so render texts spell them.
+_SPELLED = str.maketrans({"Φ": "Phi", "ζ": "zeta", "ν": "nu", "σ": "sigma", "θ": "theta",
+                          "γ": "gamma", "λ": "lambda", "π": "pi"})
+
+
+def latin1(text: str) -> str:
+    """``text`` as VTK can draw it: Greek letters spelled out, anything else outside
+    Latin-1 (which holds µ and °) replaced by '?'."""
+    return text.translate(_SPELLED).encode("latin-1", "replace").decode("latin-1")
+
+
+def colour_scale(values) -> tuple[bool, tuple[float, float]]:
+    """(log, colour limits) for stresses ``values`` (kPa): a log scale where the positive
+    values span more than 30x between their 5th and 99th percentiles (a contact's edge
+    peaks over the bulk), limits from the 5th (log) or 1st percentile to the 99.5th.  Both
+    renders use it, so their colour scales read alike."""
+    values = np.asarray(values, dtype=float)
+    positive = values[values > 0]
+    log = bool(positive.size > 0
+               and np.percentile(positive, 99) > 30 * np.percentile(positive, 5))
+    data = positive if log else values
+    if data.size == 0:
+        return False, (0.0, 1.0)
+    lo, hi = np.percentile(data, [5 if log else 1, 99.5])
+    return log, (float(lo), float(hi))
+
+
 def nice_length(span: float) -> float:
     """A round length (1, 2 or 5 times a power of ten) of about a third of ``span``."""
     target = span / 3.0
@@ -108,10 +136,7 @@ def _render(vtu: str, png: str, roi_m: float, stamp: str = "") -> str:
     # (r, z) lives in the x-y plane: revolve about y, 270 degrees to open a window.
     revolved = sub.extract_surface(algorithm="dataset_surface").extrude_rotate(
         resolution=96, angle=270.0, rotation_axis=(0, 1, 0), capping=True)
-    shown = np.asarray(revolved.point_data["shown"])
-    positive = shown[shown > 0]
-    log = positive.size > 0 and np.percentile(positive, 99) > 30 * np.percentile(positive, 5)
-    clim = np.percentile(positive if log else shown, [5 if log else 1, 99.5])
+    log, clim = colour_scale(revolved.point_data["shown"])
     title = f"{readable(name)} (kPa)"
     plotter = pv.Plotter(off_screen=True, window_size=(1200, 900))
     plotter.add_mesh(revolved, scalars="shown", cmap="viridis", log_scale=bool(log),
@@ -128,8 +153,9 @@ def _render(vtu: str, png: str, roi_m: float, stamp: str = "") -> str:
     plotter.add_ruler((side[0], y0, side[2]), (side[0], y0 + length, side[2]),
                       title=f"{length:g} µm", show_labels=False, font_size_factor=1.0)
     plotter.view_vector(VIEW, viewup=(0.0, 1.0, 0.0))
-    plotter.add_text(f"FEM {readable(name)}, (r, z) section revolved 270° about the axis; "
-                     f"r < {roi:.3g} µm" + (", log colour scale" if log else ""), font_size=9)
+    plotter.add_text(latin1(f"FEM {readable(name)}, (r, z) section revolved 270° about the "
+                            f"axis; r < {roi:.3g} µm" + (", log colour scale" if log else "")),
+                     font_size=9)
     if stamp:
         plotter.add_text(stamp, position="upper_right", font_size=20, color="red")
     plotter.screenshot(png)

@@ -21,7 +21,15 @@ from pathlib import Path
 
 import numpy as np
 
+from .render import colour_scale, latin1
+
 BODY_LENS, BODY_PILLAR, BODY_SUBSTRATE = 0, 1, 2
+# The camera's zoom beyond VTK's fit of the bounding sphere, which left a third of the
+# picture empty around the disk.
+ZOOM = 1.45
+# How far the view moves right, in radii of the region of interest: the disk clears the
+# colour bar.
+PAN = 0.12
 
 
 def render_sector(vtu_path, png_path, *, stamp: str = "",
@@ -61,6 +69,26 @@ def scale_bar(roi: float, z0: float, z1: float):
     return ruler, start, end, label_at
 
 
+def _pan_right(camera, distance: float) -> None:
+    """Move the camera (and its focal point) ``distance`` to its right: the scene moves left,
+    clear of the colour bar on the right."""
+    position, focus = np.asarray(camera.position), np.asarray(camera.focal_point)
+    right = np.cross(focus - position, np.asarray(camera.up))
+    shift = distance * right / np.linalg.norm(right)
+    camera.position, camera.focal_point = tuple(position + shift), tuple(focus + shift)
+
+
+def render_title(meta: dict, images: int, alpha: float, lift_m: float, log: bool) -> str:
+    """The render's title, as VTK can draw it (:func:`.render.latin1`): the scene (its Phi
+    spelled out), the sector's images, the lens's lift in µm (as the ruler says) and the
+    colour scale."""
+    from .report import scene_label
+
+    return latin1(f"fem-3d, {scene_label(meta['scene'])}: {images} images of the "
+                  f"{math.degrees(alpha):.0f}° sector; lens (far half) lifted by "
+                  f"{lift_m * 1e6:.3g} µm" + ("; log colour scale" if log else ""))
+
+
 def unfold(mesh, alpha: float) -> list:
     """The images of ``mesh`` under the mirror group of the sector [0, alpha]."""
     k = int(round(math.pi / alpha))
@@ -93,13 +121,13 @@ def _render(vtu: str, png: str, stamp: str = "") -> str:
                 algorithm="dataset_surface")
     if not pieces:
         raise ValueError("nothing to render in the region of interest")
-    values = np.concatenate([p.point_data["vm_kPa"] for p in pieces.values()])
-    positive = values[values > 0]
-    clim = np.percentile(positive, [2, 99.5]) if positive.size else (0.0, 1.0)
+    log, clim = colour_scale(np.concatenate([p.point_data["vm_kPa"]
+                                             for p in pieces.values()]))
     h = meta["scene"]["pillars"]["height_m"] if meta["scene"].get("pillars") else 0.25 * roi
     plotter = pv.Plotter(off_screen=True, window_size=(1400, 1000))
-    bar = {"title": "von Mises stress (kPa)", "title_font_size": 18, "label_font_size": 14,
-           "fmt": "%.3g", "vertical": True, "position_x": 0.88, "position_y": 0.15}
+    bar = {"title": "von Mises\nstress (kPa)", "title_font_size": 18, "label_font_size": 14,
+           "fmt": "%.3g", "vertical": True, "position_x": 0.9, "position_y": 0.15,
+           "width": 0.05, "height": 0.6}
     shown = 0
     for name, surf in pieces.items():
         for img in unfold(surf, alpha):
@@ -109,8 +137,8 @@ def _render(vtu: str, png: str, stamp: str = "") -> str:
                 if img.n_points == 0:
                     continue
                 img = img.translate((0.0, 0.0, 2.0 * h))
-            plotter.add_mesh(img, scalars="vm_kPa", cmap="viridis", clim=[float(c) for c in clim],
-                             scalar_bar_args=bar, show_scalar_bar=shown == 0)
+            plotter.add_mesh(img, scalars="vm_kPa", cmap="viridis", clim=list(clim),
+                             log_scale=log, scalar_bar_args=bar, show_scalar_bar=shown == 0)
             shown += 1
     ruler, start, end, label_at = scale_bar(roi, z0, z1)
     # The ruler carries no title (VTK centres it on the ruler itself, where it overlapped the
@@ -120,14 +148,10 @@ def _render(vtu: str, png: str, stamp: str = "") -> str:
                              shape=None, font_size=16, text_color="black",
                              justification_horizontal="center", always_visible=True)
     plotter.view_vector((0.35, -1.0, 0.75), viewup=(0.0, 0.0, 1.0))
-    plotter.camera.zoom(1.2)
-    s = meta["scene"]
-    from .report import scene_label
-
-    title = (f"fem-3d, {scene_label(s)}: {len(unfold(grid, alpha))} images of the "
-             f"{math.degrees(alpha):.0f} deg sector; lens (far half) lifted by "
-             f"{2 * h * 1e6:.3g} um")
-    plotter.add_text(title, font_size=10)
+    plotter.camera.zoom(ZOOM)
+    _pan_right(plotter.camera, PAN * roi)
+    plotter.add_text(render_title(meta, 2 * int(round(math.pi / alpha)), alpha, 2 * h, log),
+                     font_size=10)
     if stamp:
         plotter.add_text(stamp, position="upper_right", font_size=20, color="red")
     plotter.screenshot(png)

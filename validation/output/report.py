@@ -59,11 +59,104 @@ def save_figure(fig, path, dpi: int = 120, layout: bool = True) -> Path:
 def legend_outside(ax, fontsize: float = 8, **kw):
     """The legend of ``ax`` beside it, right of the axes (the figure's layout makes room), so
     that it never covers a curve or a point: a legend inside the axes sat over the data of
-    the sparse lattice's and fem-3d's pressure plots.  None when nothing is labelled."""
+    the sparse lattice's and fem-3d's pressure plots.  A curve that a later one hides
+    entirely is not listed on its own: the curve on top says it hides it
+    (:func:`merge_hidden`).  None when nothing is labelled."""
+    merge_hidden(ax)
     if not ax.get_legend_handles_labels()[0]:
         return None
     return ax.legend(fontsize=fontsize, loc="upper left", bbox_to_anchor=(1.02, 1.0),
                      borderaxespad=0.0, **kw)
+
+
+# At most this many points stand for a curve when its coverage is judged: the cost of
+# merge_hidden stays bounded (a fuzzed scene drew a profile 1e12 px long).
+MAX_COVER_POINTS = 2000
+
+
+def _display_path(line, box) -> np.ndarray:
+    """The vertices of ``line`` in display pixels, clipped to ``box`` widened by 10 px (what
+    lies beyond is not drawn, and an off-screen vertex 1e12 px away would make a segment of
+    that length)."""
+    xy = np.column_stack([np.asarray(v, dtype=float) for v in line.get_data()])
+    xy = line.get_transform().transform(xy[np.all(np.isfinite(xy), axis=1)])
+    if len(xy) == 0:
+        return xy.reshape(0, 2)
+    return np.column_stack([np.clip(xy[:, 0], box.x0 - 10, box.x1 + 10),
+                            np.clip(xy[:, 1], box.y0 - 10, box.y1 + 10)])
+
+
+def _densified(xy: np.ndarray, step_px: float = 2.0) -> np.ndarray:
+    """Points along the polyline ``xy`` every ``step_px`` or so, at most
+    :data:`MAX_COVER_POINTS` of them."""
+    if len(xy) < 2:
+        return xy
+    lengths = np.hypot(*np.diff(xy, axis=0).T)
+    step = max(step_px, float(lengths.sum()) / MAX_COVER_POINTS)
+    out = [xy[:1]]
+    for a, b, length in zip(xy[:-1], xy[1:], lengths):
+        n = max(1, int(length / step))
+        out.append(a + np.outer(np.arange(1, n + 1) / n, b - a))
+    return np.concatenate(out)
+
+
+def _distance_to_path(points: np.ndarray, path: np.ndarray) -> np.ndarray:
+    """The distance (px) of each point to the polyline ``path``."""
+    if len(path) == 1:
+        return np.hypot(*(points - path[0]).T)
+    a, b = path[:-1], path[1:]
+    d = b - a
+    length2 = np.maximum((d * d).sum(axis=1), 1e-12)
+    best = np.full(len(points), np.inf)
+    chunk = max(1, 500_000 // len(a))  # bounded memory: points x segments, ~50 MB at most
+    for start in range(0, len(points), chunk):
+        p = points[start:start + chunk, None, :]
+        t = np.clip(((p - a) * d).sum(axis=2) / length2, 0.0, 1.0)
+        gap = p - (a + t[..., None] * d)
+        best[start:start + chunk] = np.sqrt((gap * gap).sum(axis=2)).min(axis=1)
+    return best
+
+
+def merge_hidden(ax, slack_px: float = 1.0) -> list[str]:
+    """Take out of the legend every labelled curve of ``ax`` that a later, solid curve covers
+    along its whole drawn length (within half that curve's width plus ``slack_px``), and name
+    it in the covering curve's label instead ("FEM mesh_size=0.5 (hides FEM mesh_size=1)"):
+    a legend entry for a curve nobody can see says it is there.  Curves with markers stay
+    (their markers show).  Returns the labels taken out."""
+    # In drawing order: by zorder, then as added.
+    lines = sorted((ln for ln in ax.get_lines() if ln.get_visible()), key=lambda ln: ln.zorder)
+    scale = ax.figure.dpi / 72.0
+    clip = ax.get_window_extent()
+    paths = [_display_path(ln, clip) for ln in lines]
+    hidden_by = {}
+    for i, line in enumerate(lines):
+        if line.get_label().startswith("_") or line.get_marker() not in ("None", None, "", " "):
+            continue
+        pts = _densified(paths[i])
+        inside = pts[(pts[:, 0] >= clip.x0) & (pts[:, 0] <= clip.x1)
+                     & (pts[:, 1] >= clip.y0) & (pts[:, 1] <= clip.y1)] if len(pts) else pts
+        if len(inside) == 0:
+            continue
+        for j in range(len(lines) - 1, i, -1):
+            top = lines[j]
+            if top.get_linestyle() != "-" or len(paths[j]) == 0:
+                continue
+            reach = 0.5 * top.get_linewidth() * scale + slack_px
+            if np.all(_distance_to_path(inside, paths[j]) <= reach):
+                hidden_by[i] = j
+                break
+    names = {}
+    for i, j in sorted(hidden_by.items()):
+        while j in hidden_by:  # the curve on top of the one that covers it
+            j = hidden_by[j]
+        names.setdefault(j, []).append(lines[i].get_label())
+    for j, hidden in names.items():
+        if not lines[j].get_label().startswith("_"):
+            lines[j].set_label(f"{lines[j].get_label()} (hides {', '.join(hidden)})")
+    taken = [lines[i].get_label() for i in hidden_by]
+    for i in hidden_by:
+        lines[i].set_label("_" + lines[i].get_label())
+    return taken
 
 
 # The smallest text a figure may carry, in pixels of the saved PNG: quick figures are drawn at
@@ -250,7 +343,10 @@ def _pressure_map(fig, ax, result: ContactResult, scene) -> None:
         shown.set_clim(0.0, vmax * KPA)
         ax.add_collection(shown)
         what = f"{p.size} elements, one per symmetry orbit"
-    fig.colorbar(shown, ax=ax, label="pressure (kPa)", extend="max" if cut else "neither")
+    # Below the map: a bar beside it put its label next to the profile's pressure axis, two
+    # "pressure (kPa)" side by side for two different scales.
+    fig.colorbar(shown, ax=ax, location="bottom", shrink=0.8, pad=0.14,
+                 label="pressure on the map (kPa)", extend="max" if cut else "neither")
     rmax = max(np.hypot(x, y).max() * UM * 1.05, 1.0)
     if scene.pillars is not None:  # the lattice's primitive cell, 0 <= theta <= pi/6
         for ang in (0.0, math.pi / 6):
@@ -273,7 +369,7 @@ def _pressure_map(fig, ax, result: ContactResult, scene) -> None:
     ax.set_aspect("equal")
     ax.set_xlabel("x (µm)")
     ax.set_ylabel("y (µm)")
-    ax.set_title(f"{result.model}: {what}"
+    ax.set_title(f"{result.label}: {what}"
                  + (f"\ncolour capped at {vmax * KPA:.3g} kPa (peaks {p.max() * KPA:.3g} kPa)"
                     if cut else ""), fontsize=9)
 
@@ -290,16 +386,26 @@ def _limit(limit, scene):
         return None
 
 
+def one_pillar(scene) -> bool:
+    """Whether one pillar alone touches ``scene`` (Phi below Phi_S, at the next ring's rim):
+    where the single-pillar closed forms (the spring model, the rigid punch) describe it; on
+    a lattice of many touching pillars they are another problem and are not drawn."""
+    from pillar_xval.scenes import analytic
+
+    return scene.pillars is not None and \
+        scene.pillars.surface_fraction < analytic.single_pillar_threshold_rim(scene)
+
+
 def _closed_form_curves(ax, result: ContactResult, scene, r_end: float) -> float:
-    """Hertz, the spring model (pillars) and the paper's Hertz-like curve; returns the
-    larger centre pressure (Pa) of the model and of Hertz, to size the pressure axis."""
+    """Hertz, the spring model (one pillar alone) and the paper's Hertz-like curve; returns
+    the larger centre pressure (Pa) of the model and of Hertz, to size the pressure axis."""
     from pillar_xval.scenes import analytic
 
     hz = _limit(analytic.hertz, scene)
     r_line = np.linspace(0, r_end, 400)
     if hz is not None:
         ax.plot(r_line * UM, hz.pressure(r_line) * KPA, "b-", lw=1.2, label="Hertz")
-    spring = _limit(analytic.spring_model, scene)
+    spring = _limit(analytic.spring_model, scene) if one_pillar(scene) else None
     if spring is not None:
         rp = np.linspace(0, 0.999 * scene.pillars.diameter_m / 2, 200)
         ax.plot(rp * UM, spring.pressure(rp) * KPA, "g-", lw=1.2,
@@ -319,8 +425,12 @@ def _element_profile(ax, result: ContactResult, scene) -> None:
 
     hz = _limit(analytic.hertz, scene)
     r_end = max(hz.contact_radius if hz is not None else 0.0, result.contact_radius_m) * 1.05
-    # Room for the pillar-top edge peaks, or just above the Hertz dome on a flat substrate.
-    top = _closed_form_curves(ax, result, scene, r_end) * (6 if scene.pillars else 1.3) * KPA
+    # Room for the pillar-top edge peaks (up to 6 sigma0: beyond, the edge singularity runs
+    # off the top), or just above the highest element: a dense lattice's peaks are a third of
+    # that, which left the top 45 % of the axis empty.
+    reference = _closed_form_curves(ax, result, scene, r_end)
+    top = min((6 if scene.pillars else 1.3) * reference,
+              1.08 * max(float(p.max(initial=0.0)) / KPA, reference)) * KPA
     floor = np.asarray(f.get("floor", np.zeros(p.size, dtype=bool)), dtype=bool)
     if floor.any():  # the floor's cells apart, in orange (their pressures drawn over the grey)
         on = floor & (p > 0)
@@ -357,7 +467,7 @@ def _top_profile(ax, result: ContactResult, scene) -> None:
         rp = np.linspace(0, 0.999 * edge, 300)
         for limit, style, label in ((analytic.spring_model, "g-.", "soft flat punch (spring "
                                      "model)"), (analytic.rigid_punch, "k--", "rigid flat punch")):
-            curve = _limit(limit, scene)
+            curve = _limit(limit, scene) if one_pillar(scene) else None
             if curve is not None:
                 pc = curve.pressure(rp)
                 ax.plot(rp * UM, pc * KPA, style, lw=1.2, label=label)
@@ -369,7 +479,7 @@ def _top_profile(ax, result: ContactResult, scene) -> None:
         if hz is not None:
             rh = np.linspace(0, hz.contact_radius, 300)
             ax.plot(rh * UM, hz.pressure(rh) * KPA, "b--", lw=1.2, label="Hertz", zorder=3)
-    ax.plot(r * UM, p * KPA, "-", color="0.15", lw=2.0, label=f"{result.model}")
+    ax.plot(r * UM, p * KPA, "-", color="0.15", lw=2.0, label=result.label)
     inner = (r <= 0.8 * edge) & np.isfinite(p)
     top = max(float(p[inner].max()) if inner.any() else 0.0, result.centre_pressure_Pa)
     if top > 0:  # a singular edge runs off the top, by design; the caption gives its peak

@@ -60,7 +60,8 @@ import math
 
 from pillar_xval.scenes import Scene, analytic
 
-__all__ = ["FEATURES", "PHI_H_HARD", "PHI_H_SOFT", "features", "phi_h", "regime"]
+__all__ = ["FEATURES", "PHI_H_HARD", "PHI_H_SOFT", "REGIMES", "features", "phi_h", "regime",
+           "scope_refusal"]
 
 # [P] Fig. 4a: Phi_H from 0.306 (hard, E_p/E_l = 1e6) to 0.38 (soft, 1e-3) at zeta = 0.3 um.
 PHI_H_HARD, PHI_H_SOFT = 0.306, 0.38
@@ -91,6 +92,10 @@ def phi_h(scene: Scene) -> float:
     return PHI_H_HARD + t * (PHI_H_SOFT - PHI_H_HARD)
 
 
+# The regimes' names (:func:`regime`), which a model's declared scopes list.
+REGIMES = ("flat", "single", "multi")
+
+
 def regime(scene: Scene) -> dict:
     """The scene's regime: ``name`` (flat, single, multi), ``label`` (flat, single pillar,
     transition, hertz-like), the thresholds and one sentence saying why."""
@@ -112,6 +117,24 @@ def regime(scene: Scene) -> dict:
         name, label = "multi", "transition"
         why = f"Phi_S = {phi_s:.4g} <= Phi = {phi:.4g} < Phi_H = {ph:.3g}: several pillars touch"
     return {"name": name, "label": label, "phi": phi, "phi_s": phi_s, "phi_h": ph, "why": why}
+
+
+def scope_refusal(model: str, scene: Scene) -> str | None:
+    """Why ``model`` does not apply to ``scene`` by the regimes its declaration gives
+    (``Model.scopes``: fem-axisym on flat scenes and one pillar, the spring model on one
+    pillar, Hertz off the single-pillar regime), or None where it applies or declares none.
+    The same regimes the planner chooses by, so a spec is refused before anything is solved
+    where the model itself would refuse the scene."""
+    from ..registry import MODELS
+
+    declared = MODELS.get(model)
+    if declared is None or not declared.scopes or set(declared.scopes) >= set(REGIMES):
+        return None  # no regime to compute (a root solve for Phi_S: ~1 ms a scene)
+    reg = regime(scene)
+    if reg["name"] in declared.scopes:
+        return None
+    return (f"{model} applies to {', '.join(declared.scopes)} scenes; this one is "
+            f"{reg['label']} ({reg['why']}); {model}: {declared.scope_note}")
 
 
 def features(scene: Scene, reg: dict | None = None) -> dict:

@@ -49,7 +49,7 @@ from .features import features, regime
 from .tables import PlannerData, load_data, machine_data
 
 __all__ = ["DEFAULT_QUANTITIES", "DEFAULT_TOLERANCE", "check_request", "combined_error",
-           "default_data", "hooke_error", "plan", "plan_text", "solve_auto"]
+           "default_data", "hooke_error", "hooke_note", "plan", "plan_text", "solve_auto"]
 
 DEFAULT_TOLERANCE = 0.01
 DEFAULT_QUANTITIES = ("F_T", "sigma0")
@@ -79,16 +79,22 @@ def _data(data: PlannerData | None) -> PlannerData:
     return default_data() if data is None else data
 
 
-def check_request(tolerance, quantities, budget=None) -> tuple[float, tuple, float | None]:
-    """Validated (tolerance, quantities, budget); InputError naming the option otherwise."""
+def check_request(tolerance=DEFAULT_TOLERANCE, quantities=DEFAULT_QUANTITIES,
+                  budget=None) -> tuple[float, tuple, float | None]:
+    """Validated (tolerance, quantities, budget); InputError naming the option otherwise.
+    ``quantities`` is a comma list or a sequence of names; an empty entry (``F_T,,sigma0``)
+    or an empty list is refused, not dropped."""
     known = [q.key for q in QUANTITIES]
-    if isinstance(quantities, str):
-        given = quantities
-        quantities = [q.strip() for q in quantities.split(",") if q.strip()]
-        if not quantities:
-            raise InputError(f"--quantities {given!r}: expected one or more of "
-                             f"{', '.join(known)}, comma-separated")
-    quantities = tuple(dict.fromkeys(quantities or DEFAULT_QUANTITIES))
+    tolerance = DEFAULT_TOLERANCE if tolerance is None else tolerance
+    quantities = DEFAULT_QUANTITIES if quantities is None else quantities
+    given = quantities if isinstance(quantities, str) else \
+        ",".join(map(str, quantities)) if isinstance(quantities, (list, tuple)) else quantities
+    names = ([q.strip() for q in quantities.split(",")] if isinstance(quantities, str)
+             else list(quantities) if isinstance(quantities, (list, tuple)) else None)
+    if not names or any(not isinstance(q, str) or not q for q in names):
+        raise InputError(f"--quantities {given!r}: expected one or more of "
+                         f"{', '.join(known)}, comma-separated, none empty")
+    quantities = tuple(dict.fromkeys(names))
     bad = [q for q in quantities if q not in known]
     if bad:
         raise InputError(f"--quantities {','.join(map(str, bad))}: unknown; allowed: "
@@ -200,7 +206,8 @@ def _candidate(scene, x, reg, cand, data, quantities) -> dict:
 
 
 def plan(scene: Scene, tolerance: float = DEFAULT_TOLERANCE, quantities=DEFAULT_QUANTITIES,
-         budget: float | None = None, data: PlannerData | None = None) -> dict:
+         budget: float | None = None, data: PlannerData | None = None,
+         progress=None) -> dict:
     """The plan for ``scene``: regime, every candidate's predicted errors, time and memory,
     and the choice with its reason (JSON-ready).
 
@@ -216,14 +223,25 @@ def plan(scene: Scene, tolerance: float = DEFAULT_TOLERANCE, quantities=DEFAULT_
     data : PlannerData, optional
         Error and cost models (default: the shipped ones, carried to this machine:
         :func:`default_data`).
+    progress : callable, optional
+        ``progress(text)`` hears of each step (reading the data, each candidate): a plan's
+        first call reads the tables and imports the FEMs' memory estimates (seconds on a
+        cold start).
     """
     tolerance, quantities, budget = check_request(tolerance, quantities, budget)
+    say = progress or (lambda text: None)
+    say("reading the planner's error and cost tables (and, once per machine and thread "
+        "count, timing this machine: a few seconds)")
     data = _data(data)
     given = scene
     scene = planning_scene(scene)
     reg = regime(scene)
     x = features(scene, reg)
-    cands = [_candidate(scene, x, reg, c, data, quantities) for c in data.candidates]
+    cands = []
+    for k, c in enumerate(data.candidates):
+        say(f"predicting candidate {k + 1} of {len(data.candidates)}: "
+            f"{c.get('label', c.get('model'))}")
+        cands.append(_candidate(scene, x, reg, c, data, quantities))
     over_budget = []
     for c in cands:
         if c["eligible"] and budget is not None and c["time_s"] > budget:
@@ -328,6 +346,24 @@ def hooke_error(scene: Scene, quantity: str = "sigma0", data: PlannerData | None
         if part is not None:
             return part
     return None
+
+
+def hooke_note(scene: Scene) -> str | None:
+    """The line a Hooke-pillar result carries on ``scene``: the planner's expected sigma0
+    error of the Hooke pillar there (:func:`hooke_error`) and the flag that removes it; None
+    on a flat scene."""
+    if scene.is_flat:
+        return None
+    try:
+        error = hooke_error(scene, "sigma0")
+    except InputError as exc:  # damaged planner data: the solve stands, the number is missing
+        return f"Hooke pillars: no expected error (the planner's data: {exc}); " \
+               "--pillars elastic removes the Hooke spring's model error"
+    if error is None:
+        return None
+    return (f"Hooke pillars: the planner expects sigma0 off by up to {100 * error:.2g} % on "
+            "this scene (the Hooke spring's model error against the elastic pillar); "
+            "--pillars elastic removes it")
 
 
 def _elastic_left_out(cands: list) -> str:

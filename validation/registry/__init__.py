@@ -25,10 +25,11 @@ from .model import CostLaw, Model
 from .models import DECLARED
 from .options import OptionSpec, check_option, flag
 
-__all__ = ["FLOOR_QUANTITIES", "LOAD_QUANTITIES", "MODELS", "QUANTITIES", "CostLaw", "Ladder", "Model",
-           "OptionSpec", "Quantity", "candidates", "check_option", "family_options", "flag",
-           "get_model", "ladder_for", "ladders", "model_names", "option_vocabulary",
-           "quantity_values", "run_model", "stored_operator"]
+__all__ = ["FLOOR_QUANTITIES", "LOAD_QUANTITIES", "MODELS", "QUANTITIES", "CostLaw", "Ladder",
+           "Model", "OptionSpec", "Quantity", "candidates", "check_option", "check_options",
+           "default_pillars", "family_options", "flag", "get_model", "ladder_for", "ladders",
+           "model_names", "option_vocabulary", "quantity_values", "run_model", "scene_defaults",
+           "stored_operator"]
 
 # Every model by its --model name, in declaration order (tests register fakes here).
 MODELS: dict[str, Model] = {m.name: m for m in DECLARED}
@@ -52,6 +53,67 @@ def run_model(name: str, scene: Scene, *, vtu_path=None, progress=None,
     Options the model does not take, and those that are None (the model's default), are left
     out; ``vtu_path`` and ``progress`` go to a solver that has them (:meth:`Model.run`)."""
     return get_model(name).run(scene, options, vtu_path=vtu_path, progress=progress)
+
+
+def default_pillars(scene: Scene) -> str | None:
+    """The pillar model a command runs where the user names none: the elastic pillar on a
+    scene whose pillars are elastic (the Hooke spring puts sigma0 3-60 % low in a lattice),
+    the paper's Hooke spring on rigid pillars (within about 1 % there, and no compliance to
+    build); None on a flat scene, which has no pillar model."""
+    if scene.pillars is None:
+        return None
+    return "hooke" if scene.pillars.material.rigid else "elastic"
+
+
+def scene_defaults(model: str, scene: Scene, options: dict) -> dict:
+    """``options`` with the defaults that follow the scene: ``pillars`` (:func:`default_pillars`)
+    for a model that takes it, where the options do not give it; the Hooke spring on
+    ``device = "gpu"``, since the elastic pillar runs on the CPU only.  The commands, the spec
+    files and the pytest fixture apply it (so a case's key and its table row name the pillar
+    model); the solvers themselves keep the paper's Hooke spring as their default."""
+    entry = MODELS.get(model)
+    pillars = default_pillars(scene)
+    if pillars and options.get("device") == "gpu":
+        pillars = "hooke"
+    if entry is None or "pillars" not in entry.options or pillars is None \
+            or options.get("pillars") is not None:
+        return dict(options)
+    return {**options, "pillars": pillars}
+
+
+def check_options(model: str, options: dict, where: str = "",
+                  scene: Scene | None = None) -> dict:
+    """``options`` when ``model`` takes each of them with an allowed value (its spec's range or
+    choices, every number finite) and, where the model checks its options together (``auto``:
+    the planner's request), they pass that too; otherwise InputError, one line that starts
+    with ``where`` and names the model, the option and its value.  With ``scene``: an elastic
+    pillar on a flat scene is refused too.  What a spec, a sweep or a test hands a model is
+    checked here, before anything is solved."""
+    import math
+
+    prefix = f"{where} " if where else ""
+    entry = MODELS.get(model)
+    if entry is None:
+        raise InputError(f"{prefix}{model!r}: unknown model; available: "
+                         f"{', '.join(model_names())}")
+    if not isinstance(options, dict):
+        raise InputError(f"{prefix}{model}: its options must be a table, not {options!r}")
+    unknown = sorted(set(options) - set(entry.options))
+    if unknown:
+        raise InputError(f"{prefix}{model}: unknown option(s) {', '.join(map(repr, unknown))}; "
+                         f"it takes {', '.join(entry.options) or 'none'}")
+    for name, value in options.items():
+        if isinstance(value, float) and not math.isfinite(value):
+            raise InputError(f"{prefix}{model}: {name} = {value!r}: expected a finite number")
+        check_option(name, value, where=f"{prefix}{model}: {name} =", spec=entry.options[name])
+    if scene is not None and scene.pillars is None and options.get("pillars") == "elastic":
+        raise InputError(f"{prefix}{model}: pillars = 'elastic': the scene is flat, it has no "
+                         "pillars to model")
+    try:
+        entry.check_request(options)
+    except InputError as exc:
+        raise InputError(f"{prefix}{model}: {exc}") from None
+    return options
 
 
 # The stores of cached operators a result may name in its diagnostics["operators"] (records

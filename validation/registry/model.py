@@ -78,6 +78,9 @@ class Model:
       whose lens reaches the floor; one without it refuses such a scene (its given
       indentation before the solve, the one it solved under a force after it:
       :func:`pillar_xval.scenes.floor.check_floor_scope`).
+    - ``request``: ``"module:function"`` that checks its options together where a spec
+      cannot (``auto``: the planner's request, ``function(**options)`` raising InputError),
+      imported on first use; "" for none.
     """
 
     name: str
@@ -99,6 +102,7 @@ class Model:
     code: tuple[str, ...] = ()
     force_control: str = "outer"
     floor: bool = False
+    request: str = ""
 
     @property
     def function(self) -> Callable[..., ContactResult]:
@@ -110,6 +114,12 @@ class Model:
     def candidate(self) -> bool:
         """Whether the planner may choose it."""
         return bool(self.scopes)
+
+    def check_request(self, options: dict) -> None:
+        """Check the options together with the model's ``request`` function, if any."""
+        if self.request:
+            module, name = self.request.split(":")
+            getattr(importlib.import_module(module), name)(**options)
 
     def takes(self, argument: str) -> bool:
         """Whether the solver's signature has ``argument`` (False when it cannot be read)."""

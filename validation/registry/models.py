@@ -81,7 +81,8 @@ DECLARED = (
         ladder=Ladder("mesh_size", 1.0, 0.5, "float", 1.0, (4.0, 2.0, 1.0, 0.5), {},
                       "mesh_size (relative)"),
         physics="elastic-pillar",
-        scopes=("flat", "single"), scope_note="refuses scenes where a second pillar touches",
+        scopes=("flat", "single"), scope_note="refuses scenes where a second pillar touches "
+                                                "(fem-3d holds them)",
         # A sparse LU (SuperLU, one thread) after scikit-fem's assembly: the reference
         # assembly's machine.
         cost=CostLaw("fem-dofs", "log_dofs", (0, 1, 1.5), {"kind": "estimate"},
@@ -124,6 +125,6 @@ DECLARED = (
         "the planner's choice for the scene (pillar-xval plan)",
         options={"tolerance": PLANNED, "quantities": PLANNED, "budget": PLANNED},
         # The plan comes from the planner's code and its data (validation/planner/data).
-        code=("validation.planner",),
+        code=("validation.planner",), request="validation.planner.plan:check_request",
         force_control="native", floor=True),
 )

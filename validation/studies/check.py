@@ -28,12 +28,14 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from pillar_xval.scenes import InputError, load_scene, preset_names
+from pillar_xval.scenes import InputError, ScopeError, load_scene, preset_names
 
 from ..testing import (CLOSED_FORMS, QUANTITY_BY_KEY, assert_close,
-                       assert_matches_closed_form, check_tolerance, quantity_value)
+                       assert_matches_closed_form, check_tolerance, closed_form_refusal,
+                       quantity_value)
 
-__all__ = ["CheckSpec", "junit_xml", "load_spec", "run_checks", "table_text"]
+__all__ = ["CheckSpec", "junit_xml", "load_spec", "report_name", "run_checks", "spec_path",
+           "table_text", "xml_safe"]
 
 _CHECK_KEYS = {"name", "scene", "set", "model", "options", "reference", "reference_options",
                "quantities", "rtol", "atol", "source"}
@@ -59,25 +61,31 @@ class CheckSpec:
         return self.reference in CLOSED_FORMS
 
 
-def _check_model(where: str, name, options) -> None:
-    from ..registry import MODELS, check_option, model_names
+def _plain_name(where: str, name: str) -> str:
+    """``name`` when it holds no control character (it is printed, and written to JUnit XML,
+    which cannot carry most of them); InputError naming the first one otherwise."""
+    bad = next((c for c in name if ord(c) < 32 or 127 <= ord(c) < 160), None)
+    if bad is not None:
+        raise InputError(f"{where} name = {name!r}: holds the control character "
+                         f"U+{ord(bad):04X}; a check's name is printed and written to JUnit XML")
+    return name
 
-    if name not in MODELS:
-        raise InputError(f"{where} = {name!r}: unknown model; available: "
-                         f"{', '.join(model_names())}" + (" (or a closed form: "
-                                                          f"{', '.join(CLOSED_FORMS)})"
-                                                          if "reference" in where else ""))
-    if not isinstance(options, dict):
-        raise InputError(f"{where}'s options must be a table, not {options!r}")
-    accepted = set(MODELS[name].options)
-    for key, value in options.items():
-        if key not in accepted:
-            raise InputError(f"{where} {name}: unknown option {key!r}; it takes "
-                             f"{', '.join(sorted(accepted)) or 'none'}")
-        check_option(key, value, where=f"{where} {name}: {key} =")
+
+def _applies(where: str, role: str, name: str, scene) -> None:
+    """ScopeError (exit 2) where ``name``, as the check's ``role``, does not apply to
+    ``scene``: a model out of its declared regimes, or a closed form that is no reference for
+    the scene (:func:`validation.testing.closed_form_refusal`)."""
+    from ..planner.features import scope_refusal
+
+    refusal = closed_form_refusal(scene, name) if role == "reference" and \
+        name in CLOSED_FORMS else scope_refusal(name, scene)
+    if refusal is not None:
+        raise ScopeError(f"{where} {role} = {name!r}: {refusal}")
 
 
 def _one(i: int, table, base_dir: Path) -> CheckSpec:
+    from ..registry import MODELS, check_options, scene_defaults
+
     where = f"[[check]] {i + 1}"
     if not isinstance(table, dict):
         raise InputError(f"{where}: must be a table")
@@ -87,7 +95,7 @@ def _one(i: int, table, base_dir: Path) -> CheckSpec:
     for key in ("scene", "model", "reference", "rtol"):
         if key not in table:
             raise InputError(f"{where}: {key!r} is missing")
-    name = str(table.get("name", f"check {i + 1}"))
+    name = _plain_name(where, str(table.get("name", f"check {i + 1}")))
     where = f"[[check]] {name!r}:"
     scene_name = str(table["scene"])
     if scene_name not in preset_names():
@@ -99,12 +107,18 @@ def _one(i: int, table, base_dir: Path) -> CheckSpec:
     scene = load_scene(scene_name, overrides)
     model, reference = str(table["model"]), str(table["reference"])
     options, ref_options = table.get("options", {}), table.get("reference_options", {})
-    _check_model(f"{where} model", model, options)
+    check_options(model, options, f"{where} model", scene)
+    _applies(where, "model", model, scene)
+    if reference not in CLOSED_FORMS and reference not in MODELS:
+        raise InputError(f"{where} reference {reference!r}: unknown model; available: "
+                         f"{', '.join(sorted(MODELS))} (or a closed form: "
+                         f"{', '.join(CLOSED_FORMS)})")
     if reference in CLOSED_FORMS:
         if ref_options:
             raise InputError(f"{where} reference_options: a closed form takes none")
     else:
-        _check_model(f"{where} reference", reference, ref_options)
+        check_options(reference, ref_options, f"{where} reference", scene)
+    _applies(where, "reference", reference, scene)
     quantities = table.get("quantities", ["F_T"])
     if isinstance(quantities, str):
         quantities = [quantities]
@@ -112,10 +126,35 @@ def _one(i: int, table, base_dir: Path) -> CheckSpec:
             any(q not in QUANTITY_BY_KEY for q in quantities):
         raise InputError(f"{where} quantities = {quantities!r}: a list of "
                          f"{', '.join(QUANTITY_BY_KEY)}")
-    return CheckSpec(name, scene, model, dict(options), reference, dict(ref_options),
+    return CheckSpec(name, scene, model, scene_defaults(model, scene, options), reference,
+                     ref_options if reference in CLOSED_FORMS else
+                     scene_defaults(reference, scene, ref_options),
                      tuple(quantities), check_tolerance(f"{where} rtol", table["rtol"]),
                      check_tolerance(f"{where} atol", table.get("atol", 0.0)),
                      str(table.get("source", "")))
+
+
+def spec_path(path) -> Path:
+    """The spec file ``path`` names: itself where it exists; a relative path that does not
+    exist here but names one of the toolkit's own files (``validation/examples/checks.toml``)
+    is that file, wherever the command runs."""
+    path = Path(path)
+    if path.is_absolute() or path.exists():
+        return path
+    own = Path(__file__).resolve().parents[2] / path
+    return own if own.is_file() else path
+
+
+def report_name(path) -> str:
+    """The name of a spec's report (``out/check/NAME``, the JUnit suite): its stem, when that
+    is a plain file name; a spec named ``...toml`` (stem ``..``) would send the report to the
+    parent folder, so it is refused (InputError, exit 2)."""
+    stem = Path(path).stem
+    if stem in ("", ".", "..") or Path(stem).name != stem or "\\" in stem:
+        raise InputError(f"check spec {str(path)!r}: its stem {stem!r} cannot name the report "
+                         "folder out/check/<stem> (it would leave out/check): rename the spec "
+                         "or give --out")
+    return stem
 
 
 def load_spec(path) -> list[CheckSpec]:
@@ -163,12 +202,14 @@ def run_checks(specs: list[CheckSpec], cache_dir: Path, engine) -> list[dict]:
                "values": {}}
         try:
             result = got.unwrap()
+            row["model_label"] = result.label  # with its pillar model
             row["values"] = {q: quantity_value(result, q) for q in s.quantities}
             if s.closed_form:
                 assert_matches_closed_form(result, s.reference, rtol=s.rtol,
                                            quantities=s.quantities, source=s.source)
             else:
                 expected = ref.unwrap()
+                row["reference_label"] = expected.label
                 row["references"] = {q: quantity_value(expected, q) for q in s.quantities}
                 assert_close(result, expected, s.quantities, rtol=s.rtol, atol=s.atol,
                              source=s.source)
@@ -182,8 +223,11 @@ def run_checks(specs: list[CheckSpec], cache_dir: Path, engine) -> list[dict]:
 
 
 def table_text(rows: list[dict]) -> str:
+    """The checks as a table (models named with their pillar models), then each failure's
+    message."""
     header = ("check", "model", "reference", "quantities", "rtol", "result")
-    lines = [header] + [(r["name"], r["model"], r["reference"], ",".join(r["quantities"]),
+    lines = [header] + [(r["name"], r.get("model_label", r["model"]),
+                         r.get("reference_label", r["reference"]), ",".join(r["quantities"]),
                          f"{r['rtol']:g}", "pass" if r["passed"] else "FAIL") for r in rows]
     widths = [max(len(str(line[i])) for line in lines) for i in range(len(header))]
     out = ["  ".join(str(v).ljust(w) for v, w in zip(line, widths)).rstrip()
@@ -194,19 +238,35 @@ def table_text(rows: list[dict]) -> str:
     return "\n".join(out)
 
 
+def xml_safe(text) -> str:
+    """``text`` with every character XML 1.0 cannot carry (control characters but tab, line
+    feed and carriage return; lone surrogates; U+FFFE, U+FFFF) written as ``\\xNN`` /
+    ``\\uNNNN``: ElementTree escapes markup but writes these as they are, which makes the
+    document ill-formed."""
+    def ok(c: str) -> bool:
+        o = ord(c)
+        return (o in (0x9, 0xA, 0xD) or 0x20 <= o <= 0xD7FF or 0xE000 <= o <= 0xFFFD
+                or o >= 0x10000)
+
+    return "".join(c if ok(c) else (f"\\x{ord(c):02x}" if ord(c) < 256 else f"\\u{ord(c):04x}")
+                   for c in str(text))
+
+
 def junit_xml(rows: list[dict], suite: str, seconds: float) -> str:
-    """A JUnit XML report: one test case per check, a failure element with its message."""
+    """A JUnit XML report: one test case per check, a failure element with its message;
+    well-formed whatever the names and messages hold (:func:`xml_safe`)."""
     failures = sum(not r["passed"] for r in rows)
+    suite = xml_safe(suite)
     top = ET.Element("testsuites", tests=str(len(rows)), failures=str(failures))
     ts = ET.SubElement(top, "testsuite", name=suite, tests=str(len(rows)),
                        failures=str(failures), errors="0", skipped="0", time=f"{seconds:.3f}")
     for r in rows:
-        tc = ET.SubElement(ts, "testcase", classname=f"{suite}.{r['scene']}", name=r["name"],
-                           time="0")
+        tc = ET.SubElement(ts, "testcase", classname=xml_safe(f"{suite}.{r['scene']}"),
+                           name=xml_safe(r["name"]), time="0")
         if not r["passed"]:
             first = r["message"].splitlines()[0] if r["message"] else "failed"
-            ET.SubElement(tc, "failure", message=first, type="ToleranceError").text = \
-                r["message"]
+            ET.SubElement(tc, "failure", message=xml_safe(first),
+                          type="ToleranceError").text = xml_safe(r["message"])
     ET.indent(top)
     return '<?xml version="1.0" encoding="utf-8"?>\n' + ET.tostring(top, encoding="unicode") \
         + "\n"

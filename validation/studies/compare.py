@@ -39,6 +39,7 @@ from ..analysis.profiles import profile_at
 from ..analysis.verification import study
 from ..output.report import scene_label
 from .converge import check_ladder, level_cases, study_levels
+from .targets import TARGET_RULE, TARGETS, judge
 
 FEM, FEM_3D, BEM = "fem-axisym", "fem-3d", "bem"
 FEM_MODELS = (FEM, FEM_3D)
@@ -137,9 +138,36 @@ def _band(st: dict | None) -> tuple[float | None, bool]:
     return g["fallback_uncertainty"], False
 
 
+def target_of(key: str) -> float | None:
+    """The tolerance a BEM-FEM difference of quantity ``key`` is judged against
+    (:data:`.targets.TARGETS`: F_T 1 %, sigma0 3 %, the top pressure 5 % for r < 0.9 d/2);
+    None where none is stated (a, A, the edge's last tenth)."""
+    if key.startswith("sigma(r="):
+        return TARGETS["profile"] if float(key[8:-1]) < 0.9 else None
+    return TARGETS.get(key)
+
+
+def expected_model_errors(scene: Scene, pillars: str | None) -> dict:
+    """The model error the planner expects of a BEM with ``pillars`` against the FEM's elastic
+    pillars on ``scene``, per quantity (fractions, as the planner counts them: |error| plus
+    its margin): the Hooke pillar's (its top profile: sigma0's); {} for the elastic pillar
+    and on a flat scene, where the two models solve the same problem."""
+    from ..planner.plan import hooke_error
+
+    if scene.is_flat or pillars != "hooke":
+        return {}
+    out = {q.key: hooke_error(scene, q.key) for q in QUANTITIES}
+    out.update({profile_key(x): out.get("sigma0") for x in PROFILE_POINTS})
+    return {k: float(v) for k, v in out.items() if v is not None}
+
+
 def compare_rows(bem: dict, fem: dict, bem_studies: dict | None, fem_studies: dict,
-                 reference: dict) -> list[dict]:
-    """One row per quantity: values, difference, uncertainty bands and the verdict."""
+                 reference: dict, expected: dict | None = None) -> list[dict]:
+    """One row per quantity: values, difference, uncertainty bands, whether the difference
+    exceeds them (``exceeds``: a model difference) and the verdict: ``passed`` against the
+    tolerance ``target`` (:func:`target_of`, widened to both bands: ``allowed``), with the
+    model error the planner expects of this BEM (``expected``, per quantity) and whether a
+    failing difference lies within it (``model_error``: the expected one)."""
     rows = []
     for key in [q.key for q in QUANTITIES] + [profile_key(x) for x in PROFILE_POINTS]:
         fb, ff = bem.get(key), fem.get(key)
@@ -162,6 +190,13 @@ def compare_rows(bem: dict, fem: dict, bem_studies: dict | None, fem_studies: di
             row.update(difference=diff, uncertainty=u,
                        relative_difference=diff / ff if ff else None,
                        exceeds=None if u is None else bool(abs(diff) > u))
+        target = target_of(key)
+        verdict = judge(fb, u_b, ff, u_f, target) if target is not None else {}
+        model = (expected or {}).get(key)
+        row.update(target=target, allowed=verdict.get("allowed"), passed=verdict.get("met"),
+                   expected_model_error=model,
+                   model_error=bool(verdict.get("met") is False and model is not None
+                                    and abs(verdict["error"]) <= model))
         rows.append(row)
     return rows
 
@@ -171,7 +206,9 @@ def compare_rows(bem: dict, fem: dict, bem_studies: dict | None, fem_studies: di
 _BEM_KEYS = {"bem": "value", "u_bem": "u", "u_bem_is_gci": "u_is_gci",
              "bem_richardson": "richardson", "bem_status": "status",
              "difference": "difference", "relative_difference": "relative_difference",
-             "uncertainty": "uncertainty", "exceeds": "exceeds"}
+             "uncertainty": "uncertainty", "exceeds": "exceeds", "allowed": "allowed",
+             "passed": "passed", "expected_model_error": "expected_model_error",
+             "model_error": "model_error"}
 
 
 def three_way_rows(rows_by: dict[str, list[dict]]) -> list[dict]:
@@ -225,17 +262,64 @@ def _quantity_name(key: str, r_label: str) -> str:
     return f"{key} [{unit}]"
 
 
-def _three_way_text(rows: list[dict], ref_name: str, r_label: str) -> str:
+def _band_note(levels: int | None) -> str:
+    """What the +-U columns are, for a ladder of ``levels`` levels."""
+    if levels == 2:
+        return ("U: two levels give no observed order: band = 3 |f_fine - f_coarse| (Fs = 3), "
+                "marked *.")
+    finest = "" if levels in (None, 3) else f"three finest of {levels} "
+    return (f"U: GCI band GCI_fine |f| from each model's {finest}levels (Fs = 1.25); * = no "
+            "observed order (oscillating or round-off), band = spread of the levels (x3 when "
+            "oscillating).")
+
+
+def _verdict(b: dict) -> str:
+    """pass, FAIL, FAIL* (the model error the planner expects of this BEM) or - (no
+    tolerance stated, or not judged)."""
+    if b.get("passed") is None:
+        return "-"
+    return "pass" if b["passed"] else "FAIL*" if b.get("model_error") else "FAIL"
+
+
+def _tolerance(r: dict) -> str:
+    return "-" if r.get("target") is None else f"{100 * r['target']:g}%"
+
+
+def verdict_notes(rows: list[dict], kinds) -> list[str]:
+    """The lines under a table that say what its verdicts judge: the tolerance and its
+    source, the expected model error of each BEM that has one, and '>U'."""
+    lines = [f"verdict: pass when |BEM - FEM| / |FEM| is within tol (the elastic-pillar "
+             f"BEM's targets: F_T {100 * TARGETS['F_T']:g} %, sigma0 "
+             f"{100 * TARGETS['sigma0']:g} %, the top "
+             f"pressure {100 * TARGETS['profile']:g} % for r < 0.9 d/2), or within both U "
+             "bands where they are wider; '-': no tolerance stated."]
+    for p in kinds:
+        expected = {r["quantity"]: (r["bems"][p] if "bems" in r else r).get(
+            "expected_model_error") for r in rows if r["quantity"] in ("F_T", "sigma0")}
+        if any(v is not None for v in expected.values()):
+            said = ", ".join(f"{q} up to {100 * v:.2g} %" for q, v in expected.items()
+                             if v is not None)
+            lines.append(f"FAIL*: within the {pillar_label(p)} pillar's expected model error "
+                         f"(the planner's, on this scene: {said}): the difference the "
+                         "paper's spring makes, not a fault; --pillars elastic removes it.")
+    lines.append("'>U': |BEM - FEM| > sqrt(U_BEM^2 + U_FEM^2), a difference beyond the "
+                 "numerical uncertainty.")
+    return lines
+
+
+def _three_way_text(rows: list[dict], ref_name: str, r_label: str,
+                    levels: int | None = None) -> str:
     """The three-way table: each BEM and the FEM with their bands, and each BEM's relative
-    difference against the FEM, marked where it exceeds the combined band."""
+    difference against the FEM, marked where it exceeds the combined band, with its verdict
+    against the tolerance."""
     has_ref = ref_name != "none"
     kinds = list(rows[0]["bems"])
     head = f"{'quantity':<18}"
     for p in kinds:
         head += f" {'BEM ' + pillar_label(p):>11} {'+-U':>9}"
-    head += f" {'FEM':>10} {'+-U_FEM':>9}"
+    head += f" {'FEM':>10} {'+-U_FEM':>9} {'tol':>4}"
     for p in kinds:
-        head += f" {pillar_label(p) + '-FEM':>11} {'>U':>3}"
+        head += f" {pillar_label(p) + '-FEM':>11} {'>U':>3} {'verdict':>7}"
     head += f" {ref_name:>12}" if has_ref else ""
     lines = [head, "-" * len(head)]
     for r in rows:
@@ -251,32 +335,34 @@ def _three_way_text(rows: list[dict], ref_name: str, r_label: str) -> str:
         for p in kinds:
             b = r["bems"][p]
             line += f" {fmt(b['value'], 11)} {band(b['u'], b['u_is_gci'])}"
-        line += f" {fmt(r['fem'])} {band(r['u_fem'], r['u_fem_is_gci'])}"
+        line += f" {fmt(r['fem'])} {band(r['u_fem'], r['u_fem_is_gci'])} {_tolerance(r):>4}"
         for p in kinds:
             b = r["bems"][p]
             rel = "-" if b["relative_difference"] is None else \
                 f"{100 * b['relative_difference']:+.2f}%"
-            verdict = "-" if b["exceeds"] is None else ("YES" if b["exceeds"] else "no")
-            line += f" {rel:>11} {verdict:>3}"
+            exceeds = "-" if b["exceeds"] is None else ("YES" if b["exceeds"] else "no")
+            line += f" {rel:>11} {exceeds:>3} {_verdict(b):>7}"
         lines.append(line + (f" {fmt(r['closed_form'], 12)}" if has_ref else ""))
-    lines.append("U: GCI band GCI_fine |f| of each model's levels (Fs = 1.25); * = no observed "
-                 "order (oscillating or round-off), band = spread of the levels (x3 when "
-                 "oscillating). X-FEM: (BEM - FEM) / FEM; '>U': |BEM - FEM| > "
-                 "sqrt(U_BEM^2 + U_FEM^2), a model difference.")
-    return "\n".join(lines)
+    lines.append(_band_note(levels) + " X-FEM: (BEM - FEM) / FEM.")
+    return "\n".join(lines + verdict_notes(rows, kinds))
 
 
-def table_text(rows: list[dict], ref_name: str, r_label: str) -> str:
-    """Fixed-width table of the comparison (display units); bands marked * are not a GCI.
-    Three-way rows (:func:`three_way_rows`) give one column per BEM."""
+def table_text(rows: list[dict], ref_name: str, r_label: str, levels: int | None = None,
+               pillars: str | None = None) -> str:
+    """Fixed-width table of the comparison (display units); bands marked * are not a GCI;
+    each difference with its verdict against the tolerance.  Three-way rows
+    (:func:`three_way_rows`) give one column per BEM.  ``levels``: each model's ladder
+    (the band note says how the bands came); ``pillars``: the BEM's pillar model, named in
+    its column and its expected model error's note."""
     if rows and "bems" in rows[0]:
-        return _three_way_text(rows, ref_name, r_label)
+        return _three_way_text(rows, ref_name, r_label, levels)
     # No closed form applies (several pillars share the load): no column for it, rather than
     # one headed "none".
     has_ref = ref_name != "none"
-    head = (f"{'quantity':<18} {'BEM':>10} {'+-U_BEM':>9} {'FEM':>10} {'+-U_FEM':>9} "
-            f"{'FEM Richardson':>14} {'BEM-FEM':>10} {'rel':>8} {'exceeds U':>9}"
-            + (f" {ref_name:>12}" if has_ref else ""))
+    bem = "BEM" if not pillars else f"BEM {pillar_label(pillars)}"
+    head = (f"{'quantity':<18} {bem:>11} {'+-U_BEM':>9} {'FEM':>10} {'+-U_FEM':>9} "
+            f"{'FEM Richardson':>14} {'BEM-FEM':>10} {'rel':>8} {'>U':>3} {'tol':>4} "
+            f"{'verdict':>7}" + (f" {ref_name:>12}" if has_ref else ""))
     lines = [head, "-" * len(head)]
     for r in rows:
         key = r["quantity"]
@@ -293,15 +379,14 @@ def table_text(rows: list[dict], ref_name: str, r_label: str) -> str:
         if diff is not None and abs(diff) <= 1e-12 * max(abs(r["bem"]), abs(r["fem"])):
             diff = 0.0  # round-off
         rel = "-" if r["relative_difference"] is None else f"{100 * r['relative_difference']:+.2f}%"
-        verdict = "-" if r["exceeds"] is None else ("YES" if r["exceeds"] else "no")
-        lines.append(f"{name:<18} {fmt(r['bem'])} {band(r['u_bem'], r['u_bem_is_gci'])} "
+        exceeds = "-" if r["exceeds"] is None else ("YES" if r["exceeds"] else "no")
+        lines.append(f"{name:<18} {fmt(r['bem'], 11)} {band(r['u_bem'], r['u_bem_is_gci'])} "
                      f"{fmt(r['fem'])} {band(r['u_fem'], r['u_fem_is_gci'])} "
-                     f"{fmt(r['fem_richardson'], 14)} {fmt(diff)} {rel:>8} {verdict:>9}"
+                     f"{fmt(r['fem_richardson'], 14)} {fmt(diff)} {rel:>8} {exceeds:>3} "
+                     f"{_tolerance(r):>4} {_verdict(r):>7}"
                      + (f" {fmt(r['closed_form'], 12)}" if has_ref else ""))
-    lines.append("U: GCI band GCI_fine |f| of each model's three levels (Fs = 1.25); * = no "
-                 "observed order (oscillating or round-off), band = spread of the levels (x3 "
-                 "when oscillating). 'exceeds U': |BEM - FEM| > sqrt(U_BEM^2 + U_FEM^2).")
-    return "\n".join(lines)
+    lines.append(_band_note(levels) + " rel: (BEM - FEM) / FEM.")
+    return "\n".join(lines + verdict_notes(rows, [pillars] if pillars else []))
 
 
 def _closed_form_curves(scene: Scene, fem_model: str, r_ref: float) -> list[dict]:
@@ -384,22 +469,27 @@ def summary_markdown(scene: Scene, rows: list[dict], ref_name: str, r_label: str
               "- closed form: none applies (several pillars share the load)")
              + f"; profile radii are r / ({r_label})",
              f"- render: {meta['render']}", f"- wall time: {meta['wall_time_s']:.1f} s", "",
-             "```", table_text(rows, ref_name, r_label), "```", ""]
+             "```", table_text(rows, ref_name, r_label, meta["levels"],
+                               None if scene.is_flat or kinds else meta["pillars"]),
+             "```", ""]
     odd = [r for r in rows if r["fem_status"] not in (None, "ok")]
     if odd:
         lines.append("FEM sequences without an observed order: "
                      + "; ".join(f"{r['quantity']}: {r['fem_status']}" for r in odd))
-    if kinds is None:
-        real = [r["quantity"] for r in rows if r["exceeds"]]
-        lines.append("Differences larger than the numerical uncertainty (model differences): "
-                     + (", ".join(real) if real else "none"))
-    else:
-        lines.append("")
-        for p in kinds:
-            real = [r["quantity"] for r in rows if r["bems"][p]["exceeds"]]
-            lines.append(f"- BEM ({pillar_label(p)} pillars) - FEM differences larger than "
-                         "the numerical uncertainty (model differences): "
-                         + (", ".join(real) if real else "none"))
+    lines.append("")
+    for p in kinds or [None]:
+        own = [r["bems"][p] if p is not None else r for r in rows]
+        name = bem_name(scene, p if p is not None else meta["pillars"])
+        real = [r["quantity"] for r, b in zip(rows, own) if b["exceeds"]]
+        lines.append(f"- {name} - FEM differences larger than the numerical uncertainty "
+                     "(model differences): " + (", ".join(real) if real else "none"))
+        judged = [(r["quantity"], b) for r, b in zip(rows, own) if b.get("passed") is not None]
+        failed = [q for q, b in judged if not b["passed"] and not b.get("model_error")]
+        expected = [q for q, b in judged if not b["passed"] and b.get("model_error")]
+        lines.append(f"- {name} against the tolerance: {len(judged) - len(failed) - len(expected)}"
+                     f" of {len(judged)} pass; FAIL: {', '.join(failed) or 'none'}"
+                     + (f"; FAIL within the expected model error: {', '.join(expected)}"
+                        if expected else ""))
     if meta.get("not_converged"):
         lines += ["", "**NOT CONVERGED**: " + "; ".join(meta["not_converged"])]
     return "\n".join(lines) + "\n"
@@ -486,7 +576,8 @@ def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None, leve
         bem_res[p] = bem_data[p]["results"][-1]
         bem_studies = dict(bem_data[p]["studies"]) | profile_studies(bem_data[p], r_ref)
         rows_by[p] = compare_rows(_values(bem_res[p], r_ref), _values(fem_res, r_ref),
-                                  bem_studies, fem_studies, reference)
+                                  bem_studies, fem_studies, reference,
+                                  expected_model_errors(scene, p))
     rows = three_way_rows(rows_by) if several else rows_by[kinds[0]]
     unconverged = [f"{data['model']}"
                    + (f" ({pillar_label(p)} pillars)" if several and p else "")

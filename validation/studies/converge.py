@@ -63,8 +63,9 @@ def study_levels(model: str, scene: Scene, outcomes: list[Outcome]) -> dict:
     """The verification study of finished levels (coarse to fine).
 
     Returns a JSON-ready dict with the ladder, one row per level and, per quantity, the
-    :func:`validation.analysis.verification.study` dict, plus ``results`` (the ContactResults, not
-    JSON).  A level that failed raises its error.
+    :func:`validation.analysis.verification.study` dict, ``label`` (the model with its pillar
+    model, as tables and plots name it), plus ``results`` (the ContactResults, not JSON).  A
+    level that failed raises its error.
     """
     ladder = ladder_for(model)
     rows, results = [], []
@@ -83,7 +84,8 @@ def study_levels(model: str, scene: Scene, outcomes: list[Outcome]) -> dict:
     mixed = any(r.floor_force_N > 0.0 for r in results)  # the floor's quantities too
     studies = {q.key: study(h, [r[q.key] for r in rows])
                for q in QUANTITIES + (FLOOR_QUANTITIES if mixed else ())}
-    return {"model": model, "scene": scene.to_dict(),
+    return {"model": model, "label": results[-1].label if results else model,
+            "scene": scene.to_dict(),
             "ladder": {"option": ladder.option, "h_meaning": ladder.h_meaning,
                        "h_power": ladder.h_power, "fixed": ladder.fixed},
             "levels": rows, "studies": studies,

@@ -56,6 +56,7 @@ from ..engine import Case, Engine
 from ..registry import QUANTITIES, quantity_values
 from ..analysis.verification import study
 from .compare import profile_key, profile_studies
+from .targets import TARGET_RULE, TARGETS, judge
 
 PHIS = (0.03, 0.1, 0.2, 0.4)
 RATIOS = (0.1, 1.0, 10.0, 1e6)
@@ -99,10 +100,6 @@ CONVENTIONS = (LENS, PILLAR)
 # the substrate's share of the compliance differs from the grid's by the same factor.
 PAPER_SCENES = ((0.2, 0.1), (0.2, 10.0), (0.4, 0.1), (0.4, 10.0))
 
-# Targets of the elastic BEM against fem-3d's Richardson estimate (fractions; module docstring).
-TARGETS = {"F_T": 0.01, "sigma0": 0.03, "rings": 0.02, "profile": 0.05}
-TARGET_RULE = ("|(elastic BEM - FEM) / FEM| within the target, or within both GCI bands "
-               "(over |FEM|) where the bands are wider; FEM and BEM as Richardson estimates")
 # The centre pillar's top profile along theta = 0 at r = x d/2 (r < 0.9 d/2).
 PROFILE_POINTS = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.85)
 
@@ -337,23 +334,6 @@ def _profile_estimates(fem: dict, ladders: dict, radius_m: float) -> list[dict]:
 
 
 # --- targets of the elastic BEM -------------------------------------------------------------
-def judge(value, band, reference, reference_band, target: float) -> dict:
-    """One target: ``error`` = (value - reference) / reference; ``allowed`` = the target, or
-    both bands over |reference| where they are wider; ``met`` = |error| <= allowed.  A
-    reference of 0 is met when |value| is within both bands; a missing value is not judged
-    (``met`` None)."""
-    out = {"target": target, "error": None, "allowed": None, "met": None}
-    if any(v is None for v in (value, band, reference, reference_band)):
-        return out
-    if reference == 0:
-        out["met"] = bool(abs(value) <= band + reference_band)
-        return out
-    error = (value - reference) / reference
-    allowed = max(target, (band + reference_band) / abs(reference))
-    out.update(error=error, allowed=allowed, met=bool(abs(error) <= allowed))
-    return out
-
-
 def _group(checks: list[dict], target: float) -> dict:
     """Several checks of one target: met when every one is (None when one is not judged or
     there are none); ``worst`` the check with the largest |error| / allowed."""

@@ -176,7 +176,8 @@ def tradeoff(scene, models, cache_dir: Path | None = None, *, engine: Engine | N
                     skipped[name] = f"refused {ladder.option}={level}: {outcome.error}"
                     break
                 result, timing = outcome.unwrap(), outcome.timing
-                row = {"model": name, "option": ladder.option, "level": level,
+                row = {"model": name, "label": result.label, "option": ladder.option,
+                       "level": level,
                        "h": ladder.size(level), "wall_time_s": timing["wall_time_s"],
                        "time_noise_s": time_noise(timing),
                        "peak_memory_MB": timing["peak_memory_MB"],
@@ -382,13 +383,17 @@ def _error_text(err) -> str:
 
 
 def pareto_table(doc: dict) -> str:
-    lines = [f"{'model':<9} {'level':>5} {'time s':>8} {'+-s':>7} {'mem MB':>7} "
+    """The rungs' times and errors (each model named with its pillar model), then each
+    physics' references and what they came from."""
+    width = max([9] + [len(r.get("label", r["model"])) for r in doc["rows"]])
+    lines = [f"{'model':<{width}} {'level':>5} {'time s':>8} {'+-s':>7} {'mem MB':>7} "
              + " ".join(f"{'err ' + q.key:>10}" for q in QUANTITIES)]
     for r in doc["rows"]:
         errs = " ".join(_error_text(r[f"err_{s}"]) for s in (q.key for q in QUANTITIES))
         flag = "" if r["converged"] else "  NOT CONVERGED"
         noise = r.get("time_noise_s")
-        lines.append(f"{r['model']:<9} {r['level']:>5} {r['wall_time_s']:>8.3g} "
+        lines.append(f"{r.get('label', r['model']):<{width}} {r['level']:>5} "
+                     f"{r['wall_time_s']:>8.3g} "
                      f"{'-' if noise is None else format(noise, '.2g'):>7} "
                      f"{r['peak_memory_MB']:>7.0f} {errs}{flag}")
     lines.append(f"time: median of the repeats; +-: its noise (the repeats' spread, at least "
@@ -402,17 +407,36 @@ def pareto_table(doc: dict) -> str:
 
 
 def _reference_lines(group: str, references: dict) -> list:
-    lines = [f"references ({group}): " + "; ".join(
-        f"{s} = {ref['value']:.6g} ({ref['model']}, {ref['status']}"
-        + (f", order {ref['order']:.2f}" if ref["order"] else "") + ")"
-        for s, ref in references.items())]
+    """The references of one physics, each with the estimate it came from and why, then
+    every model's own extrapolation marked as the reference or as a cross-check (with the
+    reason it is not the reference): two extrapolated values with two orders are otherwise
+    two answers to one question."""
+    lines = [f"references ({group}): the value each error of this physics is measured against"]
     for s, ref in references.items():
+        lines.append(f"  {s} = {ref['value']:.6g} from {ref['model']} ("
+                     + (ref.get("basis") or ref["status"])
+                     + (f", order {ref['order']:.2f}" if ref["order"] else "") + ")")
+        used = set(str(ref.get("model") or "").split("+")) if ref.get("basis") else set()
+        expected_tier = "expected order" in (ref.get("basis") or "")
         for m, est in ref.get("per_model", {}).items():
-            if est["f_exact"] is not None and est["order"] is not None:
-                lines.append(f"  {s} extrapolated by {m}: {est['f_exact']:.6g} +- "
-                             f"{est['band']:.2g} (order {est['order']:.2f})")
-            elif est["f_exact"] is not None:
-                lines.append(f"  {s} by {m}: {est['f_exact']:.6g} ({est['status']})")
+            own = est["assumed"] if expected_tier and m in used and est.get("assumed") else est
+            if m in used:
+                role = "the reference" if len(used) == 1 else "part of the reference"
+            elif est.get("pre_asymptotic"):
+                role = ("a cross-check, not used: pre-asymptotic ("
+                        + "; ".join(est["pre_asymptotic"]) + ")")
+            elif est["f_exact"] is None or est.get("order") is None:
+                role = f"a cross-check, not used: {est['status']}"
             else:
-                lines.append(f"  {s} extrapolated by {m}: none ({est['status']})")
+                role = "a cross-check, not used: a wider band"
+            if own["f_exact"] is None:
+                lines.append(f"    {s} extrapolated by {m}: none ({est['status']})")
+                continue
+            how = ("at its expected order " if own is not est else "") + \
+                (f"order {own['order']:.2f}" if own.get("order") is not None
+                 else est["status"])
+            band = f" +- {own['band']:.2g}" if own.get("band") is not None else ""
+            lines.append(f"    {s} extrapolated by {m}: {own['f_exact']:.6g}{band} ({how}): "
+                         f"{role}")
+        lines += [f"    note: {flag}" for flag in ref.get("flags", [])]
     return lines

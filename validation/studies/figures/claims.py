@@ -224,14 +224,15 @@ def verdict(holds) -> str:
     return {True: "yes", False: "no"}.get(holds, "undecided")
 
 
-def write_claims_csv(out: Path, rows: list[dict], variants) -> Path:
-    """``claims.csv``: one line per (claim, pillar model): key, figure, pillars, value,
-    holds (yes / no / undecided), claim, criterion."""
+def write_claims_csv(out: Path, rows: list[dict], variants, grid: str = "full") -> Path:
+    """``claims.csv``: one line per (claim, pillar model): key, figure, pillars, grid (the
+    figures' grid it was judged on: ``full``, or ``quick``, the coarse one of --quick),
+    value, holds (yes / no / undecided), claim, criterion."""
     buf = io.StringIO()
     w = csv.writer(buf)
-    w.writerow(["key", "figure", "pillars", "value", "holds", "claim", "criterion"])
+    w.writerow(["key", "figure", "pillars", "grid", "value", "holds", "claim", "criterion"])
     for r in rows:
         for v in variants:
-            w.writerow([r["key"], r["figure"], v, r[v]["value"], verdict(r[v]["holds"]),
+            w.writerow([r["key"], r["figure"], v, grid, r[v]["value"], verdict(r[v]["holds"]),
                         r["claim"], r["criterion"]])
     return write_atomic(Path(out) / "claims.csv", buf.getvalue())

@@ -265,6 +265,12 @@ def _claims_table(claims: list[dict], variants) -> list[str]:
     return rows
 
 
+# What the claims judged on the coarse grid of `figures --quick` are worth.
+QUICK_CLAIMS = ("**Judged on the coarse grid of `--quick`** (a few Phi, zeta and stiffness "
+                "values, P = 5, three bisection steps): these verdicts test the pipeline, not "
+                "the paper; `pillar-xval figures` without --quick judges the claims.")
+
+
 def write_report(out: Path, doc: dict) -> list[Path]:
     """Write ``figures.md`` from the study's document (one pillar model's, or ``variants``
     with one per model); returns its path."""
@@ -313,6 +319,7 @@ def write_report(out: Path, doc: dict) -> list[Path]:
         "explained in validation/studies/figures/claims.py); **yes**: the claim holds on our "
         "figures with that pillar model, **no**: it does not, undecided: the data cannot tell. "
         "The same lines are in claims.csv.",
+        *([] if g.get("name") != "quick" else ["", QUICK_CLAIMS]),
         "",
         *_claims_table(doc.get("claims", []), variants),
         "",

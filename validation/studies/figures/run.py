@@ -8,7 +8,7 @@ fitted (:mod:`.fits`), and each figure is written as a PNG with the CSV of its d
 numbers beside ours, :mod:`.report`) and ``timing.json``.
 
 ``pillars = "elastic"`` or ``"both"`` runs the scenes and the bisection with the elastic-pillar
-BEM as well (the model's option ``pillars``; Hooke cases keep today's options and keys).
+BEM as well (the model's option ``pillars``, named in every case, Hooke ones included).
 Every elastic scene of the figures has E_s = E_p and Table 1's h/d and nu: one pillar kind,
 whose compliance is built (or read from the disk cache) once before the batch.
 
@@ -137,9 +137,9 @@ def pillar_variants(pillars) -> tuple[str, ...]:
 
 
 def variant_options(options: dict, pillars: str) -> dict:
-    """The model's options for one pillar model.  Hooke pillars add nothing (the model's
-    default): the default run's case keys, hence its cache, are today's."""
-    return dict(options) if pillars == "hooke" else {**options, "pillars": pillars}
+    """The model's options for one pillar model, named even for the paper's Hooke spring: a
+    sweep gives a scene with elastic pillars the elastic pillar where none is named."""
+    return {**options, "pillars": pillars}
 
 
 def _pillar_kinds(batch: list[Case]) -> list:
@@ -291,7 +291,7 @@ def run_figures(out: Path, grid: FigureGrid | None = None, *, model: str = "bem-
     doc["paths"] = paths
     write_atomic(out / "timing.json", json.dumps(timing, indent=2) + "\n")
     doc["paths"] += [str(out / "timing.json")]
-    doc["paths"] += [str(write_claims_csv(out, doc["claims"], variants))]
+    doc["paths"] += [str(write_claims_csv(out, doc["claims"], variants, grid.name))]
     doc["paths"] += [str(p) for p in write_report(out, doc)]
     write_atomic(out / "figures.json", json.dumps(doc, indent=1, default=float) + "\n")
     return doc

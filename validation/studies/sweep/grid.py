@@ -10,10 +10,9 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from pillar_xval.scenes import InputError, Scene, SceneError, scene_loader
+from pillar_xval.scenes import InputError, Scene, SceneError, ScopeError, scene_loader
 
 from ...engine import Case
-from ...registry import check_option
 
 _RANGE_KEYS = {"linear", "log", "num"}
 # What a grid holds in memory, measured by `python -m validation.bench.sweep` (make
@@ -225,22 +224,14 @@ class Sweep:
         """(cases, skipped points with the reason), of every point or of the points
         ``indices``.  A point the scene refuses raises an InputError naming the point, unless
         ``on_invalid = "skip"``."""
-        from ...registry import MODELS, model_names
+        from ...planner.features import scope_refusal
+        from ...registry import check_options, scene_defaults
 
-        for m in self.models:
-            if m.name not in MODELS:
-                raise InputError(f"[[models]] name = {m.name!r}: unknown; available: "
-                                 f"{', '.join(model_names())}")
-            declared = MODELS[m.name].options
-            bad = sorted(set(m.options) - set(declared))
-            if bad:
-                raise InputError(f"[[models]] {m.name}: unknown option(s) {', '.join(bad)}; "
-                                 f"allowed: {', '.join(declared)}")
-            for opts in m.option_sets():  # values the model would refuse, before any solve
-                for k, v in opts.items():
-                    check_option(k, v, where=f"[[models]] {m.name}: {k} =", spec=declared[k])
-        if indices is None:
+        if indices is None:  # sized before anything is built, the models' option sets too
             check_size(self.point_count(), sum(len(a) for a in self.axes), self.case_count())
+        for m in self.models:  # values a model would refuse, before any solve
+            for opts in m.option_sets():
+                check_options(m.name, opts, "[[models]]")
         out, skipped = [], []
         load = scene_loader(self.scene)  # the scene file is read once, not once per point
         points = self.points() if indices is None else [self.point(i) for i in indices]
@@ -253,10 +244,18 @@ class Sweep:
                     skipped.append((point, str(exc)))
                     continue
                 raise SceneError(f"sweep point {_describe(point)}: {exc}") from None
+            refused = _refused(self.models, scene, scope_refusal)
+            if refused is not None:
+                if self.on_invalid == "skip":
+                    skipped.append((point, refused))
+                    continue
+                raise ScopeError(f"sweep point {_describe(point)}: {refused} (on_invalid = "
+                                 "\"skip\" leaves such points out)")
             for m in self.models:
                 for opts in m.option_sets():
-                    out.append(SweepCase(point, scene, Case(m.name, scene, opts,
-                                                            tag=_describe(point))))
+                    out.append(SweepCase(point, scene, Case(
+                        m.name, scene, scene_defaults(m.name, scene, opts),
+                        tag=_describe(point))))
         return out, skipped
 
     # --- files ---
@@ -309,6 +308,23 @@ class Sweep:
                              "file name (no folder, not '..'), so the table stays inside --out")
         return cls(scene, tuple(axes), tuple(models), tuple(overrides),
                    name, str(data.get("on_invalid", "error")))
+
+
+def _refused(models, scene: Scene, scope_refusal) -> str | None:
+    """Why a model of the sweep cannot run ``scene`` (its declared scope, or an elastic
+    pillar on a flat scene), or None."""
+    from ...registry import check_options
+
+    for m in models:
+        why = scope_refusal(m.name, scene)
+        if why is not None:
+            return why
+        for opts in m.option_sets():
+            try:
+                check_options(m.name, opts, "[[models]]", scene)
+            except InputError as exc:
+                return str(exc)
+    return None
 
 
 def _is_preset(name: str) -> bool:
