@@ -78,6 +78,14 @@ bench-fft: $(STAMP)
 	$(PY) -m pip install --quiet -e '.[bench]' || echo "bench-fft: ContactMechanics not installed; the comparison will be skipped"
 	$(PY) -m validation.bench.fft --out $(OUT)/bench-fft
 
+# The floor between the pillars in bem-fft: a mixed against a suspended solve on one grid
+# (~1e6 cells, medians of 3 alternate runs), iterations against the floor's share, the floor
+# quantities' order and GCI over N = 8-64, and ContactMechanics (the [bench] extra) with the
+# floor in its topography on two scenes: $(OUT)/bench-floor/bench_floor.md (about 15 minutes).
+bench-floor: $(STAMP)
+	$(PY) -m pip install --quiet -e '.[bench]' || echo "bench-floor: ContactMechanics not installed; the comparison will be skipped"
+	$(PY) -m validation.bench.floor --out $(OUT)/bench-floor
+
 # Study engine: a sweep killed (kill -9) mid-way and resumed loses and repeats nothing; the
 # same sweep on a Dask scheduler + two worker processes (127.0.0.1) gives the pool's table.
 # FFT BEM on the GPU against the CPU path in one run (needs the [gpu] extra and a GPU; without

@@ -201,3 +201,94 @@ def test_the_loading_curve_crosses_the_transition_and_marks_it(tmp_path, capsys)
     rows = list(csv.DictReader(io.StringIO((tmp_path / "curve.csv").read_text())))
     assert [r["regime"] for r in rows] == ["multi-pillar", "mixed"]
     assert float(rows[0]["floor_force_N"]) == 0.0 < float(rows[1]["floor_force_N"])
+
+
+# Roof collapse against the exact solver's onset: the estimate over the centre pillar's force
+# per lattice cell at the onset, measured +2.2 % at Phi = 0.03 and 0.1 on the paper's lens
+# (bem-fft N = 8; a contact several pitches wide, as the estimate assumes); bound at 2x.
+RTOL_ROOF_COLLAPSE = 0.05
+
+
+def test_onset_brackets_the_first_floor_contact(tmp_path, capsys):
+    from validation.cli import main
+
+    sets = ["--set", "lens.radius_mm=0.2", "--set", "pillars.surface_fraction=0.1",
+            "--set", "pillars.height_um=1"]
+    code = main(["onset", "--scene", "paper-fig3-sparse", *sets, "--cells-per-diameter", "8",
+                 "--rtol", "0.01", "--out", str(tmp_path), "--executor", "serial"])
+    assert code == 0 and "the floor is first touched at zeta" in capsys.readouterr().out
+    doc = json.loads((tmp_path / "onset.json").read_text())
+    lo, hi = doc["bracket_indentation_m"]
+    assert doc["geometric_bound_m"] <= lo < doc["onset_indentation_m"] < hi <= lo * 1.0101
+    below = [s for s in doc["solves"] if s["indentation_m"] <= lo]
+    above = [s for s in doc["solves"] if s["indentation_m"] >= hi]
+    assert all(s["floor_force_N"] == 0.0 for s in below)
+    assert all(s["floor_force_N"] > 0.0 for s in above)
+    flo, fhi = doc["bracket_force_N"]
+    assert flo < doc["onset_force_N"] < fhi
+    # A model without the floor is refused in one line.
+    code = main(["onset", "--scene", "paper-fig3-sparse", "--model", "bem",
+                 "--out", str(tmp_path / "b")])
+    assert code == 2 and "does not include the floor" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("phi", [0.03, 0.1])
+def test_roof_collapse_estimate_meets_the_solver_s_onset(tmp_path, phi):
+    from pillar_xval.scenes.floor import roof_collapse_pressure
+    from validation.studies.onset import onset_study
+
+    scene = load_scene("paper-fig3-sparse", [f"pillars.surface_fraction={phi}"])
+    doc = onset_study(scene, "bem-fft", tmp_path, options={"cells_per_diameter": 8},
+                      rtol=3e-3)
+    assert doc["roof_collapse_pressure_Pa"] == roof_collapse_pressure(scene)
+    assert doc["roof_collapse_pressure_Pa"] == pytest.approx(
+        doc["onset_centre_mean_pressure_Pa"], rel=RTOL_ROOF_COLLAPSE)
+
+
+def test_roof_collapse_closed_form_limits():
+    from pillar_xval.scenes.floor import roof_collapse_pressure
+
+    base = load_scene("paper-fig3-sparse", ["pillars.rigid=true"])
+    # Linear in the gap h + g(e / sqrt 3), and inverse in the compliances.
+    taller = load_scene("paper-fig3-sparse", ["pillars.rigid=true", "pillars.height_um=4"])
+    e = base.pillars.pitch_m
+    g = e * e / 3.0 / (2.0 * base.lens.radius_m)
+    assert roof_collapse_pressure(taller) / roof_collapse_pressure(base) == pytest.approx(
+        (4e-6 + g) / (2e-6 + g), rel=1e-6)
+    stiffer = load_scene("paper-fig3-sparse", ["pillars.rigid=true", "lens.E_Pa=3.2e6",
+                                               "substrate.E_Pa=3.2e6"])
+    assert roof_collapse_pressure(stiffer) == pytest.approx(2 * roof_collapse_pressure(base),
+                                                            rel=1e-12)
+    # Denser lattices hold the lens up at higher mean pressures.
+    dense = load_scene("paper-fig3-sparse", ["pillars.rigid=true",
+                                             "pillars.surface_fraction=0.3"])
+    assert roof_collapse_pressure(dense) > roof_collapse_pressure(base)
+
+
+def test_the_planner_plans_a_mixed_scene_with_floor_models_only():
+    from validation.planner.plan import plan
+
+    p = plan(load_scene("paper-fig3-sparse", ["load.indentation_um=5"]), 0.05)
+    assert p["regime"]["name"] == "mixed"
+    assert p["choice"] is not None and p["choice"]["model"] == "bem-fft"
+    refused = [c for c in p["candidates"] if c["model"] in ("bem", "fem-axisym", "spring")]
+    assert refused and all("does not include the floor" in c["why"] for c in refused)
+    assert plan(load_scene("paper-fig3-sparse"), 0.05)["regime"]["name"] == "multi"
+
+
+@pytest.mark.parametrize("label", ["floor: zeta=10h", "floor: h/d=0.05 zeta=5h",
+                                   "floor: Ep- zeta=3h", "floor: Ep+ zeta=3h",
+                                   "floor: Phi=0.9 zeta=5h"])
+def test_extremes_past_the_pillar_tops_hold_the_invariants(label):
+    from validation.studies.extremes.run import corner_scenes, model_options
+
+    scene = next(e["scene"] for e in corner_scenes() if e["label"] == label)
+    result = solve_fft(scene, **model_options()["bem-fft"])
+    f = result.fields
+    assert result.converged, result.diagnostics["message"]
+    assert np.all(f["pressure_Pa"] >= 0.0)
+    assert result.diagnostics["max_interpenetration_m"] <= 1e-6 * scene.indentation_m
+    assert abs(result.diagnostics["force_balance_N"]) <= 1e-9 * result.total_force_N
+    # Close packing holds the lens up at 5 h; elsewhere the floor is touched.
+    assert result.regime == ("multi-pillar" if "Phi=0.9" in label else "mixed")
