@@ -6,7 +6,8 @@ STAMP  := $(VENV)/.installed
 OUT    ?= out
 
 .PHONY: demo study-gecit study-lattice figures test test-slow bench-bem bench-fft bench-gpu bench-fem3d \
-	bench-elastic bench-engine bench-figures bench-startup bench-force bench-sweep bench-threads \
+	bench-elastic bench-fem3d-floor bench-engine bench-figures bench-startup bench-force \
+	bench-sweep bench-threads \
 	clean calibrate validate-planner extremes regimes
 
 $(STAMP): pyproject.toml
@@ -110,6 +111,10 @@ bench-elastic: $(STAMP)
 # $(OUT)/bench-force/bench_force.md (about 30 minutes, most of it fem-3d at 1.41).
 bench-force: $(STAMP)
 	$(PY) -m validation.bench.force --out $(OUT)/bench-force
+
+# fem-3d with the floor against suspended runs at the same mesh size (time, phases, memory).
+bench-fem3d-floor: $(STAMP)
+	$(PY) -m validation.bench.fem3d_floor --out $(OUT)/bench-fem3d-floor --repeats 3
 
 # Thread scaling: bem-fft at 1e6 cells and the dense BEM on 1 up to the CPUs this process may
 # use (fresh interpreters, medians of 3 interleaved runs, answers compared with 1 thread's),

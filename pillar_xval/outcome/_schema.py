@@ -152,6 +152,8 @@ class ContactResult:
                f"{self.floor_contact_radius_m * 1e6:.6g} um"]
               if self.floor_force_N > 0.0 and self.total_force_N > 0.0 else []),
             f"regime           {self.regime}",
+            *([f"side walls       {self.diagnostics['side_wall_warning']}"]
+              if self.diagnostics.get("side_wall_warning") else []),
             f"converged        {self.converged} after {self.iterations} iterations, "
             f"{self.wall_time_s:.3g} s",
         ]

@@ -163,25 +163,17 @@ class Model:
                 kwargs[name] = value
         if not self.floor:
             check_floor_scope(scene, self.name)  # a given indentation only
-        if scene.force_N is not None and self.force_control != "native":
-            from pillar_xval.contact import solve_at_force
-            from pillar_xval.scenes import analytic
-
-            result = solve_at_force(lambda at: self.function(at, **kwargs), scene,
-                                    guess=analytic.indentation_estimate(scene),
-                                    how=f"{self.name}, by solves under indentations")
-        else:
-            result = self.function(scene, **kwargs)
-        if not self.floor and scene.force_N is not None:
-            check_floor_scope(scene, self.name, result.indentation_m, "solved by the model")
-        return result
         with limited():
             if scene.force_N is not None and self.force_control != "native":
                 from pillar_xval.contact import solve_at_force
                 from pillar_xval.scenes import analytic
 
-                return solve_at_force(lambda at: self.function(at, **kwargs), scene,
-                                      guess=analytic.indentation_estimate(scene),
-                                      how=f"{self.name}, by solves under indentations")
-            return self.function(scene, **kwargs)
+                result = solve_at_force(lambda at: self.function(at, **kwargs), scene,
+                                        guess=analytic.indentation_estimate(scene),
+                                        how=f"{self.name}, by solves under indentations")
+            else:
+                result = self.function(scene, **kwargs)
+        if not self.floor and scene.force_N is not None:
+            check_floor_scope(scene, self.name, result.indentation_m, "solved by the model")
+        return result
 
