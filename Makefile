@@ -6,8 +6,9 @@ STAMP  := $(VENV)/.installed
 OUT    ?= out
 
 .PHONY: demo study-gecit study-lattice figures test test-slow bench-bem bench-fft bench-gpu bench-fem3d \
-	bench-elastic bench-engine bench-figures bench-startup bench-force bench-sweep bench-threads \
-	clean calibrate validate-planner extremes regimes docs lint
+	bench-elastic bench-fem3d-floor bench-engine bench-figures bench-startup bench-force \
+	bench-floor bench-sweep bench-threads clean calibrate validate-planner extremes regimes \
+	docs lint
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -89,6 +90,14 @@ bench-fft: $(STAMP)
 	$(PY) -m pip install --quiet -e '.[bench]' || echo "bench-fft: ContactMechanics not installed; the comparison will be skipped"
 	$(PY) -m validation.bench.fft --out $(OUT)/bench-fft
 
+# The floor between the pillars in bem-fft: a mixed against a suspended solve on one grid
+# (~1e6 cells, medians of 3 alternate runs), iterations against the floor's share, the floor
+# quantities' order and GCI over N = 8-64, and ContactMechanics (the [bench] extra) with the
+# floor in its topography on two scenes: $(OUT)/bench-floor/bench_floor.md (about 15 minutes).
+bench-floor: $(STAMP)
+	$(PY) -m pip install --quiet -e '.[bench]' || echo "bench-floor: ContactMechanics not installed; the comparison will be skipped"
+	$(PY) -m validation.bench.floor --out $(OUT)/bench-floor
+
 # Study engine: a sweep killed (kill -9) mid-way and resumed loses and repeats nothing; the
 # same sweep on a Dask scheduler + two worker processes (127.0.0.1) gives the pool's table.
 # FFT BEM on the GPU against the CPU path in one run (needs the [gpu] extra and a GPU; without
@@ -114,6 +123,10 @@ bench-elastic: $(STAMP)
 # $(OUT)/bench-force/bench_force.md (about 30 minutes, most of it fem-3d at 1.41).
 bench-force: $(STAMP)
 	$(PY) -m validation.bench.force --out $(OUT)/bench-force
+
+# fem-3d with the floor against suspended runs at the same mesh size (time, phases, memory).
+bench-fem3d-floor: $(STAMP)
+	$(PY) -m validation.bench.fem3d_floor --out $(OUT)/bench-fem3d-floor --repeats 3
 
 # Thread scaling: bem-fft at 1e6 cells and the dense BEM on 1 up to the CPUs this process may
 # use (fresh interpreters, medians of 3 interleaved runs, answers compared with 1 thread's),

@@ -16,6 +16,7 @@ import numpy as np
 from pillar_xval.contact import ContactSolution, min_map_residual, solve_active_set as solve_contact
 from pillar_xval.outcome import ContactResult, PillarForce
 from pillar_xval.scenes import Scene, ScopeError, analytic
+from pillar_xval.scenes.floor import check_floor_scope
 from pillar_xval.outcome.memory import memory_short
 from pillar_xval.threads import thread_count
 
@@ -97,6 +98,7 @@ def solve_dense(scene: Scene, elements_per_diameter: int = 11, cells: str = "cov
         from ._dense_force import solve_under_force
 
         return solve_under_force(scene, P, cells, contact, pillars, compliance, progress, t0)
+    check_floor_scope(scene, "bem")
     _refuse_if_too_large(scene, P, cells, contact)
     elastic = elastic_setup(scene, P, cells, pillars, compliance, progress)
     level = solve_rounds(scene, P, cells, contact, elastic)

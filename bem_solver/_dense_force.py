@@ -29,6 +29,7 @@ import time
 from pillar_xval.contact import solve_at_force
 from pillar_xval.outcome import ContactResult
 from pillar_xval.scenes import Scene, analytic
+from pillar_xval.scenes.floor import check_floor_scope
 
 from ._dense import (RTOL_COMPLEMENTARITY, _refuse_if_too_large, elastic_setup, level_result,
                      solve_dense, solve_rounds)
@@ -70,6 +71,7 @@ def solve_under_force(scene: Scene, P: int, cells: str, contact: str, pillars: s
         level.sol.message = (f"the cells' design indentation did not settle in "
                              f"{MAX_DESIGN_ROUNDS} rounds ({rounds[-2]['indentation_m']:.6g} "
                              f"then {zeta:.6g} m)")
+    check_floor_scope(scene, "bem", zeta, f"bem at P = {P}")
     solved = scene.implied(zeta, f"bem at P = {P}")
     result = level_result(solved, level, time.perf_counter() - t0, pillars)
     return result.for_force(scene.to_dict(), zeta, design_rounds=rounds)

@@ -570,3 +570,53 @@ class FFTPillarTerm:
         """The term as a dense matrix (m/Pa), column by column (tests on small grids)."""
         eye = np.eye(self.n)
         return np.column_stack([self(eye[:, j]) for j in range(self.n)])
+
+
+def tops_grid(grid):
+    """The pillar-top cells of ``grid`` alone (the first ``grid.n_top`` unknowns), the grid
+    an elastic pillar term is built on when the floor's cells are candidates too."""
+    from dataclasses import replace
+
+    n = grid.n_top
+    return replace(grid, flat_index=grid.flat_index[:n], x=grid.x[:n], y=grid.y[:n],
+                   covered=grid.covered[:n], gap0=grid.gap0[:n], pillar=grid.pillar[:n],
+                   colloc_x=grid.colloc_x[:n], colloc_y=grid.colloc_y[:n], floor=None,
+                   n_unique=None, floor_radius=0.0)
+
+
+class TopsOnlyTerm:
+    """An elastic pillar term (:class:`FFTPillarTerm`) built on the top cells, acting on a
+    grid whose floor cells follow them: zero on and from the floor.  The floor meets the
+    pillars through the half-space kernel alone (the column model of the coupling:
+    PHYSICS.md, "The floor between the pillars")."""
+
+    def __init__(self, term: FFTPillarTerm, n_cells: int):
+        self.term = term
+        self.n = n_cells
+        self.n_top = term.n
+        self.local_compliance = term.local_compliance
+        self.diagonal = np.concatenate([term.diagonal, np.zeros(n_cells - term.n)])
+
+    def _pad(self, u):
+        out = np.zeros(self.n)
+        out[:self.n_top] = u
+        return out
+
+    def __call__(self, q):
+        return self._pad(self.term(q[:self.n_top]))
+
+    def apply_few(self, index, values):
+        on_top = index < self.n_top
+        u = self.term.apply_few(index[on_top], values[on_top])
+        return None if u is None else self._pad(u)
+
+    def mode_compliance(self, counts):
+        """The term's for the pillars; 0 for the floor's index (the last)."""
+        share = np.zeros(len(counts))
+        share[:-1] = self.term.mode_compliance(counts[:-1])
+        return share
+
+    def dense_matrix(self) -> np.ndarray:
+        mat = np.zeros((self.n, self.n))
+        mat[:self.n_top, :self.n_top] = self.term.dense_matrix()
+        return mat

@@ -65,8 +65,8 @@ from pillar_xval.scenes import InputError, Scene, ScopeError
 from ._dense import _smooth_edge_radius
 from ._fft_grid import (CellGrid, build_grid, candidate_side, check_grid_side,
                         estimate_host_memory)
-from ._elastic_pillar import (FFTPillarTerm, check_pillars, operator_records, pillar_record,
-                              scene_compliance, uses_elastic_block)
+from ._elastic_pillar import (FFTPillarTerm, TopsOnlyTerm, check_pillars, operator_records,
+                              pillar_record, scene_compliance, tops_grid, uses_elastic_block)
 from ._fft_operator import CirculantPreconditioner, CompliancePlan, near_field_correction
 from ._limits import PRECISIONS
 from ._xp import NumpyDevice, select_backend
@@ -248,12 +248,18 @@ def _prepare(scene: Scene, cells_per_diameter: int, opts: _Options, be, workspac
         if opts.edge_correction else None
     term = None
     if opts.elastic:
-        term = FFTPillarTerm(scene, grid, opts.compliance, lambda gamma: near_field_correction(
-            grid, gamma, backend=be) if opts.edge_correction else None, workers=be.workers)
+        tops = tops_grid(grid) if grid.has_floor else grid
+        term = FFTPillarTerm(scene, tops, opts.compliance, lambda gamma: near_field_correction(
+            tops, gamma, backend=be) if opts.edge_correction else None, workers=be.workers)
+        if grid.has_floor:
+            term = TopsOnlyTerm(term, grid.n_cells)
+    floor = grid.has_floor
     plan = CompliancePlan(grid.shape, grid.flat_index, L, scene.half_space_compliance,
                           pillar=grid.pillar, spring_compliance=spring, workers=opts.workers,
                           correction=correction, backend=be, pillar_term=term,
-                          precision=opts.precision, workspace=workspace)
+                          precision=opts.precision, workspace=workspace,
+                          n_unique=grid.n_unique if floor else None,
+                          floor_pillar=len(grid.pillar_nm) if floor else None)
     be.synchronize()
     timings["kernel_table"] = time.perf_counter() - lap
     return _Setup(grid, plan, _preconditioner(plan, opts.preconditioner), timings)
@@ -367,6 +373,8 @@ def _plain_grid(grid: CellGrid, scene: Scene) -> CellGrid:
     from pillar_xval.scenes.analytic import lens_gap
 
     gap0 = lens_gap(scene.lens.radius_m, np.hypot(grid.x, grid.y)) - scene.indentation_m
+    if grid.has_floor:
+        gap0[grid.floor] += scene.pillars.height_m
     return replace(grid, colloc_x=grid.x, colloc_y=grid.y, gap0=gap0)
 
 
@@ -379,9 +387,32 @@ def _interpolate(rough: ContactResult, grid: CellGrid, be, slivers: bool = True)
     coarse cells around them (bilinear with normalised weights): a sliver's own coarse value is
     the least accurate one and, with the equivalent-square self-compliance ~ 1 / sqrt(phi), a
     wrong sliver pressure costs many constrained-CG iterations to undo.  Without the edge
-    correction (``slivers=False``) every cell takes the plain bilinear interpolation."""
-    xp = be.xp
+    correction (``slivers=False``) every cell takes the plain bilinear interpolation.  The
+    tops and the floor are carried separately, each from its own coarse cells."""
     f = rough.fields
+    coarse_floor = f.get("floor")
+    if not grid.has_floor and (coarse_floor is None or not coarse_floor.any()):
+        return _interpolate_layer(f, None, grid, None, be, slivers)
+    xp = be.xp
+    q = xp.zeros(grid.n_cells, dtype=xp.float64)
+    fine_floor = be.asarray(grid.floor)
+    for layer in (False, True):
+        coarse = np.ones(len(f["x_m"]), dtype=bool) if coarse_floor is None else \
+            coarse_floor == layer
+        if not coarse.any() or not (grid.floor == layer).any():
+            continue
+        part = _interpolate_layer(f, coarse, grid, grid.floor == layer, be, slivers)
+        q = xp.where(fine_floor == layer, part, q)
+    return q
+
+
+def _interpolate_layer(f: dict, coarse, grid: CellGrid, fine, be, slivers: bool):
+    """:func:`_interpolate` from the coarse cells ``coarse`` (a mask, or None: all) onto every
+    fine cell (``fine`` only names the layer; the caller keeps its cells)."""
+    xp = be.xp
+    if coarse is not None:
+        f = {k: (v[coarse] if isinstance(v, np.ndarray) and v.shape == coarse.shape else v)
+             for k, v in f.items()}
     Lc = f["cell_size_m"]
     solid = f["covered_fraction"] >= 0.5
     ix = np.rint(f["x_m"] / Lc).astype(int)
@@ -455,7 +486,15 @@ def _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, mess
     contact = q > 0.0
     cell_force = q * L2
     total = float(cell_force.sum())
-    pillar_force = np.bincount(grid.pillar, weights=cell_force, minlength=len(grid.pillar_nm))
+    n_p = len(grid.pillar_nm)
+    pillar_force = np.bincount(grid.pillar, weights=cell_force, minlength=n_p)[:n_p]
+    on_floor = grid.floor & contact
+    floor_force = float(cell_force[grid.floor].sum())
+    floor_area = float(grid.covered[on_floor].sum() * L2)
+    # Outer radius of the floor contact: as the tops' (collocation radius plus half the
+    # side of the equivalent square).
+    floor_radius = float((np.hypot(grid.colloc_x, grid.colloc_y)
+                          + 0.5 * np.sqrt(grid.covered) * L)[on_floor].max(initial=0.0))
     if grid.flat:
         # Same definition as the dense model: where p^2 (linear in r^2 at a square-root edge)
         # extrapolates to zero; area pi a^2.
@@ -469,7 +508,8 @@ def _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, mess
         # (equivalent) loaded square, as in the dense model, capped at the pillar's rim.
         far = np.hypot(grid.colloc_x, grid.colloc_y) + 0.5 * np.sqrt(grid.covered) * L
         rho = np.hypot(grid.pillar_xy[:, 0], grid.pillar_xy[:, 1])
-        far = np.minimum(far, rho[grid.pillar] + 0.5 * scene.pillars.diameter_m)
+        top = ~grid.floor
+        far[top] = np.minimum(far[top], rho[grid.pillar[top]] + 0.5 * scene.pillars.diameter_m)
         contact_radius = float(far[contact].max()) if contact.any() else 0.0
         area = float((grid.covered[contact]).sum() * L2)
     forces = []
@@ -506,9 +546,13 @@ def _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, mess
         "contact_cells": int(contact.sum()),
         "max_interpenetration_m": interpenetration,
         "max_complementarity_N_per_m": float(np.max(q * np.abs(gap), initial=0.0) * L),
-        "force_balance_N": float(total - pillar_force.sum()),
+        "force_balance_N": float(total - pillar_force.sum() - floor_force),
         "near_field_pairs": 0 if plan.correction is None else int(plan.correction.nnz),
     }
+    if grid.has_floor:
+        diagnostics["floor_cells"] = int(grid.floor.sum())
+        diagnostics["floor_contact_cells"] = int(on_floor.sum())
+        diagnostics["floor_reach_m"] = grid.floor_radius
     disc = {"cells_per_diameter": int(cells_per_diameter), "cell_size_m": L,
             "cells": grid.n_cells, "tolerance": tol,
             "edge_cells": "equivalent-square" if plan.correction is not None else "grid"}
@@ -521,14 +565,16 @@ def _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, mess
               "cell_force_N": cell_force, "force_N": cell_force, "cell_size_m": L,
               "side_m": np.full(n, L), "angle_rad": np.zeros(n), "weight": np.ones(n),
               "area_m2": grid.covered * L2, "collocation_x_m": grid.colloc_x,
-              "collocation_y_m": grid.colloc_y}
+              "collocation_y_m": grid.colloc_y, "floor": grid.floor}
     return ContactResult(
         model=MODEL_NAME, scene=scene.to_dict(), discretisation=disc,
         total_force_N=total, centre_pressure_Pa=float(pressure[grid.centre_cell]),
         contact_radius_m=contact_radius, real_contact_area_m2=area,
         pillars_in_contact=len(forces), pillar_forces=forces,
         converged=bool(converged), iterations=int(outcome.iterations), wall_time_s=wall,
-        pillar_top_profile=profile, diagnostics=diagnostics, fields=fields)
+        pillar_top_profile=profile, diagnostics=diagnostics, fields=fields,
+        floor_force_N=floor_force, floor_contact_area_m2=floor_area,
+        floor_contact_radius_m=floor_radius)
 
 
 def _centre_profile(scene, grid, pressure) -> dict:

@@ -12,6 +12,18 @@ intersection over L^2): the cell's force is q L^2 where q = phi p is the pressur
 the whole cell, so the discrete pillar tops have exactly the area pi d^2 / 4 and a grid
 convergence study is not spoiled by the staircase area error of whole cells.  Partly covered
 cells are collocated at the centroid of their covered part (closed-form first moments).
+
+The floor between the pillars, h below the tops, is a candidate too where its undeformed gap
+g(r) + h - zeta can be <= 0, within the floor's reach (:func:`pillar_xval.scenes.floor.
+floor_reach`).  A floor cell carries the part of its square that no top covers, 1 - phi,
+collocated at the centroid of that part (the cell's moment less the tops' closed-form
+moments), so a cell that a pillar's rim crosses holds two unknowns at one grid position: its
+top part and its floor part.  The unknowns are ordered tops first, then the floor cells
+alone at their position, then the floor parts of rim cells (``n_unique`` counts the first
+two groups: the grid positions of the last group repeat positions of the first).  A floor
+cell's ``pillar`` is the extra index ``len(pillar_nm)`` (the floor), which no Hooke term
+touches.  Without floor cells (zeta below the floor's reach) the grid is exactly the
+suspended one.
 """
 
 from __future__ import annotations
@@ -23,6 +35,7 @@ import numpy as np
 
 from pillar_xval.scenes import Scene, SceneError
 from pillar_xval.scenes.analytic import lens_gap
+from pillar_xval.scenes.floor import floor_reach
 from pillar_xval.scenes.lattice import pillars_within
 
 from ._disk import disk_rectangle_area, disk_rectangle_centroid
@@ -67,11 +80,19 @@ class CellGrid:
         its covered part, where its force also acts (as an equivalent square of area
         phi L^2; see :func:`bem_solver._fft_operator.near_field_correction`).
     pillar : ndarray of int
-        Index (into ``pillar_nm``) of the pillar each cell belongs to; 0 for flat scenes.
+        Index (into ``pillar_nm``) of the pillar each cell belongs to; 0 for flat scenes;
+        ``len(pillar_nm)`` for a floor cell.
     pillar_nm, pillar_xy : ndarray
         Lattice indices (n, m) and centres (m) of the candidate pillars (flat: one row (0, 0)).
     centre_cell : int
         Index of the candidate cell that holds the origin.
+    floor : ndarray of bool
+        Whether each unknown is on the floor (after every top unknown).
+    n_unique : int
+        Leading unknowns whose grid positions are all different; the others are the floor
+        parts of rim cells, each at the position of a top unknown before them.
+    floor_radius : float
+        The floor's reach (m): floor cells have their centres within it; 0 without floor.
     """
 
     cell_size: float
@@ -89,10 +110,27 @@ class CellGrid:
     flat: bool
     colloc_x: np.ndarray = None
     colloc_y: np.ndarray = None
+    floor: np.ndarray = None
+    n_unique: int = None
+    floor_radius: float = 0.0
 
     def __post_init__(self):
         if self.colloc_x is None:
             self.colloc_x, self.colloc_y = self.x, self.y
+        if self.floor is None:
+            self.floor = np.zeros(self.flat_index.size, dtype=bool)
+        if self.n_unique is None:
+            self.n_unique = int(self.flat_index.size)
+
+    @property
+    def has_floor(self) -> bool:
+        """Whether any floor cell is a candidate."""
+        return bool(self.floor.any())
+
+    @property
+    def n_top(self) -> int:
+        """Unknowns on the pillar tops (the first ones)."""
+        return int(self.flat_index.size - np.count_nonzero(self.floor))
 
     @property
     def n_cells(self) -> int:
@@ -167,13 +205,24 @@ def build_grid(scene: Scene, cells_per_diameter: int,
         pillar = np.zeros(keep.size, dtype=int)
         pillar_nm = np.zeros((1, 2), dtype=int)
         pillar_xy = np.zeros((1, 2))
-    else:
-        keep, covered, pillar, pillar_nm, pillar_xy = _pillar_cells(scene, ax, L, r_cand)
+    r_floor = 0.0 if flat else floor_reach(scene)
+    if not flat:
+        keep, covered, pillar, pillar_nm, pillar_xy, tops = _pillar_cells(
+            scene, ax, L, r_cand, floor=r_floor > 0.0)
     colloc_y, colloc_x = np.divmod(keep, n_side)
     colloc_x, colloc_y = ax[colloc_x], ax[colloc_y]
     if not flat:
         colloc_x, colloc_y = _centroids(colloc_x, colloc_y, covered, pillar, pillar_xy, L,
                                         0.5 * scene.pillars.diameter_m)
+    n_unique, floor = keep.size, None
+    if r_floor > 0.0:
+        fk, fcov, fx, fy, n_alone = _floor_cells(ax, L, r_floor, keep, tops)
+        n_unique = keep.size + n_alone
+        floor = np.concatenate([np.zeros(keep.size, dtype=bool), np.ones(fk.size, dtype=bool)])
+        keep = np.concatenate([keep, fk])
+        covered = np.concatenate([covered, fcov])
+        pillar = np.concatenate([pillar, np.full(fk.size, len(pillar_nm), dtype=pillar.dtype)])
+        colloc_x, colloc_y = np.concatenate([colloc_x, fx]), np.concatenate([colloc_y, fy])
     keep, shape = _crop(keep, n_side)  # (box index, x / L, y / L)
     if (2 * shape[0]) * (2 * shape[1]) > max_fft_points:
         raise SceneError(
@@ -182,11 +231,46 @@ def build_grid(scene: Scene, cells_per_diameter: int,
             f"{max_fft_points}); choose fewer cells per diameter")
     keep, x, y = keep[0], keep[1] * L, keep[2] * L
     gap0 = lens_gap(R, np.hypot(colloc_x, colloc_y)) - zeta
+    if floor is not None:
+        gap0[floor] += scene.pillars.height_m
     centre = np.nonzero((np.abs(x) < 0.5 * L) & (np.abs(y) < 0.5 * L))[0]
+    if floor is not None:
+        centre = centre[~floor[centre]]
     if centre.size != 1:
         raise RuntimeError("grid construction lost the centre cell")  # a bug, not user input
     return CellGrid(L, shape, keep, x, y, covered, gap0, pillar, pillar_nm, pillar_xy,
-                    int(centre[0]), r_cand, flat, colloc_x, colloc_y)
+                    int(centre[0]), r_cand, flat, colloc_x, colloc_y, floor, n_unique,
+                    r_floor)
+
+
+def _floor_cells(ax, L, r_floor, keep, tops):
+    """Floor cells within ``r_floor`` of the origin (centres ``ax`` x ``ax``): indices into
+    the square, floor fractions 1 - phi, collocation points, and how many of them stand
+    alone at their position (they come first; the rest share a position with a kept top
+    cell).  ``tops`` = (top fraction, x moment, y moment) over the square, the moments of
+    the covered parts about the origin (m^3) on rim cells."""
+    total, mx, my = tops
+    side = ax.size
+    reach = np.flatnonzero(np.hypot(ax[None, :], ax[:, None]).ravel() <= r_floor)
+    frac = 1.0 - np.minimum(total[reach], 1.0)
+    # A floor sliver is dropped like a top sliver (MIN_COVERED_FRACTION); its area, below
+    # 1e-3 L^2, is lost from the floor.
+    cand = reach[frac > MIN_COVERED_FRACTION]
+    frac = 1.0 - np.minimum(total[cand], 1.0)
+    shared = np.zeros(side * side, dtype=bool)
+    shared[keep] = True
+    alone = ~shared[cand]
+    order = np.concatenate([np.flatnonzero(alone), np.flatnonzero(~alone)])
+    cand, frac = cand[order], frac[order]
+    iy, ix = np.divmod(cand, side)
+    cx, cy = ax[ix], ax[iy]
+    part = frac < 1.0 - 1e-12
+    area = frac * L * L
+    # Centroid of the floor part: the square's moment less the tops' (where a rim crosses).
+    cx, cy = cx.copy(), cy.copy()
+    cx[part] = (cx[part] * L * L - mx[cand[part]]) / area[part]
+    cy[part] = (cy[part] * L * L - my[cand[part]]) / area[part]
+    return cand, frac, cx, cy, int(np.count_nonzero(alone))
 
 
 def _centroids(x, y, covered, pillar, pillar_xy, L, rad):
@@ -212,9 +296,11 @@ def _crop(keep, n_side):
             (iy - half).astype(float)), shape
 
 
-def _pillar_cells(scene, ax, L, r_cand):
+def _pillar_cells(scene, ax, L, r_cand, floor=False):
     """Cells on pillar tops within the candidate disk: indices into the (n, n) square of
-    centres ``ax`` x ``ax``, covered fractions, owning pillar, and the pillar table."""
+    centres ``ax`` x ``ax``, covered fractions, owning pillar, the pillar table, and with
+    ``floor`` the tops' covered fraction of every cell of the square and the moments of the
+    covered parts about the origin (m^3; else None)."""
     p = scene.pillars
     rad = 0.5 * p.diameter_m
     table = pillars_within(r_cand + rad, p.pitch_m)
@@ -224,6 +310,8 @@ def _pillar_cells(scene, ax, L, r_cand):
     total_frac = np.zeros((side, side))
     owner = np.full((side, side), -1, dtype=int)
     m = int(math.ceil(rad / L)) + 1
+    if floor:
+        moment_x, moment_y = np.zeros((side, side)), np.zeros((side, side))
     for k, (_, _, px, py) in enumerate(table):
         # The small window around this pillar only: views of the square, no gathers.
         ix0 = int(round(px / L)) + half
@@ -246,6 +334,15 @@ def _pillar_cells(scene, ax, L, r_cand):
         frac[ri, ci] = disk_rectangle_area(rx - 0.5 * L, rx + 0.5 * L, ry - 0.5 * L,
                                            ry + 0.5 * L, rad) / (L * L)
         total_frac[rows, cols] += frac
+        if floor:  # the covered parts' moments, full cells' at their centres
+            area = frac * (L * L)
+            mx_, my_ = np.broadcast_to(cx[None, :], area.shape).copy(), \
+                np.broadcast_to(cy[:, None], area.shape).copy()
+            if ri.size:
+                mx_[ri, ci], my_[ri, ci] = disk_rectangle_centroid(
+                    rx - 0.5 * L, rx + 0.5 * L, ry - 0.5 * L, ry + 0.5 * L, rad)
+            moment_x[rows, cols] += area * (mx_ + px)
+            moment_y[rows, cols] += area * (my_ + py)
         best, own = best_frac[rows, cols], owner[rows, cols]
         better = frac > best
         own[better] = k
@@ -275,4 +372,5 @@ def _pillar_cells(scene, ax, L, r_cand):
     pillar = (np.cumsum(present) - 1)[owners]
     nm = table[used, :2].astype(int)
     xy = table[used, 2:4].astype(float)
-    return keep, covered, pillar, nm, xy
+    tops = (total_frac, moment_x.ravel(), moment_y.ravel()) if floor else None
+    return keep, covered, pillar, nm, xy, tops

@@ -93,9 +93,11 @@ def fem_result(model: str, scene, clock: PhaseClock, failures: list, *, mesh, sy
                residual: float, contact_residual: float, penetration: float, force: float,
                centre_pressure: float, contact_radius_m: float, area: float, pillar_forces,
                iterations: int, profile: dict, fields: dict, discretisation: dict,
-               diagnostics: dict) -> ContactResult:
+               diagnostics: dict, floor: dict | None = None) -> ContactResult:
     """The result of a FEM solve: the discretisation and diagnostics both FEMs report,
-    updated with the driver's own (``discretisation``, ``diagnostics``)."""
+    updated with the driver's own (``discretisation``, ``diagnostics``); ``floor``: the
+    result's floor fields (``floor_force_N``, ...; none: no floor contact), its regime
+    from them and the pillars."""
     disc = {"mesh_size": float(mesh_size), "block_size_m": block_size_m,
             "elements": int(mesh.nelements), "dofs": int(system.n_reduced), **discretisation}
     zeta = scene.indentation_m
@@ -118,7 +120,7 @@ def fem_result(model: str, scene, clock: PhaseClock, failures: list, *, mesh, sy
         real_contact_area_m2=area, pillars_in_contact=len(pillar_forces),
         pillar_forces=pillar_forces, converged=not failures, iterations=int(iterations),
         wall_time_s=clock.elapsed(), pillar_top_profile=profile,
-        diagnostics={**common, **diagnostics}, fields=fields)
+        diagnostics={**common, **diagnostics}, fields=fields, **(floor or {}))
 
 # The linear solve's relative residual below which a solution is taken as exact.
 RTOL_LINEAR = 1e-8

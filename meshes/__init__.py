@@ -18,7 +18,7 @@ from .axisym.geometry import MESH_SIZE_RANGE, AxisymmetricGeometry, flat_geometr
 from .axisym.gmsh import build_axisymmetric_mesh
 from .axisym.mesh import MIN_QUALITY, AxisymmetricMesh
 from .wedge.geometry import (MESH_SIZE_RANGE_3D, SECTORS, SectorPillar, WedgeGeometry,
-                             sector_pillars)
+                             floor_clear_of_pillars, sector_pillars)
 from .wedge.gmsh import build_wedge_mesh
 from .wedge.mesh import MIN_QUALITY_3D, WedgeMesh
 
@@ -38,6 +38,7 @@ __all__ = [
     "MeshError",
     "build_axisymmetric_mesh",
     "build_wedge_mesh",
+    "floor_clear_of_pillars",
     "flat_geometry",
     "pillar_geometry",
     "sector_pillars",

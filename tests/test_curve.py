@@ -82,7 +82,7 @@ def test_malformed_data_is_refused_naming_file_line_and_column(tmp_path, content
     (["--forces-uN", "1,nan"], "expected a decimal number"),
     (["--forces-uN", "1", "--indentations-um", "0.1"], "not allowed with argument"),
     ([], "one of the arguments --forces-uN --indentations-um is required"),
-    (["--forces-uN", "1,5000"], "--forces-uN 5000: implies an indentation of at least"),
+    (["--forces-uN", "1,1e6"], "--forces-uN 1e6: implies an indentation of at least"),
     (["--forces-uN", "0"], "allowed range is (0, inf)"),
     (["--forces-uN", "1", "--data", "missing.csv"], "--data missing.csv: not a file"),
 ])
@@ -103,9 +103,9 @@ def test_solve_answers_the_20_uN_question(capsys):
     assert result["pillars_in_contact"] == 19
 
 
-def test_solve_refuses_a_force_beyond_the_pillars_in_one_line(capsys):
+def test_solve_refuses_a_force_beyond_the_small_slope_limit_in_one_line(capsys):
     code, _, err = run(["solve", "--scene", "paper-fig3-sparse", "--set",
-                        "load.force_uN=2000"], capsys)
+                        "load.force_uN=1e6"], capsys)
     assert code == 2 and "implies an indentation of at least" in err
     assert len(err.strip().splitlines()) == 1
 

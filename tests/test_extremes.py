@@ -63,13 +63,15 @@ def test_corners_cover_the_extremes():
     labels = [c["label"] for c in corner_scenes()]
     assert len(labels) == len(set(labels))
     # 5 parameters x 2 extremes, 2^5 corners, 2 mismatched materials at 4 nu, 3 more nu at
-    # the nominal scene, 8 flat corners
-    assert len(labels) == 1 + 10 + 32 + 2 * 4 + 3 + 8
+    # the nominal scene, 5 past the pillar tops (the floor), 8 flat corners
+    assert len(labels) == 1 + 10 + 32 + 2 * 4 + 3 + 5 + 8
     scenes = {c["label"]: c["scene"] for c in corner_scenes()}
     soft = scenes["Ep- Es+"].pillars.material.E_Pa / scenes["Ep- Es+"].substrate.E_Pa
     assert soft == pytest.approx(1e-9)
     assert scenes["R+"].lens.radius_m == pytest.approx(1.0)
     assert scenes["zeta+"].indentation_m == pytest.approx(0.99 * 2e-6)
+    assert scenes["floor: zeta=10h"].indentation_m == pytest.approx(10 * 2e-6)
+    assert scenes["floor: h/d=0.05 zeta=5h"].pillars.height_m == pytest.approx(0.05 * 4e-6)
 
 
 def test_fast_subset_of_the_extremes(tmp_path):

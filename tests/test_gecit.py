@@ -109,8 +109,8 @@ def test_cli_gecit_on_fakes_and_resume(fakes, tmp_path, capsys):
     (["--ratios", "nan"], "'nan': expected a decimal number"),
     (["--edge-window", "0.1", "0.01"], "--edge-window 0.1 0.01: need 0 < LO < HI < 1"),
     (["--scene", "hertz"], "needs a scene with pillars"),
-    # h/d = 0.05 gives h = 0.2 um below the indentation 0.3 um: a SceneError
-    (["--aspect", "0.05"], "pillar height"),
+    # h/d = 0.05 gives h = 0.2 um below the indentation 0.3 um: the floor is in reach
+    (["--aspect", "0.05"], "reaches the floor between the pillars"),
     (["--levels", "0"], "argument --levels: 0: allowed range is [1, 5]"),
     (["--bem-levels", "2"], "--bem-levels was renamed: use --levels"),
     (["--jobs", "2"], "--jobs was renamed: use --workers"),

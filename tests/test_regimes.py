@@ -11,6 +11,7 @@ from pillar_xval.scenes import load_scene
 from validation.planner import tables
 from validation.planner.plan import hooke_error, plan
 from validation.studies import regimes
+from validation.registry import get_model
 
 BASE = "paper-fig3-sparse"
 
@@ -28,7 +29,7 @@ def test_grid_covers_the_ranges_on_log_axes(small_map):
     _, doc, _ = small_map
     phis, zetas = doc["axes"]["phi"], doc["axes"]["zeta_over_h"]
     assert phis == pytest.approx([0.002, math.sqrt(0.002 * 0.9), 0.9])
-    assert zetas == pytest.approx([0.01, math.sqrt(0.01 * 0.9), 0.9])
+    assert zetas == pytest.approx([0.01, math.sqrt(0.01 * 10.0), 10.0])
     assert [(r["phi"], r["zeta_over_h"]) for r in doc["points"]] == \
         [(p, z) for p in phis for z in zetas]
     assert sum(doc["shares"].values()) == pytest.approx(1.0)
@@ -86,8 +87,9 @@ def test_hooke_error_is_the_planners_part_for_a_hooke_model():
     assert value == parts.pop()
     assert value > 0.2
     doc = regimes.regime_map(base, 0.05, ("F_T",), points=3)
-    at = next(r for r in doc["points"] if r["phi"] == 0.9 and r["zeta_over_h"] == 0.9)
-    assert at["hooke_sigma0_error"] == hooke_error(regimes.grid_scene(base, 0.9, 0.9)) > 0.2
+    z = doc["axes"]["zeta_over_h"][1]
+    at = next(r for r in doc["points"] if r["phi"] == 0.9 and r["zeta_over_h"] == z)
+    assert at["hooke_sigma0_error"] == hooke_error(regimes.grid_scene(base, 0.9, z)) > 0.2
     # stiff pillars carry less
     stiff = load_scene(BASE, ["pillars.E_Pa=1e12"])
     assert hooke_error(regimes.grid_scene(stiff, 0.2, 0.5)) < value
@@ -167,3 +169,12 @@ def test_bad_input_is_one_line_and_exit_2(cli, tmp_path, argv, words):
     for w in words:
         assert w in stderr
     assert not (tmp_path / "x" / "regimes.json").exists()
+
+
+def test_the_map_reaches_the_mixed_regime_with_floor_models_only(small_map):
+    _, doc, _ = small_map
+    deep = [r for r in doc["points"] if r["zeta_over_h"] == pytest.approx(10.0)]
+    assert deep and all(r["regime"].startswith("mixed") for r in deep)
+    assert all(r["model"] is None or get_model(r["model"]).floor for r in deep)
+    shallow = [r for r in doc["points"] if r["zeta_over_h"] < 1.0]
+    assert not any(r["regime"].startswith("mixed") for r in shallow)

@@ -175,13 +175,14 @@ def test_unreadable_or_odd_scene_paths_name_the_path(tmp_path):
 
 @pytest.mark.parametrize("text, expected", [
     ("indentation_um = 0.3",
-     "load.indentation_um = 2: must be below the pillar height, pillars.height_um = 2.0 um"),
+     "load.indentation_um = 300: must be below 211.145618 um, 0.1056 x lens.radius_mm = "
+     "2.0 mm: beyond it the lens's slope"),
     ("diameter_um = 4.0", "pillars.diameter_um = 1e-12: allowed range is [0.001, 1e+09] um"),
     ("radius_mm = 2.0", "lens.radius_mm = 0.03: must exceed 0.04 mm"),
     ("surface_fraction = 0.1", "pillars.pitch_um = 3.9: must be >= pillars.diameter_um = 4.0"),
 ])
 def test_file_errors_name_file_keys_and_units(tmp_path, text, expected):
-    new = {"indentation_um = 0.3": "indentation_um = 2",
+    new = {"indentation_um = 0.3": "indentation_um = 300",
            "diameter_um = 4.0": "diameter_um = 1e-12",
            "radius_mm = 2.0": "radius_mm = 0.03",
            "surface_fraction = 0.1": "pitch_um = 3.9"}[text]
@@ -193,8 +194,8 @@ def test_file_errors_name_file_keys_and_units(tmp_path, text, expected):
 
 def test_flat_scene_errors_name_file_keys(tmp_path):
     message = refused("hertz", ["load.indentation_um=1000"])
-    assert message.startswith("--set load.indentation_um=1000: must be below half of "
-                              "lens.radius_mm = 2.0 mm, 1000 um")
+    assert message.startswith("--set load.indentation_um=1000: must be below 211.145618 um, "
+                              "0.1056 x lens.radius_mm = 2.0 mm")
 
 
 def test_partial_substrate_completed_from_the_pillars(tmp_path):
@@ -263,9 +264,11 @@ def test_si_constructors_name_their_parameters():
         Pillars(1e-15, 2e-6, 4e-6, Material(1e6, 0.5))
     with pytest.raises(SceneError, match=r"^pillars\.E_Pa = 1e-320: allowed range"):
         Scene(lens, Material(1e6, 0.5), 1e-7, Pillars(4e-6, 2e-6, 8e-6, Material(1e-320, 0.5)))
-    with pytest.raises(SceneError, match=r"^load\.indentation_m = 3e-06: must be below the "
-                                         r"pillar height, pillars\.height_m = 2e-06 m"):
-        Scene(lens, Material(1e6, 0.5), 3e-6, Pillars(4e-6, 2e-6, 8e-6, Material(1e6, 0.5)))
+    with pytest.raises(SceneError, match=r"^load\.indentation_m = 0\.0003: must be below "
+                                         r"0\.000211145618 m, 0\.1056 x lens\.radius_m = 0\.002 m"):
+        Scene(lens, Material(1e6, 0.5), 3e-4, Pillars(4e-6, 2e-6, 8e-6, Material(1e6, 0.5)))
+    # Past the pillar height the floor is a candidate: the scene is valid.
+    assert Scene(lens, Material(1e6, 0.5), 3e-6, Pillars(4e-6, 2e-6, 8e-6, Material(1e6, 0.5)))
     assert Scene(lens, Material(math.inf, 0.5), 1e-7).substrate.rigid
 
 

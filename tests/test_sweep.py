@@ -111,12 +111,12 @@ def test_bad_specs_are_refused_with_the_reason(tmp_path, text, message, capsys):
 
 def test_a_point_the_scene_refuses_is_named_or_skipped(tmp_path):
     base = ('scene = "paper-fig3-sparse"\n{extra}\n[grid]\n'
-            '"load.indentation_um" = [0.3, 3.0]\n[[models]]\nname = "bem"\n')
-    with pytest.raises(SceneError, match="load.indentation_um=3"):
+            '"load.indentation_um" = [0.3, 300.0]\n[[models]]\nname = "bem"\n')
+    with pytest.raises(SceneError, match="load.indentation_um=300"):
         Sweep.from_toml(_write(tmp_path, base.format(extra=""))).cases()
     cases, skipped = Sweep.from_toml(_write(tmp_path, base.format(
         extra='on_invalid = "skip"'))).cases()
-    assert len(cases) == 1 and len(skipped) == 1 and skipped[0][0] == {"load.indentation_um": 3.0}
+    assert len(cases) == 1 and len(skipped) == 1 and skipped[0][0] == {"load.indentation_um": 300.0}
 
 
 def test_python_sweep_table_matches_direct_solves(tmp_path):

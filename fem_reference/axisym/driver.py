@@ -1,5 +1,7 @@
 """Axisymmetric FEM reference: a lens on one elastic pillar bonded to a substrate, or on a
-flat substrate (Hertz), with frictionless unilateral contact, displacement-controlled.
+flat substrate (Hertz), with frictionless unilateral contact, displacement-controlled;
+where the lens can reach the floor around the pillar, the floor is a second contact line
+(:mod:`.._floor`).
 
 Model.  The lens is a block of side L with a flat bottom at z = 0; its spherical shape is
 the initial gap g(r) = R - sqrt(R^2 - r^2) between the lens bottom and the pillar top (or
@@ -30,17 +32,20 @@ import dataclasses
 import math
 
 import numpy as np
+from scipy.linalg import block_diag
 
 from pillar_xval.contact import solve_active_set
 from meshes import build_axisymmetric_mesh, flat_geometry, pillar_geometry
 from pillar_xval.outcome import ContactResult, PillarForce
 from pillar_xval.outcome.memory import memory_short
 from pillar_xval.scenes import InputError, Scene, ScopeError, analytic
+from pillar_xval.scenes.floor import floor_reach, floor_reachable
 
 from .._driver import (HERTZ_CANDIDATE, RTOL_COMPLEMENTARITY, PhaseClock, contact_radius,
                        fem_result, flat_candidate, refuse_rigid_pair, scaled_materials, verdict)
+from .._floor import annulus_edges, floor_candidate, side_wall_diagnostics
 from .contact import mortar_matrix
-from .fields import cell_stresses, write_vtu
+from .fields import cell_stresses, lens_in_side_wall, write_vtu
 from .system import assemble
 
 MODEL = "fem-axisym"
@@ -62,6 +67,9 @@ BYTES_FIXED = 40 * 2.0**20
 # the discrete force's sensitivity to the element size, < 1e-2).
 FLAT_DESIGN_RTOL = 1e-6
 MAX_DESIGN_ROUNDS = 6
+# A pillar scene under a force whose solved indentation reaches the floor beyond the meshed
+# candidate segment is meshed again for this much more than that indentation (fewer rounds).
+FLOOR_DESIGN_MARGIN = 1.05
 
 
 def estimate_memory(scene: Scene, mesh_size: float = 1.0) -> dict:
@@ -123,14 +131,20 @@ def solve(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None,
         mesh vertices of the pillar top, r = 0 to d/2, graded towards the edge (flat scenes:
         of the candidate contact zone, 0 to 1.5 a).  ``diagnostics`` holds
         ``linear_residual`` (scaled, relative), ``contact_residual`` (the min-map
-        residual of :mod:`pillar_xval.contact` on the mean gaps, relative to zeta), ``compliance_asymmetry``,
+        residual of :mod:`pillar_xval.contact` on the mean gaps, relative to zeta),
+        ``compliance_asymmetry``,
         ``block_size_m``, ``truncation_estimate`` (F (gamma_l + gamma_s) / (pi L zeta), an
         upper bound of the relative force error from the finite block: measured 0.8 x it),
         ``max_pointwise_penetration`` (over zeta, at the P2 points; the mortar contact
         enforces the gap weighted by each vertex's hat function, and near a punch edge the
         pointwise gap wobbles by <1 % of zeta within the last three elements), the mesh
         quality, timings, and for a rigid pillar on an elastic substrate
-        ``pillar_translation_m`` (its vertical displacement, negative downwards).
+        ``pillar_translation_m`` (its vertical displacement, negative downwards); with a
+        pillar, the side walls' diagnostic (:func:`.._floor.side_wall_diagnostics`); the
+        floor's ``floor_force_N``, ``floor_contact_area_m2``, ``floor_contact_radius_m`` and
+        the ``regime`` are the result's own fields (:mod:`.._floor`: the floor is a contact
+        line where the lens can reach it, ``fields`` then hold ``floor_r_m`` and
+        ``floor_pressure_Pa``).
         ``fields`` holds the arrays (pressure at the vertices, gaps and nodal forces at the
         P2 points, the condensed compliance).
 
@@ -160,8 +174,20 @@ def solve(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None,
     while force is not None:
         zeta = contact["zeta"]
         rounds.append({"design_indentation_m": solved.indentation_m, "indentation_m": zeta})
+        if not scene.is_flat:
+            settled = _floor_holds(scene, setup, zeta)
+            if settled or len(rounds) == MAX_DESIGN_ROUNDS:
+                solved = _implied(scene, zeta, f"fem-axisym at mesh_size {mesh_size:g}")
+                break
+            # the floor's candidate segment follows the solved zeta: mesh again
+            solved = scene.designed(zeta * FLOOR_DESIGN_MARGIN)
+            setup = _setup(solved, mesh_size, block_factor, scope=False)
+            mesh, system = _mesh_and_factorise(setup, mesh_size, clock)
+            compliance = _compliance(system, clock)
+            contact = _contact(solved, setup, system, compliance, clock, force)
+            continue
         settled = abs(zeta / solved.indentation_m - 1.0) <= FLAT_DESIGN_RTOL
-        if not scene.is_flat or settled or len(rounds) == MAX_DESIGN_ROUNDS:
+        if settled or len(rounds) == MAX_DESIGN_ROUNDS:
             solved = _implied(scene, zeta, f"fem-axisym at mesh_size {mesh_size:g}")
             break
         # The flat mesh in units of the Hertz radius: the unit follows the solved zeta.
@@ -172,14 +198,24 @@ def solve(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None,
         contact = _contact(solved, setup, system, compliance, clock, force)
     result = _result(solved, setup, mesh, system, compliance, contact, mesh_size, clock)
     if force is not None:
-        if scene.is_flat and not settled:
+        if not settled:
             result.converged = False
-            result.diagnostics["message"] = (f"the mesh unit's indentation did not settle in "
-                                             f"{MAX_DESIGN_ROUNDS} rounds")
+            result.diagnostics["message"] = (
+                f"the mesh unit's indentation did not settle in {MAX_DESIGN_ROUNDS} rounds"
+                if scene.is_flat else f"the floor's candidate segment did not hold the solved "
+                f"indentation's reach in {MAX_DESIGN_ROUNDS} meshings")
         result.for_force(scene.to_dict(), zeta, design_rounds=rounds)
     if vtu_path is not None:
         _write_fields(vtu_path, solved, setup, mesh, system, contact["x"], result)
     return result
+
+
+def _floor_holds(scene: Scene, setup: dict, zeta: float) -> bool:
+    """Whether the meshed floor segment (or its absence) holds the rigid reach of the floor
+    at the indentation ``zeta`` (m), beyond which there is no contact."""
+    end = setup["geometry"].floor_radius_m
+    return not floor_reachable(scene, zeta) or (end is not None
+                                                and floor_reach(scene, zeta) <= end)
 
 
 def _implied(scene: Scene, zeta: float, how: str, bound: bool = False) -> Scene:
@@ -217,7 +253,8 @@ def _compliance(system, clock: PhaseClock) -> dict:
     """The condensed compliance C on the contact vertices, by one solve per vertex: the P1
     multiplier's nodal-force patterns G^T D (half as many right-hand sides as P2 points);
     ``U[:, j]`` is the gap change at the P2 points."""
-    D = mortar_matrix(system.contact_r)
+    lines = np.split(system.contact_r, np.cumsum(system.contact_lines)[:-1])
+    D = block_diag(*[mortar_matrix(r) for r in lines])
     clock.say(f"compliance ({D.shape[1]} contact points, one solve each)")
     X, residual = system.solve(system.G.T @ D)
     U = system.G @ X
@@ -242,6 +279,8 @@ def _contact(scene: Scene, setup: dict, system, compliance: dict, clock: PhaseCl
     R, zeta = scene.lens.radius_m, scene.indentation_m
     r_m = system.contact_r * ell
     gap = analytic.lens_gap(R, r_m) / ell
+    if setup["floor"]:  # the floor line lies h below the pillar top
+        gap[system.contact_lines[0]:] += scene.pillars.height_m / ell
     weight = D.sum(axis=0)  # integral of psi_j r dr: turns weighted gaps into mean gaps
     clock.say("contact")
     if force is None:
@@ -267,16 +306,35 @@ def _result(scene: Scene, setup: dict, mesh, system, compliance: dict, contact: 
     sol, lam, f, w, x = (contact[k] for k in ("sol", "lam", "f", "w", "x"))
     # Residual of the displacement actually returned, under the contact load it carries.
     residual = max(system.residual(x, system.G.T @ f), compliance["residual"])
+    # (the order of these products decides the last bit of F, and a force given back from
+    # it designs the flat mesh of a round trip: kept as it was)
     force = 2.0 * math.pi * float(np.sum(f)) * E_ref * ell**2
-    r_vertex = system.contact_r[::2]
-    pressure = lam * E_ref
-    a, reaches_end = contact_radius(system.contact_r, lam, w)
+    n_top = system.contact_lines[0]  # the pillar top's (or the flat's) P2 points
+    r_top, nv_top = system.contact_r[:n_top], n_top // 2 + 1
+    r_vertex = r_top[::2]
+    pressure = lam[:nv_top] * E_ref
+    a, reaches_end = contact_radius(r_top, lam[:nv_top], w[:n_top])
     a *= ell
+    area = math.pi * a * a
     penetration = float(max(0.0, -w.min()) / (zeta / ell))
     end = (f"contact reached the end of the candidate zone r = {contact['r_m'][-1]:g} m "
            f"({HERTZ_CANDIDATE} Hertz radii)") if scene.is_flat and reaches_end else ""
-    failures = verdict([force, a, pressure[0], residual, sol.residual, *pressure], residual,
-                       sol, force, zeta, penetration, end)
+    floor = {"floor_force_N": 0.0, "floor_contact_area_m2": 0.0, "floor_contact_radius_m": 0.0}
+    if setup["floor"]:
+        r_floor = system.contact_r[n_top:]
+        inner, outer = annulus_edges(r_floor, lam[nv_top:], w[n_top:])
+        floor = {"floor_force_N": 2.0 * math.pi * float(np.sum(f[n_top:])) * E_ref * ell**2,
+                 "floor_contact_area_m2": math.pi * (outer * outer - inner * inner) * ell**2,
+                 "floor_contact_radius_m": outer * ell}
+        if outer > 0.0:
+            a = outer * ell
+            area += floor["floor_contact_area_m2"]
+        if outer >= r_floor[-1]:
+            end = (f"the floor contact reached the end of its candidate zone r = "
+                   f"{r_floor[-1] * ell:g} m")
+    failures = verdict([force, a, pressure[0], residual, sol.residual, *lam * E_ref],
+                       residual, sol, force, zeta, penetration, end)
+    pillar_force = force - floor["floor_force_N"]
     diagnostics = {
         "compliance_asymmetry": compliance["asymmetry"], "active_set_rounds": sol.iterations,
         "contact_points": int(len(f)), "points_in_contact": int(np.sum(lam > 0)),
@@ -285,19 +343,28 @@ def _result(scene: Scene, setup: dict, mesh, system, compliance: dict, contact: 
     }
     if setup["rigid_pillar_on_substrate"]:
         diagnostics["pillar_translation_m"] = float(x[-1] * ell)
+    if not scene.is_flat:
+        diagnostics.update(side_wall_diagnostics(
+            tuple(v * ell for v in lens_in_side_wall(scene, setup, system, x)),
+            scene.pillars.height_m))
+    floor_fields = {}
+    if setup["floor"]:
+        floor_fields = {"floor_r_m": system.contact_r[n_top::2] * ell,
+                        "floor_pressure_Pa": lam[nv_top:] * E_ref}
     return fem_result(
         MODEL, scene, clock, failures, mesh=mesh, system=system, mesh_size=mesh_size,
         block_size_m=setup["geometry"].block_size_m, ell=ell, E_ref=E_ref, residual=residual,
         contact_residual=sol.residual, penetration=penetration, force=force,
-        centre_pressure=float(pressure[0]), contact_radius_m=a, area=math.pi * a * a,
-        pillar_forces=[] if scene.is_flat else [PillarForce(0, 0, 0.0, 0.0, force)],
+        centre_pressure=float(pressure[0]), contact_radius_m=a, area=area,
+        pillar_forces=[] if scene.is_flat or pillar_force <= 0.0
+        else [PillarForce(0, 0, 0.0, 0.0, pillar_force)],
         iterations=sol.iterations,
         profile={"r_m": (r_vertex * ell).tolist(), "pressure_Pa": pressure.tolist()},
         fields={"pressure_r_m": r_vertex * ell, "contact_pressure_Pa": pressure,
                 "gap_r_m": contact["r_m"], "gap_m": w * ell,
                 "contact_force_N_per_rad": f * E_ref * ell**2,
-                "mortar_compliance": compliance["C"]},
-        discretisation={}, diagnostics=diagnostics)
+                "mortar_compliance": compliance["C"], **floor_fields},
+        discretisation={}, diagnostics=diagnostics, floor=floor)
 
 
 def _write_fields(vtu_path, scene: Scene, setup: dict, mesh, system, x, result) -> None:
@@ -336,8 +403,8 @@ def _setup(scene: Scene, mesh_size: float, block_factor: float, scope: bool = Tr
             ell, block_factor * ell, candidate_radius_m=candidate, mesh_size=mesh_size,
             bodies=[b for b, m in (("lens", lens), ("substrate", sub)) if not m.rigid])
         pillar = None
-        contact = ("contact_lens" if not lens.rigid else None,
-                   "contact_substrate" if not sub.rigid else None)
+        contact = (("contact_lens" if not lens.rigid else None,
+                    "contact_substrate" if not sub.rigid else None),)
     else:
         p = scene.pillars
         if scope:
@@ -349,14 +416,22 @@ def _setup(scene: Scene, mesh_size: float, block_factor: float, scope: bool = Tr
         ell = 0.5 * p.diameter_m
         bodies = tuple(b for b, m in (("lens", lens), ("pillar", pillar), ("substrate", sub))
                        if not m.rigid)
+        floor = floor_candidate(scene, scene.indentation_m)
         geometry = pillar_geometry(p.diameter_m, p.height_m, block_factor * ell,
-                                   bodies=bodies, mesh_size=mesh_size)
+                                   bodies=bodies, mesh_size=mesh_size, floor_radius_m=floor)
         lower = ("contact_pillar" if not pillar.rigid
                  else "rigid-translation" if not sub.rigid else None)
-        contact = ("contact_lens" if not lens.rigid else None, lower)
+        contact = (("contact_lens" if not lens.rigid else None, lower),)
+        if floor is not None:
+            if lens.rigid and sub.rigid:
+                raise ScopeError("lens.rigid and substrate.rigid are both true: a rigid lens "
+                                 "reaching a rigid floor has no contact pressure to compute")
+            contact += (("contact_lens_floor" if not lens.rigid else None,
+                         "contact_floor" if not sub.rigid else None),)
     E_ref, materials = scaled_materials(lens, pillar, sub, geometry.bodies)
     return {"geometry": geometry, "ell": ell, "E_ref": E_ref, "materials": materials,
-            "contact": contact,
+            "contact": contact, "floor": len(contact) > 1,
             "rigid_pillar_on_substrate": bool(pillar is not None and pillar.rigid
                                               and not sub.rigid),
             "clamp_pillar_base": bool(pillar is not None and not pillar.rigid and sub.rigid)}
+

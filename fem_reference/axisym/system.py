@@ -44,7 +44,9 @@ class AxisymmetricSystem(ReducedSystem):
 
     ``K`` is the saddle-point matrix on the reduced unknowns, T^T K_full T (u then each
     body's p~), ``T`` maps reduced to full unknowns (full = T @ reduced), ``G`` maps reduced
-    unknowns to the gap change at the contact points (n_contact x n_reduced).
+    unknowns to the gap change at the contact points (n_contact x n_reduced): the points of
+    each contact line in turn (the pillar top or the flat's segment, then the floor), a line's
+    points sorted by r.
     """
 
     mesh: object
@@ -55,6 +57,7 @@ class AxisymmetricSystem(ReducedSystem):
     G: sp.csr_matrix
     contact_r: np.ndarray
     scale: np.ndarray
+    contact_lines: list  # points on each contact line, in the order of contact_r
     lu: object = None
 
     def factorise(self) -> None:
@@ -103,10 +106,10 @@ def assemble(mesh, materials: dict, *, rigid_pillar_on_substrate: bool,
         nodes move with one rigid translation w (u_r = 0, u_z = w).
     clamp_pillar_base : bool
         The substrate is rigid: the pillar base is clamped (u = 0).
-    contact : tuple (lens, lower)
-        Name of the lens contact boundary (or None for a rigid lens) and of the lower one
-        (a boundary name, ``"rigid-translation"`` for the rigid pillar's w, or None for a
-        fixed rigid surface).
+    contact : tuple of (lens, lower) pairs
+        One pair per contact line: the name of the lens contact boundary (or None for a
+        rigid lens) and of the lower one (a boundary name, ``"rigid-translation"`` for the
+        rigid pillar's w, or None for a fixed rigid surface).
     """
     ub = Basis(mesh, ElementVector(ElementTriP2()), intorder=INTORDER)
     nu_dofs = ub.N
@@ -153,14 +156,36 @@ def assemble(mesh, materials: dict, *, rigid_pillar_on_substrate: bool,
     reduced_of[free] = np.arange(len(free))
 
     # --- contact operator: gap change = u_z(lens) - u_z(lower) at matched points --------
-    lens_name, lower_name = contact
+    blocks = [_contact_rows(ub, reduced_of, T.shape[1], pair) for pair in contact]
+    G = sp.vstack([b[0] for b in blocks], format="csr")
+    r_points = np.concatenate([b[1] for b in blocks])
+    lines = [len(b[1]) for b in blocks]
+
+    # --- scaling: 1/sqrt|diag| for displacements and w, 1/sqrt(diag C) for pressures -----
+    Kr = (T.T @ K @ T).tocsc()  # reduced once: for the scaling here and the factorisation
+    Kr_diag = np.abs(Kr.diagonal())
+    scale = np.zeros(T.shape[1])
+    is_u = np.ones(T.shape[1], dtype=bool)
+    for ps in pressures:
+        M_diag = pressure_mass.assemble(ps.basis).diagonal()[ps.dofs]
+        red = reduced_of[ps.offset:ps.offset + len(ps.dofs)]
+        scale[red[red >= 0]] = 1.0 / np.sqrt(M_diag[red >= 0])
+        is_u[red[red >= 0]] = False
+    scale[is_u] = 1.0 / np.sqrt(Kr_diag[is_u])
+    return AxisymmetricSystem(mesh, ub, pressures, Kr, T, G, r_points, scale, lines)
+
+
+def _contact_rows(ub, reduced_of, n_reduced: int, pair: tuple):
+    """(G rows, r of the points) of one contact line: the gap change u_z(lens) - u_z(lower)
+    at its P2 points, sorted by r; ``pair`` names the lens and lower boundaries as
+    :func:`assemble`'s ``contact``."""
+    lens_name, lower_name = pair
     columns, r_points = [], None
     for name, sign in ((lens_name, 1.0), (lower_name, -1.0)):
         if name is None:
-            columns.append(None)
             continue
         if name == "rigid-translation":
-            columns.append((sign, "w"))
+            columns.append((sign, None))
             continue
         dofs = ub.get_dofs(name).all("u^2")
         r = ub.doflocs[0, dofs]
@@ -177,26 +202,10 @@ def assemble(mesh, materials: dict, *, rigid_pillar_on_substrate: bool,
         raise SolveError("no elastic body carries the contact line")
     n_c = len(r_points)
     rows, cols, vals = [], [], []
-    for col in columns:
-        if col is None:
-            continue
-        sign, idx = col
-        idx = np.full(n_c, T.shape[1] - 1) if isinstance(idx, str) else idx
+    for sign, idx in columns:
         rows.append(np.arange(n_c))
-        cols.append(idx)
+        cols.append(np.full(n_c, n_reduced - 1) if idx is None else idx)
         vals.append(np.full(n_c, sign))
     G = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                      shape=(n_c, T.shape[1]))
-
-    # --- scaling: 1/sqrt|diag| for displacements and w, 1/sqrt(diag C) for pressures -----
-    Kr = (T.T @ K @ T).tocsc()  # reduced once: for the scaling here and the factorisation
-    Kr_diag = np.abs(Kr.diagonal())
-    scale = np.zeros(T.shape[1])
-    is_u = np.ones(T.shape[1], dtype=bool)
-    for ps in pressures:
-        M_diag = pressure_mass.assemble(ps.basis).diagonal()[ps.dofs]
-        red = reduced_of[ps.offset:ps.offset + len(ps.dofs)]
-        scale[red[red >= 0]] = 1.0 / np.sqrt(M_diag[red >= 0])
-        is_u[red[red >= 0]] = False
-    scale[is_u] = 1.0 / np.sqrt(Kr_diag[is_u])
-    return AxisymmetricSystem(mesh, ub, pressures, Kr, T, G.tocsr(), r_points, scale)
+                      shape=(n_c, n_reduced))
+    return G, r_points

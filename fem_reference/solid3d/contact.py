@@ -10,8 +10,10 @@ simply u_z(lens) - u_z(lower body) + g(r) - zeta, and the condensed problem is::
 
     w~ = D^T G K^-1 G^T D lam + D^T (g - zeta) >= 0,   lam >= 0,   lam . w~ = 0,
 
-solved by :func:`pillar_xval.contact.constrained_cg` with the operator applied by one back-substitution
-per iteration (no compliance matrix is formed).  Weights w_j = integral of psi_j turn the
+solved by :func:`pillar_xval.contact.constrained_cg` with the operator applied by one
+back-substitution per iteration (no compliance matrix is formed).  With a candidate floor,
+its faces at z = -h are contact faces too, their gap g(r) + h - zeta plus the same
+displacements, on multiplier vertices of their own.  Weights w_j = integral of psi_j turn the
 weighted gaps w~ into mean gaps for the residual.
 
 References
@@ -46,8 +48,11 @@ class ContactFaces:
     ``points`` (2, n) are the P2 points of the contact faces, ``vertices`` their vertex
     subset carrying lam (indices into ``points``), ``D`` (n x n_v) the mortar matrix,
     ``weights`` w_j = integral of psi_j, ``G`` (n x n_reduced) the gap change per reduced
-    unknown, ``pillar_of_vertex`` the index into ``pillar_names`` (-1 for a flat scene),
-    ``triangles`` (3, m) the face triangles' vertices.
+    unknown, ``pillar_of_vertex`` the index into ``pillar_names`` (-1 for a flat scene and
+    on the floor), ``triangles`` (3, m) the face triangles' vertices, ``floor_points`` and
+    ``floor_vertices`` which points and vertices lie on the floor (all False without one).
+    The floor's vertices are its own, apart from the pillar tops' where their rims meet in
+    (x, y): a vertex's weighted gap never mixes a top's gap with the floor's.
     """
 
     points: np.ndarray
@@ -58,13 +63,16 @@ class ContactFaces:
     pillar_of_vertex: np.ndarray
     pillar_names: list
     triangles: np.ndarray
+    floor_points: np.ndarray = None    # bool per point: on the floor (h below the tops)
+    floor_vertices: np.ndarray = None  # bool per vertex
 
     @property
     def n_vertices(self) -> int:
         return self.D.shape[1]
 
 
-def contact_faces(mesh, system, *, lens_meshed: bool, lower: str) -> ContactFaces:
+def contact_faces(mesh, system, *, lens_meshed: bool, lower: str,
+                  floor: tuple | None = None) -> ContactFaces:
     """Build the contact points, the mortar matrix and the gap operator G.
 
     Parameters
@@ -78,6 +86,9 @@ def contact_faces(mesh, system, *, lens_meshed: bool, lower: str) -> ContactFace
         ``"pillar"`` (elastic pillars, faces ``contact_pillar_{n}_{m}``), ``"rigid-pillar"``
         (pillars moving rigidly with ``system.rigid``), ``"substrate"`` (flat scene) or
         ``"fixed"`` (a rigid lower body that does not move).
+    floor : tuple, optional
+        (h in mesh units, the substrate is elastic): the floor is a contact face too, its
+        faces ``contact_floor`` below the lens's ``contact_lens_floor``.
     """
     names = sorted(b for b in mesh.boundaries
                    if re.fullmatch(r"contact_(lens|pillar)_-?\d+_-?\d+", b))
@@ -91,21 +102,38 @@ def contact_faces(mesh, system, *, lens_meshed: bool, lower: str) -> ContactFace
         ref = "contact_substrate" if lower == "substrate" else "contact_lens"
         face_sets = [(-1, ref)]
 
-    # The reference side's triangles, as one 2D mesh in (x, y).
-    tri_nodes, owner = [], []
-    for k, ref in face_sets:
-        if ref not in mesh.boundaries:
-            raise SolveError(f"the mesh has no contact face group {ref!r}")
-        f = mesh.facets[:, mesh.boundaries[ref]]
-        tri_nodes.append(f)
-        owner.append(np.full(f.shape[1], k))
-    tri_nodes = np.hstack(tri_nodes)
+    floor_ref, height = None, 0.0
+    if floor is not None:
+        height, substrate_meshed = floor
+        floor_ref = "contact_floor" if substrate_meshed else "contact_lens_floor"
+    # The reference side's triangles, as one 2D mesh in (x, y): the tops', then the floor's
+    # on vertices of their own.
+    local_sets, owner, xy_sets, on_floor = [], [], [], []
+    offset = 0
+    for refs in (face_sets, [(-1, floor_ref)] if floor_ref else []):
+        if not refs:
+            continue
+        tri_nodes = []
+        for k, ref in refs:
+            if ref not in mesh.boundaries:
+                raise SolveError(f"the mesh has no contact face group {ref!r}")
+            f = mesh.facets[:, mesh.boundaries[ref]]
+            tri_nodes.append(f)
+            owner.append(np.full(f.shape[1], k))
+        tri_nodes = np.hstack(tri_nodes)
+        verts, local = np.unique(tri_nodes, return_inverse=True)
+        local_sets.append(local.reshape(tri_nodes.shape) + offset)
+        offset += len(verts)
+        xyz = mesh.p[:, verts]
+        plane = -height if refs[0][1] == "contact_floor" else 0.0
+        if np.max(np.abs(xyz[2] - plane)) > 1e-9 * max(1.0, np.max(np.abs(xyz[:2]))):
+            raise SolveError(f"contact faces do not lie in the plane z = {plane:g}")
+        xy_sets.append(xyz[:2])
+        on_floor.append(np.full(len(verts), refs is not face_sets))
+    local = np.hstack(local_sets)
     owner = np.concatenate(owner)
-    verts, local = np.unique(tri_nodes, return_inverse=True)
-    local = local.reshape(tri_nodes.shape)
-    xy = mesh.p[:2, verts]
-    if np.max(np.abs(mesh.p[2, verts])) > 1e-9 * max(1.0, np.max(np.abs(xy))):
-        raise SolveError("contact faces do not lie in the plane z = 0")
+    xy = np.hstack(xy_sets)
+    floor_vertices = np.concatenate(on_floor)
     face = MeshTri(np.ascontiguousarray(xy), np.ascontiguousarray(local))
     b2 = Basis(face, ElementTriP2(), intorder=4)
     b1 = Basis(face, ElementTriP1(), intorder=4)
@@ -114,31 +142,39 @@ def contact_faces(mesh, system, *, lens_meshed: bool, lower: str) -> ContactFace
     weights = np.asarray(D.sum(axis=0)).ravel()
     pillar_of_vertex = np.full(b1.N, -1)
     # skfem's MeshTri keeps the vertex order it was given: vertex j of ``face`` is verts[j]
-    vert_owner = np.full(len(verts), -1)
+    vert_owner = np.full(xy.shape[1], -1)
     vert_owner[local.ravel()] = np.tile(owner, 3)  # local is (3, n_tri), row-major
     pillar_of_vertex[:] = vert_owner
+    floor_points = np.zeros(points.shape[1], dtype=bool)
+    floor_points[b2.element_dofs[:, np.any(floor_vertices[local], axis=0)].ravel()] = True
 
     # Gap change: + u_z of the lens, - u_z of the lower body, at each P2 point.
     sb = system.basis_s
     n_pts = points.shape[1]
     Gfull_rows, Gfull_cols, Gfull_vals = [], [], []
-    sides = []
+    sides = []  # (sign, groups, which points, their plane)
+    tops = ~floor_points
     if lens_meshed:
-        sides.append((+1.0, "contact_lens"))
+        sides.append((+1.0, ["contact_lens"] + (["contact_lens_floor"] if floor else []),
+                      np.ones(n_pts, dtype=bool), 0.0))
     if lower in ("pillar", "substrate"):
-        sides.append((-1.0, "contact_pillar" if lower == "pillar" else "contact_substrate"))
-    for sign, group in sides:
-        nodes = np.unique(sb.get_dofs(group).all())
+        sides.append((-1.0, ["contact_pillar" if lower == "pillar" else "contact_substrate"],
+                      tops, 0.0))
+    if floor is not None and floor[1]:
+        sides.append((-1.0, ["contact_floor"], floor_points, -height))
+    for sign, groups, sel, plane in sides:
+        nodes = np.unique(np.concatenate([sb.get_dofs(g).all() for g in groups]))
         loc = sb.doflocs[:, nodes]
         tree = cKDTree(loc.T)
-        dist, idx = tree.query(np.vstack([points, np.zeros(n_pts)]).T)
+        rows = np.nonzero(sel)[0]
+        dist, idx = tree.query(np.vstack([points[:, rows], np.full(len(rows), plane)]).T)
         scale = max(1.0, float(np.max(np.abs(points))))
-        if np.max(dist) > 1e-8 * scale:
-            raise SolveError(f"contact points of {group!r} do not match the face mesh "
+        if len(rows) and np.max(dist) > 1e-8 * scale:
+            raise SolveError(f"contact points of {groups[0]!r} do not match the face mesh "
                              f"(distance {np.max(dist):.3g})")
-        Gfull_rows.append(np.arange(n_pts))
+        Gfull_rows.append(rows)
         Gfull_cols.append(3 * nodes[idx] + 2)
-        Gfull_vals.append(np.full(n_pts, sign))
+        Gfull_vals.append(np.full(len(rows), sign))
     n_full = system.T.shape[0]
     if Gfull_rows:
         Gfull = sp.csr_matrix((np.concatenate(Gfull_vals),
@@ -152,7 +188,7 @@ def contact_faces(mesh, system, *, lens_meshed: bool, lower: str) -> ContactFace
     if G.nnz == 0:
         raise SolveError("no elastic body carries the contact faces")
     return ContactFaces(points, b1.doflocs, D, weights, G.tocsr(), pillar_of_vertex,
-                        pillar_names, local)
+                        pillar_names, local, floor_points, floor_vertices)
 
 
 def _rigid_rows(system, points, pillar_names, b2, owner):

@@ -33,7 +33,7 @@ import numpy as np
 
 from pillar_xval.contact import constrained_cg
 from meshes import (MESH_SIZE_RANGE_3D, SECTORS, WedgeGeometry, build_wedge_mesh,
-                    sector_pillars)
+                    floor_clear_of_pillars, sector_pillars)
 from pillar_xval.outcome import ContactResult, PillarForce
 from pillar_xval.outcome.memory import memory_short
 from pillar_xval.scenes import InputError, Scene, ScopeError, analytic
@@ -41,9 +41,10 @@ from pillar_xval.scenes.lattice import lattice_indices
 
 from .._driver import (RTOL_COMPLEMENTARITY, PhaseClock, contact_radius, fem_result,
                        flat_candidate, refuse_rigid_pair, scaled_materials, verdict)
+from .._floor import FLOOR_MARGIN, floor_candidate, side_wall_diagnostics
 from .contact import contact_area_share, contact_faces, line_profile
 from .half_space import HalfSpaceModel, serial_dense_algebra
-from .fields import cell_stresses, write_vtu3d
+from .fields import cell_stresses, lens_in_side_walls, write_vtu3d
 from .system import assemble_sector
 
 MODEL = "fem-3d"
@@ -250,7 +251,7 @@ def _mesh_and_factorise(setup: dict, mesh_size: float, sector_angle: float,
                              clamp_pillar_base=setup["clamp_pillar_base"],
                              rigid_pillars=setup["rigid_pillars"], progress=clock.say)
     faces = contact_faces(skmesh, system, lens_meshed=setup["lens_meshed"],
-                          lower=setup["lower"])
+                          lower=setup["lower"], floor=setup["floor"])
     clock.done("assemble")
     clock.say(f"factorising {system.n_reduced} unknowns (PARDISO)")
     system.factorise()
@@ -273,7 +274,9 @@ def _contact(scene: Scene, setup: dict, system, faces, tol: float, clock: PhaseC
     ell, E_ref = setup["ell"], setup["E_ref"]
     R, zeta = scene.lens.radius_m, scene.indentation_m
     r_pts = np.hypot(*faces.points) * ell
-    gap0 = (analytic.lens_gap(R, r_pts) - zeta) / ell
+    # the floor lies h below the pillar tops
+    lift = 0.0 if setup["floor"] is None else setup["floor"][0] * faces.floor_points
+    gap0 = (analytic.lens_gap(R, r_pts) - zeta) / ell + lift
     D, G = faces.D, faces.G
     single = system.single_error > 0.0
 
@@ -318,7 +321,7 @@ def _contact(scene: Scene, setup: dict, system, faces, tol: float, clock: PhaseC
                              load=None if force is None else faces.weights)
     if force is not None:
         zeta = sol.approach * ell
-        gap0 = (analytic.lens_gap(R, r_pts) - zeta) / ell
+        gap0 = (analytic.lens_gap(R, r_pts) - zeta) / ell + lift
     lam = sol.pressure
     clock.done("contact")
     x, residual = system.solve(G.T @ (D @ lam), refine=EXACT_REFINE)
@@ -345,9 +348,10 @@ def _result(scene: Scene, setup: dict, mesh, system, faces, contact: dict, mesh_
     at_origin = np.argmin(np.hypot(vx, vy))
     sigma0 = float(pressure[at_origin])
     tol_line = 1e-9 * max(1.0, float(np.max(np.abs(faces.vertex_points))))
-    r0, p0 = line_profile(faces.vertex_points, pressure, 0.0, tol_line)
-    r1, p1 = line_profile(faces.vertex_points, pressure, sector_angle, tol_line)
-    pillar_forces, per_sector_pillar = [], {}
+    tops = ~faces.floor_vertices
+    r0, p0 = line_profile(faces.vertex_points[:, tops], pressure[tops], 0.0, tol_line)
+    r1, p1 = line_profile(faces.vertex_points[:, tops], pressure[tops], sector_angle, tol_line)
+    pillar_forces, per_sector_pillar, floor = [], {}, {}
     if scene.is_flat:
         a = _flat_radius(faces, lam, w, tol_line) * ell
         area = math.pi * a * a
@@ -362,10 +366,21 @@ def _result(scene: Scene, setup: dict, mesh, system, faces, contact: dict, mesh_
         reaches_end = False
         pillar_forces, per_sector_pillar = _pillar_forces(scene, geo, faces, f_vertex,
                                                           unit_force, sector_angle)
+        on_floor = touching & faces.floor_vertices
+        floor = {"floor_force_N": mult * float(np.sum(f_vertex[faces.floor_vertices]))
+                 * unit_force,
+                 "floor_contact_area_m2": mult * contact_area_share(
+                     faces.weights[faces.floor_vertices], lam[faces.floor_vertices]) * ell**2,
+                 "floor_contact_radius_m": float(np.max(np.hypot(vx, vy)[on_floor])) * ell
+                 if on_floor.any() else 0.0}
+        if on_floor.any() and floor["floor_contact_radius_m"] >= 0.98 * geo.floor_radius_m:
+            reaches_end = True
     penetration = float(max(0.0, -w.min()) / (zeta / ell))
     failures = verdict([force, a, sigma0, residual, sol.residual, *pressure], residual, sol,
                        force, zeta, penetration,
                        "contact reached the end of the candidate zone" if reaches_end else "")
+    walls = {} if scene.is_flat else side_wall_diagnostics(
+        lens_in_side_walls(scene, setup, system, contact["x"]), scene.pillars.height_m)
     diagnostics = {
         "cg_iterations": int(sol.iterations), "cg_reentries": int(sol.reentries),
         "operator_asymmetry": contact["asymmetry"], "preconditioner": contact["preconditioner"],
@@ -378,6 +393,7 @@ def _result(scene: Scene, setup: dict, mesh, system, faces, contact: dict, mesh_
         "peak_rss_GiB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20,
         "pillar_top_profile_alpha": {"theta_rad": float(sector_angle),
                                      "r_m": (r1 * ell).tolist(), "pressure_Pa": p1.tolist()},
+        **walls,
     }
     return fem_result(
         MODEL, scene, clock, failures, mesh=mesh, system=system, mesh_size=mesh_size,
@@ -389,8 +405,10 @@ def _result(scene: Scene, setup: dict, mesh, system, faces, contact: dict, mesh_
         fields={"vertex_x_m": vx * ell, "vertex_y_m": vy * ell, "contact_pressure_Pa": pressure,
                 "point_x_m": faces.points[0] * ell, "point_y_m": faces.points[1] * ell,
                 "gap_m": w * ell, "sector_pillar_force_N": per_sector_pillar,
+                "floor_vertex": faces.floor_vertices,
                 "residual_history": np.asarray(sol.history)},
-        discretisation={"sector_angle_rad": float(sector_angle)}, diagnostics=diagnostics)
+        discretisation={"sector_angle_rad": float(sector_angle)}, diagnostics=diagnostics,
+        floor=floor)
 
 
 def _write_fields(vtu_path, scene: Scene, setup: dict, mesh, skmesh, system, x,
@@ -411,7 +429,8 @@ def _write_fields(vtu_path, scene: Scene, setup: dict, mesh, skmesh, system, x,
 def _setup(scene: Scene, mesh_size, sector_angle, block_factor, reach_factor, grading) -> dict:
     """Geometry, units, meshed bodies and constraints for ``scene``."""
     lens, sub = scene.lens.material, scene.substrate
-    out = {"clamp_pillar_base": False, "rigid_pillars": [], "lens_meshed": not lens.rigid}
+    out = {"clamp_pillar_base": False, "rigid_pillars": [], "lens_meshed": not lens.rigid,
+           "floor": None}
     if scene.is_flat:
         ell, candidate = flat_candidate(scene)
         # The Hertz edge is smooth (sqrt): no edge refinement, finer contact faces (cheap here).
@@ -432,14 +451,22 @@ def _setup(scene: Scene, mesh_size, sector_angle, block_factor, reach_factor, gr
         pillars = sector_pillars(p.pitch_m, p.diameter_m, reach, sector_angle)
         bodies = tuple(b for b, m in (("lens", lens), ("pillar", pillar), ("substrate", sub))
                        if not m.rigid)
+        floor = floor_candidate(scene, reach_factor * scene.indentation_m)
+        if floor is not None:  # within the pillars' reach, its circle clear of them
+            floor = floor_clear_of_pillars(min(floor, reach), pillars, ell)
+            if lens.rigid and sub.rigid:
+                raise ScopeError("lens.rigid and substrate.rigid are both true: a rigid lens "
+                                 "reaching a rigid floor has no contact pressure to compute")
+            out["floor"] = (p.height_m / ell, not sub.rigid)
         # The centre pillar's top holds sigma0 and the profile: at the contact element size
         # its P1 multiplier's centre value moved 6-11 % between mesh levels (Phi = 0.2,
         # E_p = 10 E_l: 21.3, 19.1, 20.5 kPa at mesh_size 2.83, 2, 1.41); at a quarter of it,
         # 20.02, 20.12, 20.12 kPa, and 12.33, 12.32, 12.33 kPa for rigid pillars at Phi = 0.4.
         grading = {"centre_ratio": CENTRE_RATIO, **grading}
         geo = WedgeGeometry(ell, block_factor * ell, pillars=pillars,
-                            pillar_height_m=p.height_m, sector_angle=sector_angle,
-                            bodies=bodies, mesh_size=mesh_size, **grading)
+                            pillar_height_m=p.height_m, floor_radius_m=floor,
+                            sector_angle=sector_angle, bodies=bodies, mesh_size=mesh_size,
+                            **grading)
         if pillar.rigid:
             out["lower"] = "rigid-pillar" if not sub.rigid else "fixed"
             if not sub.rigid:
@@ -474,9 +501,13 @@ def _check_options(mesh_size, sector_angle, block_factor, reach_factor, tol) -> 
 
 def _meshed_alike(a: dict, b: dict) -> bool:
     """Whether two set-ups mesh alike: the same pillars, in the same unit (a flat mesh's
-    Hertz radius, within 5e-7: the element sizes, to the round-off of a solve)."""
+    Hertz radius, within 5e-7: the element sizes, to the round-off of a solve), and a floor
+    in both or neither, ``a``'s holding the reach of ``b``'s (its candidate over the margin)."""
+    fa, fb = a["geometry"].floor_radius_m, b["geometry"].floor_radius_m
     return ([p.name for p in a["geometry"].pillars] == [p.name for p in b["geometry"].pillars]
-            and abs(b["ell"] / a["ell"] - 1.0) <= 5e-7)
+            and abs(b["ell"] / a["ell"] - 1.0) <= 5e-7
+            and (fa is None) == (fb is None)  # a floor whose reach the meshed one holds
+            and (fa is None or fb <= FLOOR_MARGIN * fa))
 
 
 def _reach(R: float, gap: float) -> float:
@@ -520,7 +551,8 @@ def _flat_radius(faces, lam, w, tol):
 
 def _pillar_forces(scene, geo, faces, f_vertex, unit_force, alpha):
     """Force on every lattice pillar in contact, unfolded from the sector (N)."""
-    per = np.bincount(faces.pillar_of_vertex, weights=f_vertex,
+    tops = ~faces.floor_vertices
+    per = np.bincount(faces.pillar_of_vertex[tops], weights=f_vertex[tops],
                       minlength=len(faces.pillar_names)) * unit_force
     share = {p.name: p for p in geo.pillars}
     pitch = scene.pillars.pitch_m

@@ -14,7 +14,9 @@ import json
 import numpy as np
 
 from meshes import BODIES
+from pillar_xval.scenes import Scene, analytic
 
+from .._floor import side_wall_overlap
 from ..forms.solid3d import stress, von_mises
 
 
@@ -67,3 +69,59 @@ def write_vtu3d(path, points_m: np.ndarray, tets: np.ndarray, displacement_m: np
     with atomic_path(path, ".vtu") as tmp:
         out.write(tmp)
     write_atomic(path.with_suffix(".json"), json.dumps(metadata, indent=2, allow_nan=False))
+
+
+def lens_in_side_walls(scene: Scene, setup: dict, system, x) -> tuple[float, float]:
+    """How deep and how far (m) the deformed lens bottom lies inside a meshed pillar's
+    deformed side wall, the largest over the sector's pillars
+    (:func:`fem_reference._floor.side_wall_overlap`, on each pillar's lens points within a
+    diameter of its rim, radii from its axis).  The lens's bottom point at r is at height
+    g(r) - zeta + u_z: its translation and curvature are in the gap.  A rigid pillar's wall
+    stays where it is; a rigid lens's bottom is sampled on rings around each pillar."""
+    ell, geo, sb = setup["ell"], setup["geometry"], system.basis_s
+    H = scene.pillars.height_m / ell
+    u, _ = system.full(x)
+    bodies = setup["materials"]
+
+    def moved(groups):  # undeformed points (3, n) and displacements (3, n) of face groups
+        groups = [g for g in groups if g in sb.mesh.boundaries]
+        if not groups:
+            return np.zeros((3, 0)), np.zeros((3, 0))
+        nodes = np.unique(np.concatenate([sb.get_dofs(g).all() for g in groups]))
+        return sb.doflocs[:, nodes], u[3 * nodes + np.arange(3)[:, None]]
+
+    def lens_height(at, uz):
+        return (analytic.lens_gap(scene.lens.radius_m, np.hypot(at[0], at[1]) * ell) / ell
+                - scene.indentation_m / ell + uz)
+
+    lens_at, lens_u = moved(["contact_lens_floor", "free_lens"])
+    wall_at, wall_u = moved(["free_pillar"])
+    top_at, top_u = moved(["contact_pillar"])
+    depth = width = 0.0
+    for p in geo.pillars:
+        c = np.array([p.x_m, p.y_m]) / ell
+        if "lens" in bodies:
+            rho0 = np.hypot(*(lens_at[:2] - c[:, None]))
+            near = (rho0 > 1.0) & (rho0 < 3.0)
+            at, du = lens_at[:, near], lens_u[:, near]
+        else:
+            rho, phi = np.meshgrid(np.linspace(1.0, 3.0, 41)[1:], np.linspace(0, 2 * np.pi, 72))
+            at = np.vstack([c[0] + rho.ravel() * np.cos(phi.ravel()),
+                            c[1] + rho.ravel() * np.sin(phi.ravel()), np.zeros(rho.size)])
+            du = np.zeros_like(at)
+        lens_rho = np.hypot(*(at[:2] + du[:2] - c[:, None]))
+        lens_z = lens_height(at, du[2])
+        if "pillar" in bodies:
+            mine = np.hypot(*(wall_at[:2] - c[:, None])) < 1.0 + 1e-6
+            rim = np.hypot(*(top_at[:2] - c[:, None]))
+            on_rim = np.abs(rim - 1.0) < 1e-6
+            if not mine.any() or not on_rim.any():
+                continue
+            wall_rho = np.hypot(*(wall_at[:2, mine] + wall_u[:2, mine] - c[:, None]))
+            wall_z = wall_at[2, mine] + wall_u[2, mine]
+            top = float(np.max(top_u[2, on_rim]))
+        else:
+            wall_z, wall_rho, top = np.linspace(-H, 0.0, 33), np.ones(33), 0.0
+        d, w = side_wall_overlap(lens_rho, lens_z, top, wall_rho, wall_z)
+        depth, width = max(depth, d), max(width, w)
+    return depth * ell, width * ell

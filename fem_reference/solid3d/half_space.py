@@ -59,7 +59,7 @@ class HalfSpaceModel:
         H = half_space_compliance(faces.vertex_points, faces.weights, faces.triangles,
                                   compliance, sector_angle)
         pillar = faces.pillar_of_vertex
-        if springs is not None and len(pillar) and pillar.min() >= 0:
+        if springs is not None:  # (the floor's vertices, pillar -1, have none)
             for k, c in enumerate(springs):  # the Hooke term c_k W_k W_k^T of each pillar
                 idx = np.nonzero(pillar == k)[0]
                 H[np.ix_(idx, idx)] += c * np.outer(faces.weights[idx], faces.weights[idx])

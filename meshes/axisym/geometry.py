@@ -3,7 +3,9 @@
 Lengths are in metres.  The contact plane is z = 0: the lens block sits above it with a flat
 bottom (its curvature is carried by the gap function g(r) = R - sqrt(R^2 - r^2) in the
 contact model, not by the mesh); a pillar of radius d/2 and height h stands below it on a
-substrate block whose top is z = -h; without a pillar the substrate top is z = 0.
+substrate block whose top is z = -h; without a pillar the substrate top is z = 0.  Where the
+lens may reach the floor around the pillar, the floor segment [d/2, c_f] at z = -h is a second
+contact line, paired with the lens bottom's segment [d/2, c_f] at z = 0.
 """
 
 from __future__ import annotations
@@ -36,6 +38,9 @@ class AxisymmetricGeometry:
         it must equal d/2.
     pillar_height_m : float, optional
         Pillar height h (m); None for the flat (Hertz) geometry.
+    floor_radius_m : float, optional
+        End c_f of the candidate floor segment [d/2, c_f] at z = -h (m), paired node for node
+        with the lens bottom's [d/2, c_f] at z = 0; None: the floor is not a contact line.
     bodies : tuple of str
         Bodies to mesh, a subset of ("lens", "pillar", "substrate"); rigid bodies are left out.
     mesh_size : float
@@ -55,6 +60,7 @@ class AxisymmetricGeometry:
     block_size_m: float
     contact_radius_m: float | None = None
     pillar_height_m: float | None = None
+    floor_radius_m: float | None = None
     bodies: tuple = BODIES
     mesh_size: float = 1.0
     elements_across_contact: float = 16.0
@@ -90,8 +96,15 @@ class AxisymmetricGeometry:
                 raise GeometryError(
                     f"contact_radius_m = {self.contact_radius_m:g} m: with a pillar the "
                     f"contact segment is the pillar top, radius {self.focus_radius_m:g} m")
+        if self.floor_radius_m is not None:
+            positive("floor_radius_m", self.floor_radius_m)
+            if not self.has_pillar or self.floor_radius_m <= 1.001 * self.focus_radius_m:
+                raise GeometryError(
+                    f"floor_radius_m = {self.floor_radius_m:g} m: needs a pillar and must "
+                    f"exceed the pillar radius {self.focus_radius_m:g} m by 0.1 % or more")
         # The blocks must hold the contact zone and the pillar with room to grade away.
-        inner = max(self.contact_radius_m, self.pillar_height_m or 0.0)
+        inner = max(self.contact_radius_m, self.pillar_height_m or 0.0,
+                    self.floor_radius_m or 0.0)
         if self.block_size_m < 4.0 * inner:
             raise GeometryError(
                 f"block_size_m = {self.block_size_m:g} m: must be >= 4 x "
@@ -116,7 +129,12 @@ class AxisymmetricGeometry:
 
         The minimum over features f of h_f + growth * distance_f, times ``mesh_size``:
         the contact segment (size 1/n), the singular points (size edge_ratio/n), capped at a
-        tenth of the block.  Halving ``mesh_size`` halves every element size.
+        tenth of the block.  Halving ``mesh_size`` halves every element size, except in and
+        near a short pillar, whose elements are at most its height (graded away from it; a
+        pillar with h >= d/8 never meets that cap).  With a floor
+        segment, it and its image on z = 0 are contact segments too: the two singular points
+        are mirror images about z = -h/2, so the rule is the same at (r, 0) and (r, -h) for r
+        on the floor segment, and the two lines get the same nodes.
         """
         h_contact = 1.0 / self.elements_across_contact
         h_edge = self.edge_ratio * h_contact
@@ -125,10 +143,21 @@ class AxisymmetricGeometry:
         # distance to the contact segment [0, c] x {0}
         d_seg = math.hypot(max(r - c, 0.0), z)
         size = h_contact + g * d_seg
+        if self.floor_radius_m is not None:
+            cf = self.floor_radius_m / self.focus_radius_m
+            run = max(1.0 - r, r - cf, 0.0)
+            H = self.pillar_height_m / self.focus_radius_m
+            size = min(size, h_contact + g * math.hypot(run, z),
+                       h_contact + g * math.hypot(run, z + H))
         for (rp, zp) in self.singular_points():
             size = min(size, h_edge + g * math.hypot(r - rp, z - zp))
         cap = 0.1 * self.block_size_m / self.focus_radius_m
-        return self.mesh_size * min(size, cap)
+        size = self.mesh_size * min(size, cap)
+        if self.has_pillar:  # a short pillar: elements no larger than its height (q > 0.5)
+            H = self.pillar_height_m / self.focus_radius_m
+            box = math.hypot(max(r - 1.0, 0.0), max(z, -H - z, 0.0))
+            size = min(size, H + self.mesh_size * g * box)
+        return size
 
     def singular_points(self):
         """Points (in focus-radius units) where the mesh is graded geometrically."""
@@ -139,14 +168,17 @@ class AxisymmetricGeometry:
 
 
 def pillar_geometry(diameter_m: float, height_m: float, block_size_m: float, *,
-                    bodies=BODIES, mesh_size: float = 1.0, **grading) -> AxisymmetricGeometry:
+                    bodies=BODIES, mesh_size: float = 1.0, floor_radius_m=None,
+                    **grading) -> AxisymmetricGeometry:
     """Lens block over a pillar of diameter d and height h bonded to a substrate block (m).
 
-    The contact segment is the pillar top [0, d/2]; ``grading`` passes
-    ``elements_across_contact``, ``edge_ratio`` or ``growth`` on.
+    The contact segment is the pillar top [0, d/2], and with ``floor_radius_m`` the floor
+    [d/2, c_f] too; ``grading`` passes ``elements_across_contact``, ``edge_ratio`` or
+    ``growth`` on.
     """
     return AxisymmetricGeometry(focus_radius_m=0.5 * diameter_m, block_size_m=block_size_m,
-                                pillar_height_m=height_m, bodies=tuple(bodies),
+                                pillar_height_m=height_m, floor_radius_m=floor_radius_m,
+                                bodies=tuple(bodies),
                                 mesh_size=mesh_size, **grading)
 
 

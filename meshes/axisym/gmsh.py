@@ -32,7 +32,8 @@ def build_axisymmetric_mesh(geometry: AxisymmetricGeometry) -> AxisymmetricMesh:
     AxisymmetricMesh
         Points in metres, triangles, line elements and the physical groups by name:
         subdomains ``lens``, ``pillar``, ``substrate`` (those meshed) and boundaries
-        ``contact_lens``, ``contact_pillar`` or ``contact_substrate``, ``pillar_base``,
+        ``contact_lens``, ``contact_pillar`` or ``contact_substrate``, with a floor segment
+        ``contact_lens_floor`` and ``contact_floor``, ``pillar_base``,
         ``axis``, ``far_lens``, ``far_substrate``, ``side_lens``, ``side_substrate``,
         ``free_lens``, ``free_pillar``, ``free_substrate``.
 
@@ -63,15 +64,20 @@ def _build_geometry(gmsh, geo: AxisymmetricGeometry) -> dict:
     def loop_surface(lines):
         return g.addPlaneSurface([g.addCurveLoop(lines)])
 
+    cf = None if geo.floor_radius_m is None else geo.floor_radius_m / geo.focus_radius_m
     if "lens" in geo.bodies:
         p0, pc, pl = g.addPoint(0, 0, 0), g.addPoint(c, 0, 0), g.addPoint(L, 0, 0)
         pt, pa = g.addPoint(L, L, 0), g.addPoint(0, L, 0)
-        lines = [g.addLine(p0, pc), g.addLine(pc, pl), g.addLine(pl, pt),
-                 g.addLine(pt, pa), g.addLine(pa, p0)]
-        for name, tag in zip(("contact_lens", "free_lens", "side_lens", "far_lens", "axis"),
-                             lines):
+        bottom = [("contact_lens", g.addLine(p0, pc))]
+        if cf is not None:  # same orientation as the floor line: (1, 0) -> (c_f, 0)
+            pf = g.addPoint(cf, 0, 0)
+            bottom += [("contact_lens_floor", g.addLine(pc, pf))]
+            pc = pf
+        bottom += [("free_lens", g.addLine(pc, pl))]
+        rest = [g.addLine(pl, pt), g.addLine(pt, pa), g.addLine(pa, p0)]
+        for name, tag in bottom + list(zip(("side_lens", "far_lens", "axis"), rest)):
             add(name, 1, tag)
-        add("lens", 2, loop_surface(lines))
+        add("lens", 2, loop_surface([tag for _, tag in bottom] + rest))
 
     top = 0.0
     corner = None  # the pillar-base points (axis, edge), shared by pillar and substrate
@@ -99,13 +105,18 @@ def _build_geometry(gmsh, geo: AxisymmetricGeometry) -> dict:
             s0, sc = corner
             first = groups["pillar_base"][1][0]
         s1, s2, s3 = g.addPoint(L, top, 0), g.addPoint(L, top - L, 0), g.addPoint(0, top - L, 0)
-        lines = [first, g.addLine(sc, s1), g.addLine(s1, s2), g.addLine(s2, s3),
-                 g.addLine(s3, s0)]
-        for name, tag in zip((None, "free_substrate", "side_substrate", "far_substrate",
-                              "axis"), lines):
+        floor = []
+        if cf is not None:
+            sf = g.addPoint(cf, top, 0)
+            floor = [("contact_floor", g.addLine(sc, sf))]
+            sc = sf
+        lines = [(None, first), *floor, ("free_substrate", g.addLine(sc, s1)),
+                 ("side_substrate", g.addLine(s1, s2)), ("far_substrate", g.addLine(s2, s3)),
+                 ("axis", g.addLine(s3, s0))]
+        for name, tag in lines:
             if name:
                 add(name, 1, tag)
-        add("substrate", 2, loop_surface(lines))
+        add("substrate", 2, loop_surface([tag for _, tag in lines]))
     if geo.has_pillar and "pillar" not in geo.bodies and "substrate" not in geo.bodies:
         groups.pop("pillar_base")  # neither body is meshed: nothing to name
     g.synchronize()

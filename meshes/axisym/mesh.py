@@ -109,11 +109,13 @@ class AxisymmetricMesh:
                 f"mesh quality check failed: triangle {k} has q = {q[k]:.3g} < {MIN_QUALITY} "
                 f"(near r = {self.points[0, self.triangles[0, k]]:.3g} m, "
                 f"z = {self.points[1, self.triangles[0, k]]:.3g} m)")
-        lens, lower = self.contact_pair()
-        if lens and lower:
+        pairs = [self.contact_pair(), ("contact_lens_floor", "contact_floor")]
+        for lens, lower in pairs:
+            if lens not in self.boundaries or lower not in self.boundaries:
+                continue
             a, b = self.contact_nodes(lens), self.contact_nodes(lower)
             tol = MATCH_RTOL * self.geometry.focus_radius_m
-            if len(a) != len(b) or np.max(np.abs(self.points[:, a] - self.points[:, b])) > tol:
+            if len(a) != len(b) or np.max(np.abs(self.points[0, a] - self.points[0, b])) > tol:
                 raise MeshError(f"contact lines {lens!r} ({len(a)} nodes) and {lower!r} "
                                 f"({len(b)} nodes) do not match node for node")
 

@@ -59,6 +59,10 @@ class WedgeGeometry:
         Pillar height h (m); None for the flat geometry.
     contact_radius_m : float, optional
         Flat geometry: radius of the candidate contact sector on z = 0 (m).
+    floor_radius_m : float, optional
+        Radius c_f of the candidate floor (m): the sector's disk less the pillars, on the
+        substrate's top z = -h and its copy on the lens's bottom; its circle must cross no
+        pillar (:func:`floor_clear_of_pillars`).  None: the floor is not a contact face.
     sector_angle : float
         alpha in radians, one of pi/6 (default), pi/3, pi/2.
     bodies : tuple of str
@@ -83,6 +87,7 @@ class WedgeGeometry:
     pillars: tuple = ()
     pillar_height_m: float | None = None
     contact_radius_m: float | None = None
+    floor_radius_m: float | None = None
     sector_angle: float = math.pi / 6.0
     bodies: tuple = BODIES
     mesh_size: float = 1.0
@@ -118,6 +123,13 @@ class WedgeGeometry:
             positive("pillar_height_m", self.pillar_height_m)
             if not self.pillars:
                 raise GeometryError("pillar_height_m given but no pillar lies in the sector")
+            if self.floor_radius_m is not None:
+                positive("floor_radius_m", self.floor_radius_m)
+                clear = floor_clear_of_pillars(self.floor_radius_m, self.pillars,
+                                               self.focus_radius_m)
+                if clear != self.floor_radius_m:
+                    raise GeometryError(f"floor_radius_m = {self.floor_radius_m:g} m: its "
+                                        "circle crosses a pillar (or the centre pillar's rim)")
         lo, hi = MESH_SIZE_RANGE_3D
         if self.mesh_size > hi or self.mesh_size < lo:
             raise GeometryError(f"mesh_size = {self.mesh_size:g}: allowed range is "
@@ -141,7 +153,7 @@ class WedgeGeometry:
         if not self.has_pillars:
             return self.contact_radius_m
         reach = max(math.hypot(p.x_m, p.y_m) for p in self.pillars) + self.focus_radius_m
-        return max(reach, self.pillar_height_m)
+        return max(reach, self.pillar_height_m, self.floor_radius_m or 0.0)
 
     # --- size rule in units of the focus radius ------------------------------------------
     def size_at(self, x: float, y: float, z: float) -> float:
@@ -185,6 +197,9 @@ class WedgeGeometry:
         table, e = self._lattice
         row = SQRT3 * e
         centres = list(table.values())
+        # With a floor the rule is the same at z and -h - z (the floor's faces and their
+        # copies on the lens, the pillars' tops and bases get the same curves' nodes).
+        mirror = self.floor_radius_m is not None
         around = [(dn, dm) for dn in (-1, 0, 1) for dm in (-1, 0, 1)]
         near = {}  # rounded lattice indices -> the meshed centres among their 3 x 3 block
 
@@ -212,16 +227,17 @@ class WedgeGeometry:
                     best, (cx, cy) = d2, p
             rim = hypot(x - cx, y - cy) - 1.0
             s = cap
-            t = h_c + g * hypot(rim if rim > 0.0 else 0.0, z)
+            top, base = (z if z >= 0.0 else -z), (z + H if z + H >= 0.0 else -(z + H))
+            zf = base if mirror and base < top else z
+            t = h_c + g * hypot(rim if rim > 0.0 else 0.0, zf)
             if t < s:
                 s = t
-            top, base = (z if z >= 0.0 else -z), (z + H if z + H >= 0.0 else -(z + H))
             t = h_e + g * hypot(rim, base if base < top else top)
             if t < s:
                 s = t
             if centred:  # the centre pillar's top: the disk r <= 1 at z = 0
                 r0 = hypot(x, y) - 1.0
-                t = h_0 + g * hypot(r0 if r0 > 0.0 else 0.0, z)
+                t = h_0 + g * hypot(r0 if r0 > 0.0 else 0.0, zf)
                 if t < s:
                     s = t
             return scale * s
@@ -270,3 +286,19 @@ def sector_pillars(pitch_m: float, diameter_m: float, reach_m: float,
             continue
         out.append(SectorPillar(int(n), int(m), float(x), float(y), 0.5 if on_plane else 1.0))
     return tuple(out)
+
+
+def floor_clear_of_pillars(radius_m: float, pillars, focus_radius_m: float) -> float:
+    """The smallest radius >= ``radius_m`` (m) whose circle crosses none of ``pillars`` (a
+    gap of a tenth of the pillar radius from their rims): the floor's candidate disk then
+    holds whole pillars only, and the centre pillar with room."""
+    gap = 0.1 * focus_radius_m
+    r = max(radius_m, 1.0 * focus_radius_m + gap)
+    moved = True
+    while moved:
+        moved = False
+        for p in pillars:
+            c = math.hypot(p.x_m, p.y_m)
+            if c > 0.0 and c - focus_radius_m - gap < r < c + focus_radius_m + gap:
+                r, moved = c + focus_radius_m + gap, True
+    return r

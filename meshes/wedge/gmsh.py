@@ -9,7 +9,10 @@ candidate contact sector), which imprints them on its bottom face; it shares no 
 the lower bodies, so the two sides of every contact face are distinct nodes.  Each imprinted
 lens face is meshed as a periodic copy (identity transform) of the face it touches: the two
 sides of a contact face match node for node, which makes the mortar contact exact and simple
-(the lens needs the pillars' resolution there anyway, for the same edge singularity).
+(the lens needs the pillars' resolution there anyway, for the same edge singularity).  The
+candidate floor (the sector's disk of radius c_f less the pillars) is imprinted on the
+substrate's top at z = -h and on the lens's bottom, and meshed on the substrate as the lens's
+face moved down by h.
 """
 
 from __future__ import annotations
@@ -34,7 +37,8 @@ def build_wedge_mesh(geometry: WedgeGeometry, *, progress=None) -> WedgeMesh:
     Groups (subdomains): ``lens``, ``pillar``, ``substrate`` (those meshed) and
     ``pillar_{n}_{m}`` per pillar.  Boundaries: ``contact_lens`` and ``contact_lens_{n}_{m}``
     (lens faces over each pillar top; flat: over the candidate sector), ``contact_pillar`` and
-    ``contact_pillar_{n}_{m}`` (pillar tops), flat ``contact_substrate``, ``pillar_base`` and
+    ``contact_pillar_{n}_{m}`` (pillar tops), flat ``contact_substrate``, with a candidate
+    floor ``contact_lens_floor`` and ``contact_floor`` (its two sides), ``pillar_base`` and
     ``pillar_base_{n}_{m}``, ``mirror_0`` (theta = 0) and ``mirror_1`` (theta = alpha) with
     per-body ``mirror_0_lens`` etc., ``far_lens`` (z = L), ``far_substrate`` (bottom),
     ``side_lens``, ``side_substrate`` (r = L), ``free_lens``, ``free_pillar``,
@@ -109,10 +113,12 @@ def _build_geometry(gmsh, geo: WedgeGeometry):
         tops = {k: _face_at(gmsh, v, 0.0) for k, v in pillar_vols.items()}
         bases = {k: _face_at(gmsh, v, -H) for k, v in pillar_vols.items()}
         top_copies = {k: occ.copy([(2, t)])[0][1] for k, t in tops.items()}
+        floor_top, floor_low = _floor_faces(occ, geo, tops.values(), H)
         if "pillar" in geo.bodies:
             if substrate is not None:
                 out, out_map = occ.fragment([(3, substrate)],
-                                            [(3, v) for v in pillar_vols.values()])
+                                            [(3, v) for v in pillar_vols.values()]
+                                            + [(2, t) for t in floor_low])
                 substrate = _only(out_map[0], "substrate")
                 for k, mp in zip(pillar_vols, out_map[1:]):
                     pillar_vols[k] = _only(mp, f"pillar {k}")
@@ -123,17 +129,14 @@ def _build_geometry(gmsh, geo: WedgeGeometry):
             base_copies = [occ.copy([(2, b)])[0][1] for b in bases.values()]
             occ.remove([(3, v) for v in pillar_vols.values()], recursive=True)
             if substrate is not None:
-                out, out_map = occ.fragment([(3, substrate)], [(2, b) for b in base_copies])
+                out, out_map = occ.fragment([(3, substrate)], [(2, b) for b in base_copies]
+                                            + [(2, t) for t in floor_low])
                 substrate = _only(out_map[0], "substrate")
-        lower_faces = top_copies
+        if substrate is None and floor_low:
+            occ.remove([(2, t) for t in floor_low], recursive=True)
+        lower_faces = {**top_copies, **{f"floor{i}": t for i, t in enumerate(floor_top)}}
     else:
-        c = geo.contact_radius_m / f
-        p0 = occ.addPoint(0, 0, 0)
-        p1 = occ.addPoint(c, 0, 0)
-        p2 = occ.addPoint(c * math.cos(alpha), c * math.sin(alpha), 0)
-        loop = occ.addCurveLoop([occ.addLine(p0, p1), occ.addCircleArc(p1, p0, p2),
-                                 occ.addLine(p2, p0)])
-        disk = occ.addPlaneSurface([loop])
+        disk = _sector_disk(occ, geo.contact_radius_m / f, alpha)
         lower_faces = {"flat": disk}
         if substrate is not None:
             copy = occ.copy([(2, disk)])[0][1]
@@ -160,8 +163,47 @@ def _build_geometry(gmsh, geo: WedgeGeometry):
             match = [t for t in lens_faces if _same_face(gmsh, s, t)]
             if len(match) != 1:
                 raise MeshError(f"no lens face matches contact face {s}")
-            pairs.append((match[0], s))
+            pairs.append((match[0], s, 0.0))
+    if lens is not None and substrate is not None and geo.floor_radius_m is not None:
+        lens_faces = _faces_at(gmsh, lens, 0.0)
+        for s in _faces_at(gmsh, substrate, -H):
+            if not _in_floor(gmsh, s, geo):
+                continue
+            match = [t for t in lens_faces if _same_face(gmsh, s, t, H)]
+            if len(match) != 1:
+                raise MeshError(f"no lens face matches floor face {s}")
+            pairs.append((match[0], s, H))
     return volumes, pairs
+
+
+def _floor_faces(occ, geo: WedgeGeometry, tops, H: float):
+    """The candidate floor: the sector's disk of radius c_f less the pillars, on z = 0 (to
+    imprint on the lens) and a copy on z = -h (on the substrate); ([], []) without one."""
+    if geo.floor_radius_m is None:
+        return [], []
+    disk = _sector_disk(occ, geo.floor_radius_m / geo.focus_radius_m, geo.sector_angle)
+    holes = [occ.copy([(2, t)])[0] for t in tops]
+    out, _ = occ.cut([(2, disk)], holes, removeObject=True, removeTool=True)
+    top = [t for d, t in out if d == 2]
+    low = [occ.copy([(2, t)])[0][1] for t in top]
+    occ.translate([(2, t) for t in low], 0, 0, -H)
+    return top, low
+
+
+def _sector_disk(occ, radius: float, alpha: float) -> int:
+    """The plane face of the sector's disk of ``radius`` on z = 0 (focus units)."""
+    p0 = occ.addPoint(0, 0, 0)
+    p1 = occ.addPoint(radius, 0, 0)
+    p2 = occ.addPoint(radius * math.cos(alpha), radius * math.sin(alpha), 0)
+    loop = occ.addCurveLoop([occ.addLine(p0, p1), occ.addCircleArc(p1, p0, p2),
+                             occ.addLine(p2, p0)])
+    return occ.addPlaneSurface([loop])
+
+
+def _in_floor(gmsh, s, geo: WedgeGeometry) -> bool:
+    """Is face ``s`` (flat, at z = 0 or -h, under no pillar) within the candidate floor?"""
+    com = np.array(gmsh.model.occ.getCenterOfMass(2, s))
+    return bool(math.hypot(com[0], com[1]) < geo.floor_radius_m / geo.focus_radius_m)
 
 
 def _only(dimtags, what):
@@ -187,12 +229,15 @@ def _face_at(gmsh, volume, z):
     return faces[0]
 
 
-def _same_face(gmsh, a, b) -> bool:
+def _same_face(gmsh, a, b, dz: float = 0.0) -> bool:
+    """Is face ``b`` face ``a`` moved up by ``dz``?"""
     ba, bb = np.array(gmsh.model.getBoundingBox(2, a)), np.array(gmsh.model.getBoundingBox(2, b))
+    ba[[2, 5]] += dz
     if np.max(np.abs(ba - bb)) > 1e-6:
         return False
     ca = np.array(gmsh.model.occ.getCenterOfMass(2, a))
     cb = np.array(gmsh.model.occ.getCenterOfMass(2, b))
+    ca[2] += dz
     return bool(np.max(np.abs(ca - cb)) < 1e-6)
 
 
@@ -205,6 +250,7 @@ def _name_groups(gmsh, geo: WedgeGeometry, volumes: dict) -> dict:
     H = geo.pillar_height_m / f if geo.has_pillars else 0.0
     alpha = geo.sector_angle
     n1 = np.array([-math.sin(alpha), math.cos(alpha), 0.0])
+    floor = geo.floor_radius_m is not None
     groups: dict[str, tuple[int, list]] = {}
 
     def add(name, dim, tag):
@@ -222,11 +268,14 @@ def _name_groups(gmsh, geo: WedgeGeometry, volumes: dict) -> dict:
             return False
         return bool(np.all(np.abs(points_of(s) @ normal) < TOL))
 
-    def pillar_under(s):
+    def pillar_under(s):  # its centre and its corners within the pillar's circle
         com = np.array(gmsh.model.occ.getCenterOfMass(2, s))
         for p in geo.pillars:
-            if math.hypot(com[0] - p.x_m / f, com[1] - p.y_m / f) < 1.0:
-                return p
+            c = np.array([p.x_m / f, p.y_m / f])
+            if math.hypot(*(com[:2] - c)) < 1.0:
+                corners = points_of(s)[:, :2] - c
+                if not floor or np.all(np.hypot(*corners.T) < 1.0 + TOL):
+                    return p
         return None
 
     for body in ("lens", "pillar", "substrate"):
@@ -246,6 +295,8 @@ def _name_groups(gmsh, geo: WedgeGeometry, volumes: dict) -> dict:
                         add("contact_lens", 2, s), add(f"contact_lens_{p.name}", 2, s)
                     elif inside_flat:
                         add("contact_lens", 2, s)
+                    elif floor and _in_floor(gmsh, s, geo):
+                        add("contact_lens_floor", 2, s)
                     else:
                         add("free_lens", 2, s)
                 elif body == "lens" and flat_z and abs(z0 - L) < TOL:
@@ -262,6 +313,9 @@ def _name_groups(gmsh, geo: WedgeGeometry, volumes: dict) -> dict:
                 elif body == "substrate" and flat_z and not geo.has_pillars and abs(z0) < TOL \
                         and _is_candidate(gmsh, s, geo):
                     add("contact_substrate", 2, s)
+                elif body == "substrate" and flat_z and floor and abs(z0 + H) < TOL \
+                        and _in_floor(gmsh, s, geo):
+                    add("contact_floor", 2, s)
                 elif flat_z:
                     add(f"free_{body}", 2, s)
                 elif body in ("lens", "substrate") and _radius_of(gmsh, s) > 0.5 * L:
@@ -297,8 +351,15 @@ def _mesh(gmsh, geo: WedgeGeometry, pairs) -> None:
     gmsh.option.setNumber("Mesh.ElementOrder", 1)  # scikit-fem raises the order itself
     gmsh.option.setNumber("Mesh.Optimize", 1)
     set_size_callback(gmsh, geo.size_callback())
-    for lens_face, lower_face in pairs:
-        gmsh.model.mesh.setPeriodic(2, [lens_face], [lower_face], IDENTITY)
+    for lens_face, lower_face, dz in pairs:
+        if dz == 0.0:  # a pillar top (or the flat candidate) copied onto the lens
+            gmsh.model.mesh.setPeriodic(2, [lens_face], [lower_face], IDENTITY)
+            continue
+        # The floor: the lens's face copied down by h onto the substrate.  (The other way
+        # round, a lens rim curve would be the copy of both a pillar's top rim and its base.)
+        shift = list(IDENTITY)
+        shift[11] = -dz
+        gmsh.model.mesh.setPeriodic(2, [lower_face], [lens_face], shift)
     gmsh.model.mesh.generate(3)
 
 

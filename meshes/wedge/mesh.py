@@ -89,6 +89,8 @@ class WedgeMesh:
                 pairs.append((f"contact_lens_{m.group(1)}", name))
         if "contact_substrate" in self.boundaries and "contact_lens" in self.boundaries:
             pairs.append(("contact_lens", "contact_substrate"))
+        if "contact_floor" in self.boundaries and "contact_lens_floor" in self.boundaries:
+            pairs.append(("contact_lens_floor", "contact_floor"))  # h apart: in (x, y)
         return pairs
 
     def check(self) -> None:
@@ -107,7 +109,7 @@ class WedgeMesh:
         tol = MATCH_RTOL * self.geometry.focus_radius_m
         for lens, lower in self.contact_pairs():
             a, b = self.face_nodes(lens), self.face_nodes(lower)
-            if len(a) != len(b) or _unmatched(self.points[:, a], self.points[:, b]) > tol:
+            if len(a) != len(b) or _unmatched(self.points[:2, a], self.points[:2, b]) > tol:
                 raise MeshError(f"contact faces {lens!r} ({len(a)} nodes) and {lower!r} "
                                 f"({len(b)} nodes) do not match node for node")
 

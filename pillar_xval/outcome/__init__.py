@@ -8,9 +8,10 @@ every other package stands on it.
 
 from ._files import (CACHE_ENV, CacheWarning, FileLock, UnusableFile, atomic_path, cache_root,
                      read_regular, write_atomic)
-from ._schema import (PILLAR_LABELS, SCHEMA_VERSION, ContactResult, PillarForce, model_label,
-                      package_version)
+from ._schema import (PILLAR_LABELS, REGIMES, SCHEMA_VERSION, ContactResult, PillarForce,
+                      model_label, package_version, regime_of)
 
-__all__ = ["CACHE_ENV", "PILLAR_LABELS", "SCHEMA_VERSION", "CacheWarning", "ContactResult",
-           "FileLock", "PillarForce", "UnusableFile", "atomic_path", "cache_root", "model_label",
-           "package_version", "read_regular", "write_atomic"]
+__all__ = ["CACHE_ENV", "PILLAR_LABELS", "REGIMES", "SCHEMA_VERSION", "CacheWarning",
+           "ContactResult", "FileLock", "PillarForce", "UnusableFile", "atomic_path",
+           "cache_root", "model_label", "package_version", "read_regular", "regime_of",
+           "write_atomic"]

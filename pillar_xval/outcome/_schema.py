@@ -12,7 +12,9 @@ from dataclasses import asdict, dataclass, field
 from importlib import metadata
 from typing import Any
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
+# The contact regimes a result names (``ContactResult.regime``).
+REGIMES = ("flat", "single-pillar", "multi-pillar", "mixed")
 
 
 def package_version() -> str:
@@ -45,6 +47,12 @@ class ContactResult:
     (sigma_0); ``contact_radius_m`` the radius of the outermost point of contact;
     ``real_contact_area_m2`` the area where the pressure is positive; ``pillar_top_profile``
     the pressure across the central pillar top (``r_m`` from its centre, ``pressure_Pa``).
+    The floor between the pillars is a candidate too once the lens can reach it (zeta > h):
+    ``floor_force_N``, ``floor_contact_area_m2`` and ``floor_contact_radius_m`` (the outer
+    radius of the floor contact; 0 when none) are its share, included in the totals, and
+    ``regime`` names the contact: ``"flat"`` (no pillars), ``"single-pillar"``,
+    ``"multi-pillar"`` (pillar tops only) or ``"mixed"`` (tops and floor); a model that
+    leaves it out gets it from its pillar count and floor force (:func:`regime_of`).
     ``diagnostics`` holds model-specific numbers (residuals, complementarity errors);
     ``fields`` holds arrays for plots and CSV files and is not part of the JSON document.
     """
@@ -68,6 +76,10 @@ class ContactResult:
     fields: dict = field(default_factory=dict, repr=False)
     load_control: str = ""
     indentation_m: float | None = None
+    floor_force_N: float = 0.0
+    floor_contact_area_m2: float = 0.0
+    floor_contact_radius_m: float = 0.0
+    regime: str = ""
 
     def __post_init__(self):
         load = self.scene.get("load", {}) if isinstance(self.scene, dict) else {}
@@ -75,6 +87,9 @@ class ContactResult:
             self.load_control = "force" if "force_N" in load else "indentation"
         if self.indentation_m is None:
             self.indentation_m = load.get("indentation_m")
+        if not self.regime:
+            flat = isinstance(self.scene, dict) and self.scene.get("pillars") is None
+            self.regime = regime_of(flat, self.pillars_in_contact, self.floor_force_N)
 
     def for_force(self, scene: dict, indentation_m: float, **diagnostics) -> "ContactResult":
         """This result, solved at ``indentation_m`` (m), as the answer to the force-controlled
@@ -131,11 +146,29 @@ class ContactResult:
             f"contact radius   {self.contact_radius_m * 1e6:.6g} um",
             f"real area        {self.real_contact_area_m2 * 1e12:.6g} um^2",
             f"pillars touching {self.pillars_in_contact}",
+            *([f"floor            {self.floor_force_N * 1e6:.6g} uN "
+               f"({100.0 * self.floor_force_N / self.total_force_N:.3g} % of the force), "
+               f"{self.floor_contact_area_m2 * 1e12:.6g} um^2, out to "
+               f"{self.floor_contact_radius_m * 1e6:.6g} um"]
+              if self.floor_force_N > 0.0 and self.total_force_N > 0.0 else []),
+            f"regime           {self.regime}",
+            *([f"side walls       {self.diagnostics['side_wall_warning']}"]
+              if self.diagnostics.get("side_wall_warning") else []),
             f"converged        {self.converged} after {self.iterations} iterations, "
             f"{self.wall_time_s:.3g} s",
         ]
         lines += [f"note             {note}" for note in self.diagnostics.get("notes", [])]
         return "\n".join(lines)
+
+
+def regime_of(flat: bool, pillars_in_contact: int, floor_force_N: float) -> str:
+    """The contact regime (one of :data:`REGIMES`): a flat substrate; the floor touched
+    (mixed); else one pillar or several."""
+    if flat:
+        return "flat"
+    if floor_force_N > 0.0:
+        return "mixed"
+    return "single-pillar" if pillars_in_contact <= 1 else "multi-pillar"
 
 
 # How a result's pillar model (``diagnostics["pillars"]``, set by every model on a scene with

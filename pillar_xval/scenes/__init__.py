@@ -6,7 +6,7 @@ Units: SI inside the code (m, Pa, N).  Scene files state their units in the key 
 :mod:`pillar_xval.scenes._tables` (file table to Scene, errors in file keys and units).
 """
 
-from . import analytic, lattice
+from . import analytic, floor, lattice
 from ._checks import LENGTH_RANGE_M, MODULUS_RANGE_PA, PHI_CLOSE_PACKING, POISSON_RANGE
 from ._io import load_scene, preset_names, scene_dict, scene_loader, scene_to_toml
 from ._overrides import apply_overrides
@@ -29,6 +29,7 @@ __all__ = [
     "ToolError",
     "analytic",
     "apply_overrides",
+    "floor",
     "lattice",
     "load_scene",
     "preset_names",

@@ -17,7 +17,9 @@ Allowed ranges (why: PHYSICS.md, "Scene input")
 - surface fraction: (0, 0.9069], where anything from pi/(2 sqrt 3) = 0.90689968... up to the
   printed value 0.9069 means close packing (pitch = diameter), and whose pitch is a length
   in range;
-- pitch >= diameter; indentation below the pillar height (or below R/2 on a flat substrate);
+- pitch >= diameter; indentation below 0.106 R, where the lens's slope at the edge of its
+  reach is 0.5 (the small-slope half-space model; the floor between the pillars is a
+  candidate of the contact, :func:`floor_reach`);
   lens radius above 10 x the larger of pillar diameter and height; not both half-spaces rigid;
 - a force (the load of a force-controlled scene, instead of the indentation): [1e-21, 1e22] N,
   the force scale E L^2 of the softest modulus on the shortest length to the stiffest on the
@@ -41,6 +43,14 @@ POISSON_RANGE = (0.0, 0.5)
 # the README print for it, which is accepted as close packing too.
 PHI_CLOSE_PACKING = math.pi / (2.0 * math.sqrt(3.0))
 PHI_CLOSE_PACKING_PRINTED = 0.9069
+# The small-slope half-space model (Boussinesq's kernel on the plane, the gap read along z):
+# the lens's slope at the edge of its reach (where its undeformed gap equals zeta) at most
+# 0.5, an indentation up to R (1 - 1/sqrt(1.25)) = 0.106 R.  Its neglected terms are of order
+# the slope squared (PHYSICS.md, "Scene input").  With R > 10 max(d, h) this keeps every
+# indentation up to h valid, and on the paper's lens (R = 2 mm, h = 2 um) up to 106 h, room
+# for the deep indentations of zeta = 10 h (slope 0.14).
+MAX_LENS_SLOPE = 0.5
+SMALL_SLOPE_SHARE = 1.0 - 1.0 / math.sqrt(1.0 + MAX_LENS_SLOPE**2)
 
 
 class Naming:
@@ -188,25 +198,28 @@ def indentation_problem(radius_m: float, indentation_m: float,
         return (f"must lie in [{naming.amount('load.indentation_m', lo)}, "
                 f"{naming.amount('load.indentation_m', hi)}] {naming.unit('load.indentation_m')} "
                 "(the allowed lengths)")
-    if pillars is None:
-        if zeta >= 0.5 * R:
-            return (f"must be below half of {naming.quote('lens.radius_m', R)}, "
-                    f"{naming.measure('load.indentation_m', 0.5 * R)} "
-                    "(the half-space model needs a contact radius far below R)")
-        return ""
-    h = pillars[1]
-    if zeta >= h:
-        return (f"must be below the pillar height, {naming.quote('pillars.height_m', h)} (at "
-                "zeta >= h the lens reaches the substrate between pillars, which this model "
-                "does not include)")
+    top = small_slope_indentation(R)
+    if zeta >= top:
+        return (f"must be below {naming.measure('load.indentation_m', top)}, "
+                f"{SMALL_SLOPE_SHARE:.4f} x {naming.quote('lens.radius_m', R)}: beyond it the "
+                f"lens's slope at the edge of its reach, sqrt(2 R zeta - zeta^2) / (R - zeta), "
+                f"passes {MAX_LENS_SLOPE:g} and the small-slope half-space model no longer holds")
     return ""
+
+
+def small_slope_indentation(radius_m: float) -> float:
+    """The deepest indentation (m) the models accept on a lens of ``radius_m``: where the
+    lens's slope at the edge of its reach (the radius where its undeformed gap equals zeta),
+    r / sqrt(R^2 - r^2) with r^2 = 2 R zeta - zeta^2, reaches :data:`MAX_LENS_SLOPE`:
+    zeta = R (1 - 1 / sqrt(1 + s^2))."""
+    return SMALL_SLOPE_SHARE * radius_m
 
 
 def indentation_limits(radius_m: float, pillars: tuple[float, float] | None) -> tuple:
     """(smallest, largest) indentation in m that :func:`indentation_problem` accepts, the
     largest a relative 1e-9 inside its open end."""
-    top = 0.5 * radius_m if pillars is None else pillars[1]
-    return LENGTH_RANGE_M[0], min(LENGTH_RANGE_M[1], top * (1.0 - 1e-9))
+    return LENGTH_RANGE_M[0], min(LENGTH_RANGE_M[1],
+                                  small_slope_indentation(radius_m) * (1.0 - 1e-9))
 
 
 def rigid_flat_indentation(force_N: float, radius_m: float, lens_compliance: float) -> float:

@@ -141,7 +141,7 @@ def curve_table(doc: dict) -> str:
                ("sigma0 [kPa]", "centre_pressure_Pa", 1e-3))
     width = 18 if doc["levels"] >= 2 else 13
     head = f"{'model':<16}" + "".join(f"{c[0]:>{width}}" for c in columns) + \
-        f"{'pillars':>9}  converged"
+        f"{'pillars':>9}{'floor [uN]':>12}  converged"
     lines = [head, "-" * len(head)]
     for r in doc["rows"]:
         if "error" in r:
@@ -154,7 +154,13 @@ def curve_table(doc: dict) -> str:
                                                 f" ±{band * factor:.2g}")
             cells.append(f"{text:>{width}}")
         lines.append(f"{r['model']:<16}{''.join(cells)}{r['pillars_in_contact']:>9}"
-                     f"  {r['converged']}")
+                     f"{r.get('floor_force_N', 0.0) * 1e6:>12.5g}  {r['converged']}")
     for model, falls in doc["falls"].items():
         lines += [f"{model}: {line}" for line in falls]
+    unit, factor = ("uN", 1e6) if doc["control"] == "force" else ("um", 1e6)
+    for model, t in (doc.get("transitions") or {}).items():
+        if t:
+            lines.append(f"{model}: touches the floor between the loads "
+                         f"{t['suspended_load'] * factor:.5g} and {t['mixed_load'] * factor:.5g} "
+                         f"{unit} (suspended -> mixed; `pillar-xval onset` finds the point)")
     return "\n".join(lines)

@@ -413,6 +413,11 @@ def plot_curve(doc: dict, path: Path) -> Path:
             for r in rows:
                 if not r["converged"]:
                     ax.plot(r[xa] * fx, r[ya] * fy, "x", color="red", ms=10, mew=2)
+            mixed = [r for r in rows if r.get("regime") == "mixed"]
+            if mixed:  # the floor touched: open markers on the mixed points
+                ax.plot([r[xa] * fx for r in mixed], [r[ya] * fy for r in mixed], "o",
+                        mfc="none", mec="k", ms=9, mew=1.0,
+                        label=f"{model}: floor touched" if ax is axes.ravel()[0] else None)
         points = [p for p in (doc.get("data") or {}).get("points", []) if xa in p and ya in p]
         if points:
             ax.plot([p[xa] * fx for p in points], [p[ya] * fy for p in points], "kx", ms=7,
@@ -422,6 +427,14 @@ def plot_curve(doc: dict, path: Path) -> Path:
         ax.set(xlabel=xl, ylabel=yl)
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=7, loc="best")
+    crossed = {m: t for m, t in (doc.get("transitions") or {}).items() if t}
+    if crossed:
+        fig.text(0.5, 0.025, "suspended -> mixed (the lens touches the floor between the "
+                 "pillars): " + "; ".join(
+                     f"{m} between {t['suspended_load'] * 1e6:.3g} and "
+                     f"{t['mixed_load'] * 1e6:.3g} " + ("uN" if doc["control"] == "force"
+                                                         else "um")
+                     for m, t in crossed.items()), ha="center", fontsize=8)
     control = "forces given" if doc["control"] == "force" else "indentations given"
     if doc["references"]:
         fig.text(0.5, 0.005, "closed forms for reference: Hertz (the lens on a continuum) and "

@@ -242,7 +242,7 @@ def write_solve_report(result: ContactResult, out: Path) -> None:
     f = result.fields
     if "x_m" in f:
         cols = [c for c in ("x_m", "y_m", "pillar_orbit", "weight", "area_m2", "pressure_Pa",
-                            "force_N", "gap_m") if c in f]
+                            "force_N", "gap_m", "floor") if c in f]
         rows = zip(*[np.asarray(f[c]).tolist() for c in cols])
         write_atomic(out / "elements.csv", _csv_text(cols, rows))
     write_atomic(out / "pillars.csv", _csv_text(
@@ -310,7 +310,10 @@ def _grid_image(f: dict):
     ix = np.rint(np.asarray(f["x_m"]) / L).astype(int)
     iy = np.rint(np.asarray(f["y_m"]) / L).astype(int)
     image = np.full((iy.max() - iy.min() + 1, ix.max() - ix.min() + 1), np.nan)
-    image[iy - iy.min(), ix - ix.min()] = f["pressure_Pa"]
+    # A rim cell may hold a top and a floor part: the floor first, its top drawn over it.
+    order = np.argsort(~np.asarray(f.get("floor", np.zeros(ix.size, dtype=bool))),
+                       kind="stable")
+    image[iy[order] - iy.min(), ix[order] - ix.min()] = np.asarray(f["pressure_Pa"])[order]
     extent = [(ix.min() - 0.5) * L * UM, (ix.max() + 0.5) * L * UM,
               (iy.min() - 0.5) * L * UM, (iy.max() + 0.5) * L * UM]
     return image, extent
@@ -351,10 +354,15 @@ def _pressure_map(fig, ax, result: ContactResult, scene) -> None:
         what += "\nprimitive cell dash-dotted, contact radius dotted"
     else:
         what += "\ncontact radius dotted"
+    t = np.linspace(0, 2 * math.pi if grid is not None else math.pi / 2, 200)
     if result.contact_radius_m > 0:
-        t = np.linspace(0, 2 * math.pi if grid is not None else math.pi / 2, 200)
         a = result.contact_radius_m * UM
         ax.plot(a * np.cos(t), a * np.sin(t), "r:", lw=1)
+    if result.floor_contact_radius_m > 0:
+        a = result.floor_contact_radius_m * UM
+        ax.plot(a * np.cos(t), a * np.sin(t), "w--", lw=1)
+        what += (f"\nfloor touched out to {a:.3g} µm (dashed): "
+                 f"{100 * result.floor_force_N / result.total_force_N:.3g} % of F")
     lo = -0.1 * rmax if grid is None else min(extent[0], extent[2])
     ax.set_xlim(lo, rmax)
     ax.set_ylim(lo, rmax if grid is not None else 0.75 * rmax)
@@ -423,6 +431,11 @@ def _element_profile(ax, result: ContactResult, scene) -> None:
     reference = _closed_form_curves(ax, result, scene, r_end)
     top = min((6 if scene.pillars else 1.3) * reference,
               1.08 * max(float(p.max(initial=0.0)) / KPA, reference)) * KPA
+    floor = np.asarray(f.get("floor", np.zeros(p.size, dtype=bool)), dtype=bool)
+    if floor.any():  # the floor's cells apart, in orange (their pressures drawn over the grey)
+        on = floor & (p > 0)
+        ax.plot(r[on], p[on], ".", ms=2, color="C1", zorder=2,
+                label=f"{result.model} floor cells in contact")
     if p.size <= SCATTER_MAX:
         ax.plot(r, p, ".", ms=3, color="0.3", label=f"{result.model} elements", zorder=1)
     else:  # hundreds of thousands of cells: their density, in grey

@@ -59,6 +59,7 @@ from __future__ import annotations
 import math
 
 from pillar_xval.scenes import Scene, analytic
+from pillar_xval.scenes.floor import floor_onset_bound, floor_reachable
 
 __all__ = ["FEATURES", "PHI_H_HARD", "PHI_H_SOFT", "REGIMES", "features", "phi_h", "regime",
            "scope_refusal"]
@@ -97,8 +98,9 @@ REGIMES = ("flat", "single", "multi")
 
 
 def regime(scene: Scene) -> dict:
-    """The scene's regime: ``name`` (flat, single, multi), ``label`` (flat, single pillar,
-    transition, hertz-like), the thresholds and one sentence saying why."""
+    """The scene's regime: ``name`` (flat, single, multi, or mixed where the lens can reach
+    the floor between the pillars), ``label`` (flat, single pillar, transition, hertz-like;
+    mixed ...), the thresholds and one sentence saying why."""
     if scene.is_flat:
         return {"name": "flat", "label": "flat (Hertz problem)", "phi": None, "phi_s": None,
                 "phi_h": None, "why": "no pillars: a sphere on a flat substrate"}
@@ -116,6 +118,11 @@ def regime(scene: Scene) -> dict:
     else:
         name, label = "multi", "transition"
         why = f"Phi_S = {phi_s:.4g} <= Phi = {phi:.4g} < Phi_H = {ph:.3g}: several pillars touch"
+    if floor_reachable(scene):
+        name, label = "mixed", f"mixed ({label} and the floor)"
+        why += (f"; zeta = {scene.indentation_m * 1e6:.4g} um > h + g(d/2) = "
+                f"{floor_onset_bound(scene) * 1e6:.4g} um: the lens can reach the floor "
+                "between the pillars")
     return {"name": name, "label": label, "phi": phi, "phi_s": phi_s, "phi_h": ph, "why": why}
 
 

@@ -43,7 +43,7 @@ from pillar_xval.outcome.memory import memory_short
 from pillar_xval.scenes import InputError, Scene, ScopeError, analytic
 from pillar_xval.threads import thread_count
 
-from ..registry import QUANTITIES
+from ..registry import QUANTITIES, get_model
 from . import machine
 from .features import features, regime
 from .tables import PlannerData, load_data, machine_data
@@ -141,6 +141,13 @@ def _candidate(scene, x, reg, cand, data, quantities) -> dict:
     out = {"label": cand.get("label", model), "model": model, "options": options,
            "physics": physics, "errors": {}, "time_s": None, "setup_s": 0.0,
            "memory_MB": None, "eligible": False, "why": ""}
+    if reg["name"] == "mixed":
+        # Only a model with the floor; its errors are read from the tables of the tops'
+        # regime (the floor's own quantities are not in the tables; README, "The floor").
+        if not get_model(model).floor:
+            out["why"] = "does not include the floor between the pillars, which the lens reaches"
+            return out
+        reg = dict(reg, name="multi")
     if reg["name"] not in cand.get("regimes", ()):
         out["why"] = cand.get("scope", f"not for {reg['label']} scenes")
         return out

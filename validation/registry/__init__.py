@@ -19,13 +19,14 @@ import importlib
 from pillar_xval.outcome import ContactResult
 from pillar_xval.scenes import InputError, Scene
 
-from .ladders import LOAD_QUANTITIES, QUANTITIES, Ladder, Quantity, quantity_values
+from .ladders import (FLOOR_QUANTITIES, LOAD_QUANTITIES, QUANTITIES, Ladder, Quantity,
+                      quantity_values)
 from .model import CostLaw, Model
 from .models import DECLARED
 from .options import OptionSpec, check_option, flag
 
-__all__ = ["LOAD_QUANTITIES", "MODELS", "QUANTITIES", "CostLaw", "Ladder", "Model",
-           "OptionSpec", "Quantity", "candidates", "check_option", "check_options",
+__all__ = ["FLOOR_QUANTITIES", "LOAD_QUANTITIES", "MODELS", "QUANTITIES", "CostLaw", "Ladder",
+           "Model", "OptionSpec", "Quantity", "candidates", "check_option", "check_options",
            "default_pillars", "family_options", "flag", "get_model", "ladder_for", "ladders",
            "model_names", "option_vocabulary", "quantity_values", "run_model", "scene_defaults",
            "stored_operator"]

@@ -32,6 +32,15 @@ QUANTITIES: tuple[Quantity, ...] = (
 )
 
 
+# The floor's share where the lens touches the floor between the pillars (a mixed contact):
+# studies add them to QUANTITIES on results that have it.
+FLOOR_QUANTITIES: tuple[Quantity, ...] = (
+    Quantity("F_floor", "floor_force_N", "N", "floor force"),
+    Quantity("A_floor", "floor_contact_area_m2", "m^2", "floor contact area"),
+    Quantity("a_floor", "floor_contact_radius_m", "m", "floor contact radius"),
+)
+
+
 # What a check may compare besides: the indentation, given under indentation control and solved
 # under force control (where F_T is the given force, the same in every model).
 LOAD_QUANTITIES: tuple[Quantity, ...] = (
@@ -40,8 +49,8 @@ LOAD_QUANTITIES: tuple[Quantity, ...] = (
 
 
 def quantity_values(result: ContactResult) -> dict[str, float]:
-    """The :data:`QUANTITIES` of a result, SI, by key."""
-    return {q.key: float(getattr(result, q.attr)) for q in QUANTITIES}
+    """The :data:`QUANTITIES` of a result, and the :data:`FLOOR_QUANTITIES`, SI, by key."""
+    return {q.key: float(getattr(result, q.attr)) for q in QUANTITIES + FLOOR_QUANTITIES}
 
 
 @dataclass(frozen=True)

@@ -9,6 +9,7 @@ from collections.abc import Callable
 
 from pillar_xval.outcome import ContactResult
 from pillar_xval.scenes import Scene
+from pillar_xval.scenes.floor import check_floor_scope
 from pillar_xval.threads import limited
 
 from .ladders import Ladder
@@ -73,6 +74,10 @@ class Model:
       registered without a thought for it), :meth:`run` finds the indentation that carries
       the force by whole solves under indentations
       (:func:`pillar_xval.contact.solve_at_force`);
+    - ``floor``: its candidates include the floor between the pillars, so it solves a scene
+      whose lens reaches the floor; one without it refuses such a scene (its given
+      indentation before the solve, the one it solved under a force after it:
+      :func:`pillar_xval.scenes.floor.check_floor_scope`).
     - ``request``: ``"module:function"`` that checks its options together where a spec
       cannot (``auto``: the planner's request, ``function(**options)`` raising InputError),
       imported on first use; "" for none.
@@ -96,6 +101,7 @@ class Model:
     expensive: bool = False
     code: tuple[str, ...] = ()
     force_control: str = "outer"
+    floor: bool = False
     request: str = ""
 
     @property
@@ -155,13 +161,19 @@ class Model:
         for name, value in zip(RUN_ARGUMENTS, (vtu_path, progress)):
             if value is not None and self.takes(name):
                 kwargs[name] = value
+        if not self.floor:
+            check_floor_scope(scene, self.name)  # a given indentation only
         with limited():
             if scene.force_N is not None and self.force_control != "native":
                 from pillar_xval.contact import solve_at_force
                 from pillar_xval.scenes import analytic
 
-                return solve_at_force(lambda at: self.function(at, **kwargs), scene,
-                                      guess=analytic.indentation_estimate(scene),
-                                      how=f"{self.name}, by solves under indentations")
-            return self.function(scene, **kwargs)
+                result = solve_at_force(lambda at: self.function(at, **kwargs), scene,
+                                        guess=analytic.indentation_estimate(scene),
+                                        how=f"{self.name}, by solves under indentations")
+            else:
+                result = self.function(scene, **kwargs)
+        if not self.floor and scene.force_N is not None:
+            check_floor_scope(scene, self.name, result.indentation_m, "solved by the model")
+        return result
 

@@ -72,7 +72,7 @@ DECLARED = (
         # 3000 CG iterations in extremes: the default, 20 sqrt(cells) + 500, reaches 14000 on
         # the widest corners, an hour of a stagnating solve where a verdict is wanted.
         robustness={"cells_per_diameter": 16, "max_iterations": 3000}, keeps_fields=True,
-        force_control="native"),
+        force_control="native", floor=True),
     Model(
         "fem-axisym", "fem_reference.axisym:solve",
         "axisymmetric FEM with one elastic pillar (scikit-fem, Taylor-Hood P2/P1)",
@@ -91,7 +91,7 @@ DECLARED = (
         # The fast subset of extremes meshes it coarser: it checks robustness, not accuracy.
         robustness={"mesh_size": 2.0}, robustness_quick={"mesh_size": 4.0},
         keeps_fields=True, weak_contact=True,
-        force_control="native"),
+        force_control="native", floor=True),
     Model(
         "fem-3d", "fem_reference.solid3d:solve",
         "3D FEM of the lattice's pi/6 wedge with elastic pillars (PARDISO, constrained CG)",
@@ -104,7 +104,7 @@ DECLARED = (
         robustness={"mesh_size": 4.0}, weak_contact=True,
         # Its rungs take minutes each (validation/bench/fem3d.py).
         expensive=True,
-        force_control="native"),
+        force_control="native", floor=True),
     # Closed forms as models: the planner's cheapest candidates.
     Model(
         "hertz", "pillar_xval.closed_forms:solve_hertz",
@@ -126,5 +126,5 @@ DECLARED = (
         options={"tolerance": PLANNED, "quantities": PLANNED, "budget": PLANNED},
         # The plan comes from the planner's code and its data (validation/planner/data).
         code=("validation.planner",), request="validation.planner.plan:check_request",
-        force_control="native"),
+        force_control="native", floor=True),
 )

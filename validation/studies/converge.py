@@ -12,7 +12,8 @@ from pillar_xval.outcome import write_atomic
 from pillar_xval.scenes import InputError, Scene
 
 from ..engine import Case, Engine, Outcome
-from ..registry import QUANTITIES, check_option, flag, get_model, ladder_for, quantity_values
+from ..registry import (FLOOR_QUANTITIES, QUANTITIES, check_option, flag, get_model,
+                        ladder_for, quantity_values)
 from ..analysis.verification import study
 
 # The report folder's files, report (converge.json) last: its presence means a whole report.
@@ -80,7 +81,9 @@ def study_levels(model: str, scene: Scene, outcomes: list[Outcome]) -> dict:
                      "vtu": None if vtu is None else str(vtu), **quantity_values(result)})
         results.append(result)
     h = [r["h"] for r in rows]
-    studies = {q.key: study(h, [r[q.key] for r in rows]) for q in QUANTITIES}
+    mixed = any(r.floor_force_N > 0.0 for r in results)  # the floor's quantities too
+    studies = {q.key: study(h, [r[q.key] for r in rows])
+               for q in QUANTITIES + (FLOOR_QUANTITIES if mixed else ())}
     return {"model": model, "label": results[-1].label if results else model,
             "scene": scene.to_dict(),
             "ladder": {"option": ladder.option, "h_meaning": ladder.h_meaning,
@@ -112,7 +115,7 @@ def study_table(data: dict) -> str:
     """Plain-text table of the per-quantity GCI results."""
     lines = [f"{'quantity':<8}{'finest':>13}{'':5}{'order p':>9}{'Richardson':>14}"
              f"{'GCI_fine':>10}{'GCI23/r^pGCI12':>16}  status"]
-    for q in QUANTITIES:
+    for q in studied(data):
         g = data["studies"][q.key]["gci"]
         lines.append(
             f"{q.key:<8}{g['f'][0]:>13.6g} {q.unit:<4}"
@@ -120,6 +123,11 @@ def study_table(data: dict) -> str:
             + f"{_num(None if g['gci_fine'] is None else 100 * g['gci_fine'], '.3g', '%'):>10}"
             + f"{_num(g['asymptotic_ratio'], '.3f'):>16}  {g['status']}")
     return "\n".join(lines)
+
+
+def studied(data: dict) -> tuple:
+    """The quantities of a study: :data:`QUANTITIES`, and the floor's on a mixed contact."""
+    return tuple(q for q in QUANTITIES + FLOOR_QUANTITIES if q.key in data["studies"])
 
 
 def _num(x, fmt: str, suffix: str = "") -> str:
@@ -130,10 +138,11 @@ def levels_csv(data: dict) -> str:
     """CSV of the levels (coarse to fine): option value, h and every quantity (SI)."""
     buf = io.StringIO()
     w = csv.writer(buf)
-    w.writerow(["level", data["ladder"]["option"], "h", *(f"{q.key}_{q.unit}" for q in QUANTITIES),
+    quantities = studied(data)
+    w.writerow(["level", data["ladder"]["option"], "h", *(f"{q.key}_{q.unit}" for q in quantities),
                 "converged", "wall_time_s"])
     for r in data["levels"]:
-        w.writerow([r["level"], r["value"], repr(r["h"]), *(repr(r[q.key]) for q in QUANTITIES),
+        w.writerow([r["level"], r["value"], repr(r["h"]), *(repr(r[q.key]) for q in quantities),
                     r["converged"], f"{r['wall_time_s']:.4g}"])
     return buf.getvalue()
 
@@ -145,7 +154,7 @@ def gci_csv(data: dict) -> str:
     cols = ["order", "f_exact", "gci_fine", "gci_coarse", "uncertainty", "asymptotic_ratio",
             "fallback_uncertainty", "status"]
     w.writerow(["quantity", "unit", "f_finest", *cols, "lsq_order", "lsq_r_squared"])
-    for q in QUANTITIES:
+    for q in studied(data):
         s = data["studies"][q.key]
         g = s["gci"]
         w.writerow([q.key, q.unit, repr(g["f"][0]), *("" if g[c] is None else g[c] for c in cols),

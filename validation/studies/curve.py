@@ -44,7 +44,8 @@ __all__ = ["CSV_COLUMNS", "DATA_COLUMNS", "OUTPUTS", "closed_form_curves", "curv
 
 OUTPUTS = ("curve.csv", "curve.png", "curve.json")
 CSV_COLUMNS = ("model", "force_N", "indentation_m", "contact_radius_m", "real_contact_area_m2",
-               "centre_pressure_Pa", "pillars_in_contact", "converged")
+               "centre_pressure_Pa", "pillars_in_contact", "floor_force_N",
+               "floor_contact_area_m2", "regime", "converged")
 # The quantities of a curve's row: key, ContactResult attribute (SI).
 QUANTITIES = (("zeta", "indentation_m"), ("F_T", "total_force_N"), ("a", "contact_radius_m"),
               ("A", "real_contact_area_m2"), ("sigma0", "centre_pressure_Pa"))
@@ -123,7 +124,25 @@ def curve_study(scenes: list[Scene], models: list[str], cache_dir: Path, *,
             "options": options or {}, "rows": rows, "falls": monotone,
             "references": closed_form_curves(scenes[0], [_load_of(s) for s in scenes],
                                              control),
-            "data": data, "failed": len(failed), "unconverged": len(unconverged)}
+            "data": data, "failed": len(failed), "unconverged": len(unconverged),
+            "transitions": transitions(rows, models)}
+
+
+def transitions(rows: list[dict], models) -> dict:
+    """Per model, where its curve first touches the floor (suspended to mixed): the last
+    load without floor contact and the first with it (None where the curve never crosses)."""
+    out = {}
+    for model in models:
+        done = [r for r in rows if r["model"] == model and "error" not in r]
+        for before, after in zip(done, done[1:]):
+            if before.get("regime") != "mixed" and after.get("regime") == "mixed":
+                out[model] = {"suspended_load": before["load"], "mixed_load": after["load"],
+                              "suspended_indentation_m": before["indentation_m"],
+                              "mixed_indentation_m": after["indentation_m"]}
+                break
+        else:
+            out[model] = None
+    return out
 
 
 def _falls(rows: list[dict]) -> list[str]:
@@ -155,6 +174,9 @@ def _row(model: str, scene: Scene, outcomes: list) -> dict:
     finest = results[-1]
     row.update({attr: float(getattr(finest, attr)) for _, attr in QUANTITIES})
     row.update(pillars_in_contact=int(finest.pillars_in_contact),
+               floor_force_N=float(finest.floor_force_N),
+               floor_contact_area_m2=float(finest.floor_contact_area_m2),
+               regime=finest.regime,
                converged=all(r.converged for r in results),
                message="; ".join(str(r.diagnostics.get("message", "")) for r in results
                                  if not r.converged),
@@ -281,7 +303,9 @@ def write_outputs(doc: dict, out: Path) -> list[str]:
             continue
         w.writerow([r["model"], repr(r["total_force_N"]), repr(r["indentation_m"]),
                     repr(r["contact_radius_m"]), repr(r["real_contact_area_m2"]),
-                    repr(r["centre_pressure_Pa"]), r["pillars_in_contact"], r["converged"]])
+                    repr(r["centre_pressure_Pa"]), r["pillars_in_contact"],
+                    repr(r.get("floor_force_N", 0.0)), repr(r.get("floor_contact_area_m2", 0.0)),
+                    r.get("regime", ""), r["converged"]])
     write_atomic(Path(out) / "curve.csv", buf.getvalue())
     plot_curve(doc, Path(out) / "curve.png")
     write_atomic(Path(out) / "curve.json", json.dumps(doc, indent=2, allow_nan=False))

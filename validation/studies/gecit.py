@@ -27,6 +27,7 @@ from pathlib import Path
 
 from pillar_xval.outcome import write_atomic
 from pillar_xval.scenes import InputError, load_scene
+from pillar_xval.scenes.floor import floor_onset_bound, floor_reachable
 
 from ..engine import Case, Engine
 from ..registry import check_option, get_model, ladder_for
@@ -62,7 +63,13 @@ def study_scenes(scene: str, overrides=(), ratios=RATIOS, aspects=ASPECTS) -> li
             e_p = ratio * e_l
             sets = [*overrides, f"pillars.E_Pa={e_p!r}", f"substrate.E_Pa={e_p!r}",
                     f"pillars.height_um={aspect * d_um!r}"]
-            cases.append({"ratio": ratio, "aspect": aspect, "scene": load_scene(scene, sets)})
+            case = load_scene(scene, sets)
+            if floor_reachable(case):
+                raise InputError(
+                    f"--aspect {aspect:g}: the lens reaches the floor between the pillars "
+                    f"(its indentation passes h + g(d/2) = {floor_onset_bound(case) * 1e6:.4g} "
+                    f"um), which {BEM} and {FEM} do not include; choose a taller pillar")
+            cases.append({"ratio": ratio, "aspect": aspect, "scene": case})
     return cases
 
 

@@ -39,8 +39,9 @@ __all__ = ["CSV_COLUMNS", "DEFAULT_POINTS", "FAMILIES", "FORMAT", "HOOKE_LEVELS"
 FORMAT = "pillar-xval regimes 1"
 # Phi from a sparse lattice to just below close packing (pi / (2 sqrt 3) = 0.9069).
 PHI_RANGE = (0.002, 0.9)
-# zeta / h: zeta >= h is outside every model (the lens reaches the substrate).
-ZETA_RANGE = (0.01, 0.9)
+# zeta / h up to the deep indentations: past h + g(d/2) the lens can reach the floor
+# between the pillars (the mixed regime), where only a model with the floor is a candidate.
+ZETA_RANGE = (0.01, 10.0)
 # Points per axis: the default map plans 30 x 30 scenes (about 25 ms each on an idle core).
 DEFAULT_POINTS = 30
 POINTS_RANGE = (3, 120)
@@ -343,6 +344,7 @@ def plot_map(doc: dict, path: Path) -> Path:
     hooke = np.full(fam.shape, np.nan)
     outside = np.zeros(fam.shape)
     ratio = np.full(fam.shape, np.nan)
+    mixed = np.zeros(fam.shape)
     for r in doc["points"]:
         i = int(np.argmin(np.abs(zetas - r["zeta_over_h"])))
         j = int(np.argmin(np.abs(phis - r["phi"])))
@@ -352,6 +354,7 @@ def plot_map(doc: dict, path: Path) -> Path:
         outside[i, j] = 0.0 if r["within_tolerance"] else 1.0
         if r.get("phi_s"):
             ratio[i, j] = math.log10(r["phi"] / r["phi_s"])
+        mixed[i, j] = float(str(r["regime"]).startswith("mixed"))
 
     def edges(v):
         lv = np.log10(v)
@@ -389,6 +392,11 @@ def plot_map(doc: dict, path: Path) -> Path:
                    linewidths=1.2)
         handles.append(Line2D([], [], color="#37474f", linestyle="-.",
                               label="Phi_S: a second pillar touches"))
+    if 0.0 < mixed.mean() < 1.0:
+        ax.contour(phis, zetas, mixed, levels=[0.5], colors="white", linestyles="-",
+                   linewidths=2.0)
+        handles.append(Line2D([], [], color="0.6", linestyle="-", linewidth=2.0,
+                              label="above: the floor within reach (mixed)"))
     if known.size:
         handles.append(Patch(facecolor="none", edgecolor="none",
                              label=f"(Hooke sigma0 error here {lo:.0f} to {hi:.0f} %)"))

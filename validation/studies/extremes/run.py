@@ -13,7 +13,13 @@ R              10 d (40.04 um), 1 m   2 mm
 nu (all)       0, 0.3, 0.4999, 0.5    0.5
 =============  =====================  ==========
 
-R = 10 d is taken just above the scene rule R > 10 max(d, h).  The scenes: the nominal one,
+R = 10 d is taken just above the scene rule R > 10 max(d, h).  Past the pillar tops (the
+floor between the pillars a candidate, :data:`FLOOR_SCENES`): deep indentation (zeta = 10 h),
+short pillars (h/d = 0.05 at zeta = 5 h), close packing under a large load (Phi = 0.9,
+zeta = 5 h) and soft and stiff pillars (E_p/E_l = 1e-3 and 1e6 at zeta = 3 h), each on a
+0.25 mm lens (10 h within its small-slope limit, 0.106 R; its grid ~1e7 FFT points at N = 16
+at 10 h, the paper's 2 mm lens would need 1e8).
+The scenes: the nominal one,
 its edges (one parameter at an extreme), every corner of the first five parameters at
 nu = 0.5, the two mismatched materials (E_p/E_l = 1e6 on E_s/E_l = 1e-3 and the reverse)
 at every nu, each nu at the nominal scene, and flat scenes at the corners of E_s / E_l, R
@@ -61,8 +67,20 @@ EXTREMES = {"Ep": (1e-3, 1e6), "Es": (1e-3, 1e6), "Phi": (0.002, 0.9),
             "zeta": (0.0025, 0.99), "R": (10.01 * D_UM * 1e-3, 1000.0)}
 NOMINAL = {"Ep": 1.0, "Es": 1.0, "Phi": 0.03, "zeta": 0.15, "R": 2.0, "nu": 0.5}
 NUS = (0.0, 0.3, 0.4999)
-# Flat scenes: zeta / R at its shallow end (held at 1.5 nm at least) and near its limit 1/2.
-FLAT_ZETA_R = (1e-6, 0.4)
+# Flat scenes: zeta / R at its shallow end (held at 1.5 nm at least) and near its limit 0.106.
+FLAT_ZETA_R = (1e-6, 0.1)
+# The floor's extremes: label and overrides of the nominal scene (module docstring).
+FLOOR_LENS = ["lens.radius_mm=0.25"]
+FLOOR_SCENES = {
+    "floor: zeta=10h": FLOOR_LENS + [f"load.indentation_um={10 * H_UM!r}"],
+    "floor: h/d=0.05 zeta=5h": FLOOR_LENS + ["pillars.height_um=0.2", "load.indentation_um=1.0"],
+    "floor: Phi=0.9 zeta=5h": FLOOR_LENS + ["pillars.surface_fraction=0.9",
+                                            f"load.indentation_um={5 * H_UM!r}"],
+    "floor: Ep- zeta=3h": FLOOR_LENS + [f"pillars.E_Pa={E_LENS * 1e-3!r}",
+                                        f"load.indentation_um={3 * H_UM!r}"],
+    "floor: Ep+ zeta=3h": FLOOR_LENS + [f"pillars.E_Pa={E_LENS * 1e6!r}",
+                                        f"load.indentation_um={3 * H_UM!r}"],
+}
 # fem-3d runs where its estimated unknowns at mesh_size 4 stay below this (~30 s, 2 GiB on two
 # cores); wider lattices (a 1 m lens, Phi = 0.9 at a deep zeta: 100-1e6 sector pillars) are
 # "skipped" with the estimate: three runs each would take hours on this machine.  Those that
@@ -149,6 +167,11 @@ def corner_scenes(quick: bool = False) -> list:
         seen.add(label)
         out.append({"label": label, "params": p, "sets": _sets(p),
                     "scene": load_scene(BASE, _sets(p)).replace(name=label.replace(" ", "_"))})
+    if not quick:
+        for label, sets in FLOOR_SCENES.items():
+            out.append({"label": label, "params": {"floor": True}, "sets": sets,
+                        "scene": load_scene(BASE, sets).replace(
+                            name=label.replace(" ", "_").replace(":", ""))})
     flats = [{"Es": es, "R": r, "zeta_r": zr} for es in (1e-3, 1e6) for r in (0.04004, 1000.0)
              for zr in FLAT_ZETA_R]
     if quick:
@@ -166,11 +189,11 @@ def corner_scenes(quick: bool = False) -> list:
 
 
 def _deeper(scene):
-    zeta = scene.indentation_m * ZETA_STEP
-    if scene.pillars is not None:
-        zeta = min(zeta, 0.5 * (scene.indentation_m + scene.pillars.height_m))
-    else:
-        zeta = min(zeta, 0.5 * (scene.indentation_m + 0.5 * scene.lens.radius_m))
+    """The scene 5 % deeper, or half way to the small-slope limit where that is nearer."""
+    from pillar_xval.scenes._checks import small_slope_indentation
+
+    top = small_slope_indentation(scene.lens.radius_m)
+    zeta = min(scene.indentation_m * ZETA_STEP, 0.5 * (scene.indentation_m + top))
     return scene.replace(indentation_m=zeta, name=scene.name + "+zeta")
 
 

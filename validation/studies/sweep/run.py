@@ -70,8 +70,9 @@ SCENE_COLUMNS = ("lens.radius_mm", "lens.E_Pa", "lens.nu", "lens.rigid",
                  "load.force_uN")
 RESULT_COLUMNS = ("load_control", "indentation_m", "total_force_N", "centre_pressure_Pa",
                   "contact_radius_m",
-                  "real_contact_area_m2", "pillars_in_contact", "iterations", "converged",
-                  "wall_time_s", "peak_memory_MB", "status", "case_key")
+                  "real_contact_area_m2", "pillars_in_contact", "floor_force_N",
+                  "floor_contact_area_m2", "floor_contact_radius_m", "regime", "iterations",
+                  "converged", "wall_time_s", "peak_memory_MB", "status", "case_key")
 
 
 # --- cost --------------------------------------------------------------------------------
@@ -203,7 +204,11 @@ def table_rows(sweep: Sweep, pairs: list[tuple[SweepCase, Outcome]]) -> list[dic
                         "centre_pressure_Pa": r.centre_pressure_Pa,
                         "contact_radius_m": r.contact_radius_m,
                         "real_contact_area_m2": r.real_contact_area_m2,
-                        "pillars_in_contact": r.pillars_in_contact, "iterations": r.iterations,
+                        "pillars_in_contact": r.pillars_in_contact,
+                        "floor_force_N": r.floor_force_N,
+                        "floor_contact_area_m2": r.floor_contact_area_m2,
+                        "floor_contact_radius_m": r.floor_contact_radius_m,
+                        "regime": r.regime, "iterations": r.iterations,
                         "converged": bool(r.converged),
                         "wall_time_s": o.timing["wall_time_s"],
                         "peak_memory_MB": o.timing["peak_memory_MB"], "status": "ok"})

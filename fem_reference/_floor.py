@@ -1,0 +1,112 @@
+"""The floor between pillars in both FEMs: where it is a contact candidate, the contact's
+extent on a floor line, and the side walls' validity diagnostic.
+
+The lens's bottom is the plane z = 0 with its curvature in the gap; the floor lies at z = -h,
+so a floor point's gap is u_z(lens) - u_z(floor) + g(r) + h - zeta.  Pressure on either body
+only opens a gap (the lens's surface moves up, the floor's down), so contact is confined to
+where the rigid gap g(r) + h - zeta is <= 0: within :func:`pillar_xval.scenes.floor.
+floor_reach`.
+
+Side walls.  The model is linear with small slopes: the lens's surface beside a pillar moves
+as if the pillar had no side wall, so the deformed lens surface may lie inside the pillar
+below its top.  :func:`side_wall_overlap` measures how far (horizontally, m) it does; the
+model neglects the wall's contact force, which acts over the overlap's depth.  Beyond
+:data:`SIDE_WALL_SMALL` of h the summaries say so.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pillar_xval.scenes.floor import floor_reach, floor_reachable
+
+# Candidate floor radius over the rigid reach (contact lies within the reach; the margin
+# leaves room for the contact radius fit, which reads gaps outside the edge).
+FLOOR_MARGIN = 1.25
+# The depth of the overlap with a side wall is small next to h below this share.  Measured
+# on one pillar (h/d = 0.5, mesh_size 2): 0.4 % of h at zeta = 0.15 h, 4.5 % at 0.75 h, the
+# range where the paper's model (the lens on the pillar tops alone, no walls) was
+# validated; beyond it the warning says the scene is past that range.
+SIDE_WALL_SMALL = 0.05
+
+
+def floor_candidate(scene, indentation_m: float) -> float | None:
+    """End of the candidate floor (m) at ``indentation_m``: :data:`FLOOR_MARGIN` times the
+    floor's reach (:func:`pillar_xval.scenes.floor.floor_reach`), or None where the floor is
+    out of reach (zeta <= h + g(d/2))."""
+    if not floor_reachable(scene, indentation_m):
+        return None
+    return FLOOR_MARGIN * floor_reach(scene, indentation_m)
+
+
+def side_wall_overlap(lens_r, lens_z, pillar_top_z: float, wall_r,
+                      wall_z) -> tuple[float, float]:
+    """How far (m) the deformed lens surface lies inside a pillar's deformed side wall.
+
+    Parameters
+    ----------
+    lens_r, lens_z : array
+        Deformed positions (m) of lens-surface points beyond the pillar's rim (their
+        undeformed radius beyond it), radius from the pillar's axis and height.
+    pillar_top_z : float
+        Deformed height of the pillar's rim (m): lens points above it pass over the pillar.
+    wall_r, wall_z : array
+        Deformed positions (m) of points of the pillar's side wall.
+
+    Returns
+    -------
+    (depth, width) : tuple of float
+        The depth below the rim down to which lens points lie inside the wall, and their
+        largest horizontal overlap; (0, 0) where the lens stays outside the wall.
+    """
+    lens_r, lens_z = np.asarray(lens_r, float), np.asarray(lens_z, float)
+    below = lens_z < pillar_top_z
+    if not below.any() or len(wall_r) == 0:
+        return 0.0, 0.0
+    order = np.argsort(wall_z)
+    wall = np.interp(lens_z[below], np.asarray(wall_z)[order], np.asarray(wall_r)[order])
+    inside = wall > lens_r[below]
+    if not inside.any():
+        return 0.0, 0.0
+    depth = pillar_top_z - np.min(lens_z[below][inside])
+    return float(depth), float(np.max(wall[inside] - lens_r[below][inside]))
+
+
+def side_wall_diagnostics(overlap: tuple[float, float], height_m: float) -> dict:
+    """``side_wall_overlap_m`` (the depth of :func:`side_wall_overlap`), its ratio to h,
+    ``side_wall_overlap_width_m`` and, beyond :data:`SIDE_WALL_SMALL`, the
+    ``side_wall_warning`` the summaries show."""
+    depth, width = overlap
+    ratio = depth / height_m
+    out = {"side_wall_overlap_m": float(depth), "side_wall_overlap_ratio": float(ratio),
+           "side_wall_overlap_width_m": float(width)}
+    if ratio > SIDE_WALL_SMALL:
+        out["side_wall_warning"] = (
+            f"the deformed lens lies inside a pillar's side wall down to {depth * 1e6:.3g} um "
+            f"below its top ({ratio:.1%} of h > {SIDE_WALL_SMALL:.0%}; by up to "
+            f"{width * 1e6:.3g} um): the small-slope model, which has no side walls, leaves "
+            "out their contact there")
+    return out
+
+
+def annulus_edges(r, lam, w) -> tuple[float, float]:
+    """(inner, outer) radius (line units) of the contact on a floor line: its P2 points
+    ``r`` (vertices at even indices), vertex pressures ``lam`` and pointwise gaps ``w``.
+    The outer edge is :func:`fem_reference._driver.contact_radius`'s; the inner one the root
+    of w^(2/3), linear between the last vertex outside and the first in contact (the first
+    vertex when the contact reaches the pillar's base).  (0, 0) without contact."""
+    from ._driver import contact_radius
+
+    active = np.nonzero(lam > 0)[0]
+    if len(active) == 0:
+        return 0.0, 0.0
+    outer, _ = contact_radius(r, lam, w)
+    k = 2 * active[0]
+    if k == 0:
+        return float(r[0]), outer
+    sel = [i for i in (k - 2, k - 1) if w[i] > 0]
+    if len(sel) < 2:
+        return float(0.5 * (r[k - 2] + r[k])), outer
+    slope, intercept = np.polyfit(r[sel], w[sel] ** (2.0 / 3.0), 1)
+    inner = -intercept / slope if slope < 0 else 0.5 * (r[k - 2] + r[k])
+    return float(np.clip(inner, r[k - 2], r[k])), outer
