@@ -54,6 +54,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -70,6 +71,9 @@ from ._elastic_pillar import (FFTPillarTerm, TopsOnlyTerm, check_pillars, operat
 from ._fft_operator import CirculantPreconditioner, CompliancePlan, near_field_correction
 from ._limits import PRECISIONS
 from ._xp import NumpyDevice, select_backend
+
+if TYPE_CHECKING:  # scikit-fem and gmsh load only with the elastic pillar
+    from fem_reference._pillar_compliance import ModalCompliance
 
 __all__ = ["finish", "run_cg", "solve_fft", "warm_levels"]
 
@@ -217,7 +221,7 @@ class _Options:
     progress: object
     preconditioner: str
     pillars: str
-    compliance: object
+    compliance: ModalCompliance | None
     precision: str
     elastic: bool
 
@@ -246,7 +250,7 @@ def _prepare(scene: Scene, cells_per_diameter: int, opts: _Options, be, workspac
     lap = time.perf_counter()
     correction = near_field_correction(grid, scene.half_space_compliance, backend=be) \
         if opts.edge_correction else None
-    term = None
+    term: FFTPillarTerm | TopsOnlyTerm | None = None
     if opts.elastic:
         tops = tops_grid(grid) if grid.has_floor else grid
         term = FFTPillarTerm(scene, tops, opts.compliance, lambda gamma: near_field_correction(

@@ -79,7 +79,8 @@ References
 
 from __future__ import annotations
 
-from typing import Any, Callable, Protocol, runtime_checkable
+from collections.abc import Callable
+from typing import Any, Protocol, runtime_checkable
 
 from ._solution import ContactSolution
 from ._xp import NUMPY
@@ -217,8 +218,9 @@ def constrained_cg(apply: Operator, b, q0, *, scale, tol=1e-8, max_iterations=10
     apply_few = apply.apply_few if isinstance(apply, FewCellUpdates) else None
     # Mixed precision (module docstring): ``drift`` bounds the error the approximate
     # applications leave in the recursively updated gap.
-    approximate = apply.approximate if isinstance(apply, MixedPrecision) else None
-    rel_error = float(apply.approximate_error) if approximate else 0.0
+    mixed = apply if isinstance(apply, MixedPrecision) else None
+    approximate = None if mixed is None else mixed.approximate
+    rel_error = float(mixed.approximate_error) if mixed is not None and approximate else 0.0
     step_apply = approximate or apply
 
     def exact_gap(q):
