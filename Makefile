@@ -7,8 +7,8 @@ OUT    ?= out
 
 .PHONY: demo study-gecit study-lattice figures test test-slow bench-bem bench-fft bench-gpu bench-fem3d \
 	bench-elastic bench-fem3d-floor bench-engine bench-figures bench-startup bench-force \
-	bench-sweep bench-threads \
-	clean calibrate validate-planner extremes regimes
+	bench-floor bench-sweep bench-threads clean calibrate validate-planner extremes regimes \
+	docs lint
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -59,9 +59,21 @@ study-lattice: $(STAMP)
 figures: $(STAMP)
 	$(VENV)/bin/pillar-xval figures --out $(OUT)/figures
 
-# Two pytest-xdist workers, one per core: 3.6 minutes of tests where one process took 5.4.
+# One pytest-xdist worker per CPU this process may use (tests/conftest.py counts them from
+# the affinity mask and the cgroup quota, as the solvers' threads do).
 test: $(STAMP)
-	$(PY) -m pytest -q -n 2
+	$(PY) -m pytest -q -n auto
+
+# The documentation site in docs/_build/html, warnings as errors; every figure of the
+# tutorials is drawn by its code as the site is built.  tests/test_docs.py builds it too.
+docs: $(STAMP)
+	$(VENV)/bin/sphinx-build -W --keep-going -b html docs docs/_build/html
+
+# ruff (the rules in pyproject.toml) and mypy on the solver packages' public modules;
+# tests/test_lint.py runs both inside make test.
+lint: $(STAMP)
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/mypy
 
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -m slow
@@ -172,4 +184,4 @@ regimes: $(STAMP)
 	$(VENV)/bin/pillar-xval regimes --out $(OUT)/regimes
 
 clean:
-	rm -rf $(VENV) $(OUT) .pytest_cache
+	rm -rf $(VENV) $(OUT) .pytest_cache docs/_build docs/generated docs/_tables

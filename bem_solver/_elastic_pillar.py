@@ -402,7 +402,7 @@ class FFTPillarTerm:
         self.position = np.argsort(order)  # of each cell in ``order``
         self.chunk_of = np.repeat(np.arange(len(self.chunks)),
                                   [c1 - c0 for c0, c1, *_ in self.chunks])
-        trig, weights, modes = [], [], []
+        trig, modes = [], []
         w = compliance.mode_weights()
         for m in range(compliance.modes + 1):
             for f in ((np.cos,) if m == 0 else (np.cos, np.sin)):

@@ -54,6 +54,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -70,6 +71,9 @@ from ._elastic_pillar import (FFTPillarTerm, TopsOnlyTerm, check_pillars, operat
 from ._fft_operator import CirculantPreconditioner, CompliancePlan, near_field_correction
 from ._limits import PRECISIONS
 from ._xp import NumpyDevice, select_backend
+
+if TYPE_CHECKING:  # scikit-fem and gmsh load only with the elastic pillar
+    from fem_reference._pillar_compliance import ModalCompliance
 
 __all__ = ["finish", "run_cg", "solve_fft", "warm_levels"]
 
@@ -134,8 +138,7 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     preconditioner : {"circulant", "jacobi"}
         The constrained CG's preconditioner: the inverse half-space kernel on the periodic
         box plus per-pillar uniform modes (default), or the diagonal with the pillar springs
-        by Sherman-Morrison (the model's preconditioner before issue 20; the answers agree
-        within the tolerance).
+        by Sherman-Morrison (slower to converge; the answers agree within the tolerance).
     pillars : {"hooke", "elastic"}
         The paper's uniformly shortening pillar (default), or the elastic pillar: a
         per-pillar excess compliance from the pillar's finite-element compliance
@@ -218,7 +221,7 @@ class _Options:
     progress: object
     preconditioner: str
     pillars: str
-    compliance: object
+    compliance: ModalCompliance | None
     precision: str
     elastic: bool
 
@@ -247,7 +250,7 @@ def _prepare(scene: Scene, cells_per_diameter: int, opts: _Options, be, workspac
     lap = time.perf_counter()
     correction = near_field_correction(grid, scene.half_space_compliance, backend=be) \
         if opts.edge_correction else None
-    term = None
+    term: FFTPillarTerm | TopsOnlyTerm | None = None
     if opts.elastic:
         tops = tops_grid(grid) if grid.has_floor else grid
         term = FFTPillarTerm(scene, tops, opts.compliance, lambda gamma: near_field_correction(

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import functools
 
-import numpy as np
 
 from pillar_xval.contact._xp import CupyArrays, NumpyArrays
 from pillar_xval.scenes import InputError

@@ -125,7 +125,9 @@ def _encode(op: ModalCompliance) -> bytes:
             "shapes": {name: list(np.shape(getattr(op, name))) for name in ARRAYS},
             "sha256": record["sha256"]}
     buf = io.BytesIO()
-    np.savez(buf, **{name: np.asarray(getattr(op, name), dtype="<f8") for name in ARRAYS},
+    # numpy's stub reads a ** mapping as its allow_pickle flag.
+    np.savez(buf, **{name: np.asarray(getattr(op, name), dtype="<f8")  # type: ignore[arg-type]
+                     for name in ARRAYS},
              diagnostics=_stored_diagnostics(op), meta=json.dumps(meta, sort_keys=True))
     return buf.getvalue()
 
@@ -292,6 +294,7 @@ def modal_compliance(kind: PillarKind, modes: int = DEFAULT_MODES, mesh_size: fl
             if progress:
                 progress("another process is building this pillar kind; waiting for it")
             lock = FileLock.acquire(lock_path)
+            assert lock is not None  # a waiting acquire returns its lock or raises
     except (OSError, ValueError) as exc:
         _warn(f"the operator is computed, not stored: {folder} cannot be used ({exc})")
         return _built(kind, modes, mesh_size, progress, key)

@@ -271,7 +271,7 @@ def pillar_halfspace_mesh(height_over_radius: float, mesh_size: float = 1.0,
     points = xyz.reshape(-1, 3)[:, :2].T[:, used]
     mesh = AxisymmetricMesh(points=points, triangles=renumber[triangles],
                             lines=renumber[np.hstack(lines)], subdomains=sub, boundaries=bnd,
-                            geometry=None)
+                            geometry=None)  # type: ignore[arg-type]  # built from raw nodes
     q = mesh.quality()
     if q.min() < 0.1:
         raise MeshError(f"pillar compliance mesh: triangle quality {q.min():.3g} < 0.1")
@@ -381,7 +381,7 @@ def _mode_compliance(ub, bodies, n, fixed_extra, top, axis_nodes, base=None):
     return C, rel, len(free), moment
 
 
-_PARDISO = []
+_PARDISO: list = []
 
 
 def _relative(K, y, rhs) -> float:
@@ -458,7 +458,9 @@ def compute_modal_compliance(kind: PillarKind, modes: int = DEFAULT_MODES,
     # Second radial moments of the load the pillar passes to its substrate (modes 0 and 2),
     # per unit load at each top point; a column (the Hooke model) passes rho^2 = r_top^2.
     moments = np.tile(r_top ** 2, (2, 1))
-    Ca, Cb, residual, asym, dofs = [], [], 0.0, 0.0, []
+    Ca: list = []
+    Cb: list = []
+    residual, asym, dofs = 0.0, 0.0, []
     for n in range(modes + 1):
         say(f"mode {n} of {modes}")
         for bodies, fixed, out in ((bodies_a, np.concatenate(fixed_a), Ca),

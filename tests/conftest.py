@@ -7,12 +7,25 @@ import types
 import pytest
 
 import fakes as fake_models
+from pillar_xval import threads
 from validation.cli import main
 
 # Plans with the cost fits' own seconds (no machine calibration): the same plans on every
 # machine and under any load, in this process and the commands it starts;
 # tests/test_planner_machine.py calibrates on purpose.
 os.environ.setdefault("PILLAR_XVAL_MACHINE", "reference")
+
+# Under pytest-xdist the workers share the CPUs this process may use: each solve takes its
+# share of them (at least one thread), so that n workers never run n times the CPUs' threads.
+if "PYTEST_XDIST_WORKER_COUNT" in os.environ:
+    _share = threads.cpu_count() // int(os.environ["PYTEST_XDIST_WORKER_COUNT"])
+    os.environ.setdefault(threads.THREADS_ENV, str(max(1, _share)))
+
+
+def pytest_xdist_auto_num_workers(config):
+    """``-n auto``: one worker per CPU this process may use (its affinity and cgroup quota),
+    not one per CPU the machine has."""
+    return threads.cpu_count()
 
 
 @pytest.fixture

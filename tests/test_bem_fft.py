@@ -536,7 +536,7 @@ def test_dense_and_fft_agree_at_matching_resolution(name):
     assert abs(b.contact_radius_m - a.contact_radius_m) <= scene.pillars.diameter_m / 11
 
 
-# Pillars softer or stiffer than the substrate (issue 9).  With matched materials these scenes
+# Pillars softer or stiffer than the substrate.  With matched materials these scenes
 # take 24 to 38 iterations per level; before the fix the soft ones ran into the thousands.
 # Bound: twice the slowest measured level (53, E_p / E_s = 1e3 at N = 16).
 MAX_ITERATIONS_PER_LEVEL = 110
@@ -563,7 +563,7 @@ def test_pillars_softer_or_stiffer_than_the_substrate(ratio):
 
 
 def test_issue_9_soft_pillars_on_a_stiff_substrate():
-    """The scene of issue 9 (pillars ten times softer than the substrate) at N = 24 converges
+    """The soft-pillar scene (pillars ten times softer than the substrate) at N = 24 converges
     as fast as the same scene with the substrate of the pillars' material, and its F_T agrees
     with the dense BEM's (2.9 uN, where the failing run reported 28 uN)."""
     scene = load_scene("paper-fig3-sparse", SOFT + ["pillars.E_Pa=1.6e5"])

@@ -1,4 +1,4 @@
-"""The FFT model's circulant preconditioner (issue 20): the same answers as the Jacobi
+"""The FFT model's circulant preconditioner: the same answers as the Jacobi
 preconditioner within the solver's tolerance, a valid (SPD) preconditioner on every free set,
 iterations that grow slowly with the grid, and convergence over the stiffness contrasts."""
 

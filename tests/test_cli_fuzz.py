@@ -1,4 +1,4 @@
-"""The CLI's failure policy, proved by a seeded fuzz test and by each case of issue 10.
+"""The CLI's failure policy, proved by a seeded fuzz test and by each reported case.
 
 Every run goes in-process through ``validation.cli.main`` with an argv list, on the fake
 models of tests/fakes.py (or the real dense BEM at a tiny resolution), with the serial
@@ -42,7 +42,7 @@ def outcome(cli, *argv) -> tuple[int, str, str]:
     return code, out, lines[0]
 
 
-# --- the cases of issue 10 ----------------------------------------------------------------
+# --- the reported cases -------------------------------------------------------------------------
 @pytest.mark.parametrize("argv, code, fragment", [
     # a 400-digit integer, a subnormal modulus: the scene's ranges, one line
     (["solve", "--scene", "single-pillar", "--set", "lens.E_Pa=" + "9" * 400], 2,
@@ -97,7 +97,7 @@ def test_issue_10_cases(fakes, tmp_path, cli, argv, code, fragment):
         assert fakes == []  # refused before any solve
 
 
-# --- the cases of issue 35: refused before anything is solved, or said --------------------
+# --- refused before anything is solved, or said --------------------
 @pytest.mark.parametrize("argv, fragment", [
     # the elastic pillar on a flat scene was run as the Hooke one, without a word
     (["solve", "--scene", "hertz", "--pillars", "elastic"], "the scene is flat"),

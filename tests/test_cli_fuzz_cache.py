@@ -106,7 +106,7 @@ def test_solve_with_another_kinds_file_copied_or_linked_over(cli, store):
     assert code == 0, err
     foreign = _the_file(root)
     shutil.move(foreign, root / "foreign.npz")
-    for put in (shutil.copyfile, lambda src, dst: os.symlink(src, dst)):
+    for put in (shutil.copyfile, os.symlink):
         put(root / "foreign.npz", path)
         code, out, err = cli(*SOLVE)
         assert code == 0 and json.loads(out)["total_force_N"] == truth, err

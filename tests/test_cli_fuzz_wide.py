@@ -1,4 +1,4 @@
-"""The CLI fuzz widened (issue 19): sweep specs, ``plan`` and ``figures`` inputs, odd
+"""The CLI fuzz widened: sweep specs, ``plan`` and ``figures`` inputs, odd
 ``--out`` paths, environment oddities and a real ``ulimit -v``, one folder shared by two
 commands, and edited case files.
 
@@ -159,7 +159,7 @@ def test_fuzz_plan(tmp_path, cli):
 def test_fuzz_figures_inputs(tmp_path, cli, monkeypatch):
     """figures' options: every input is accepted or refused before any work (the study is
     replaced by a stub: an accepted input would start minutes of solves)."""
-    import validation.studies.figures as figures
+    from validation.studies import figures
 
     started = []
 

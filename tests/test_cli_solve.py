@@ -38,7 +38,7 @@ def test_paper_search_and_centre_cells_from_the_cli(capsys):
     assert doc["discretisation"]["cells"] == "centre"
 
 
-# --- the solve's figure (issue 10: readable figures) -----------------------------------------
+# --- the solve's figure: readable ------------------------------------------------------------
 def _lines(ax, style):
     return [ln for ln in ax.get_lines() if ln.get_linestyle() == style]
 
@@ -181,7 +181,7 @@ def test_fft_precision_from_the_cli(capsys):
     assert "--precision" in err and "mixed" in err and "double" in err
 
 
-# --- which model answered (issue 35, item 8) -----------------------------------------------
+# --- which model answered --------------------------------------------------------------------
 def fake_bem_pillars(scene, elements_per_diameter=11, cells="covered", contact="exact",
                      pillars="hooke"):
     """A fake dense BEM with a pillar model, which its result records as the BEMs do."""

@@ -79,7 +79,7 @@ def test_compare_render_failure_costs_one_picture_not_the_run(fakes, tmp_path, m
     leaves no picture of an earlier run."""
     import subprocess
 
-    import validation.output.render as render
+    from validation.output import render
 
     out = tmp_path / "single-pillar"
     out.mkdir()

@@ -86,7 +86,7 @@ def test_fast_subset_of_the_extremes(tmp_path):
     assert by[("zeta-", "spring")]["status"] == "pass"
     assert by[("nominal", "fem-axisym")]["status"] == "refused"
     assert by[("nominal", "fem-3d")]["status"] == "pass"  # its elastic pillars, mesh_size 4
-    # pillars 1e9 times softer than the substrate (issue 9's FFT failure): the models say
+    # pillars 1e9 times softer than the substrate (where the FFT model once failed): the models say
     # plainly whether they converged
     assert by[("Ep- Es+", "bem")]["status"] == "pass"
     assert by[("Ep- Es+", "bem-fft")]["status"] in ("pass", "not converged")

@@ -209,7 +209,7 @@ def test_floor_benchmark_table():
     from validation.bench.fem3d_floor import PHASES, table
 
     def run(wall, rss, share):
-        return {"wall_s": wall, **{p: 1.0 for p in PHASES}, "peak_rss_GiB": rss,
+        return {"wall_s": wall, **dict.fromkeys(PHASES, 1.0), "peak_rss_GiB": rss,
                 "cg_iterations": 10, "floor_share": share, "load": 5.0}
 
     runs = {"suspended": [run(1.0, 1.0, 0.0), run(3.0, 1.0, 0.0), run(2.0, 1.0, 0.0)],

@@ -28,7 +28,7 @@ PHIS = tuple(np.geomspace(2.3e-3, 0.82, 8))
 @pytest.fixture
 def stubbed(monkeypatch):
     """run_figures replaced: records its keywords, returns an empty document."""
-    import validation.studies.figures as figures
+    from validation.studies import figures
 
     calls = []
 

@@ -68,8 +68,7 @@ def test_a_grid_too_large_is_refused_before_any_compliance_build(monkeypatch, so
     monkeypatch.setattr("pillar_xval.outcome.memory.memory_limit",
                         lambda: (1e9, "a test's 1 GB"), raising=True)
     scene = load_scene("paper-fig3-dense")
+    solve = ((lambda: _fft.solve_fft(scene, 256, pillars="elastic")) if solver == "fft" else
+             (lambda: _dense.solve_dense(scene, 41, pillars="elastic")))
     with pytest.raises(ScopeError, match="1 GB"):
-        if solver == "fft":
-            _fft.solve_fft(scene, 256, pillars="elastic")
-        else:
-            _dense.solve_dense(scene, 41, pillars="elastic")
+        solve()

@@ -1,4 +1,4 @@
-"""What the pictures and reports say (issue 19, item 10): titles name the run's parameters,
+"""What the pictures and reports say: titles name the run's parameters,
 legends sit clear of the data, text stays legible, slope lines are drawn when listed, noise
 and round-off are no trade, one verdict vocabulary.
 
@@ -376,7 +376,7 @@ def test_tradeoff_says_which_extrapolation_is_the_reference():
     assert any("sigma0 = 1 from bem (the narrowest of agreeing estimates" in ln for ln in lines)
 
 
-# --- issue 35, item 10: axes that show their data, legends that list what is seen ---------
+# --- axes that show their data, legends that list what is seen ---------
 def _hidden_listed(ax) -> list[str]:
     """Legend entries of ``ax`` whose curve a later solid curve covers at every drawn vertex
     and midpoint, measured vertically in pixels (within half its width plus a pixel)."""

@@ -1,4 +1,4 @@
-"""The planner (issue 9): closed forms as models, memory estimates, the cross-checked
+"""The planner: closed forms as models, memory estimates, the cross-checked
 tradeoff reference, the error tables, the choice, ``plan`` and ``solve --model auto``."""
 
 from __future__ import annotations
@@ -593,7 +593,7 @@ def test_cli_plan_and_solve_auto(capsys):
 
 
 # --- the planner validated (slow: a few minutes on this machine) ----------------------------
-# Issue 18's validation (make validate-planner: 60 scenes, 15 of them lattices with sigma0
+# The planner's validation (make validate-planner: 60 scenes, 15 of them lattices with sigma0
 # requested, judged against fem-3d) on a small sample of the same draw: 8 scenes, 2 of them
 # lattice-sigma0 ones (about 3 minutes of solves by the planner's cost models).
 SAMPLE_SCENES, SAMPLE_LATTICE = 8, 2

@@ -1,4 +1,4 @@
-"""The planner's elastic-pillar candidates and its requests (issue 18, item 2): the elastic
+"""The planner's elastic-pillar candidates and its requests: the elastic
 BEM and fem-3d as candidates without the Hooke error, the pillar compliance's one-off cost,
 fem-3d refused beyond memory, ``solve --model auto --tolerance --quantities``, ``plan
 --budget`` with nothing inside it, and bad requests refused in one line."""

@@ -1,4 +1,4 @@
-"""The planner validation (validate-plan, issue 18): lattice-sigma0 scenes judged against
+"""The planner validation (validate-plan): lattice-sigma0 scenes judged against
 fem-3d with every candidate, the other scenes against their own references with the measured
 candidates only, the report's counts and misses, the dry estimate and the options' checks.
 The models are fakes with known errors (nothing real is solved)."""

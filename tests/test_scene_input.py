@@ -1,4 +1,4 @@
-"""Scene input that never surprises (issue 10, the scene part): each reported case, the
+"""Scene input that never surprises: each reported case, the
 allowed ranges, overrides, file modes, and a seeded fuzz test of files and overrides."""
 
 import math

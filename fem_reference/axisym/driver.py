@@ -403,6 +403,7 @@ def _setup(scene: Scene, mesh_size: float, block_factor: float, scope: bool = Tr
             ell, block_factor * ell, candidate_radius_m=candidate, mesh_size=mesh_size,
             bodies=[b for b, m in (("lens", lens), ("substrate", sub)) if not m.rigid])
         pillar = None
+        contact: tuple[tuple[str | None, str | None], ...]
         contact = (("contact_lens" if not lens.rigid else None,
                     "contact_substrate" if not sub.rigid else None),)
     else:

@@ -2,7 +2,7 @@
 
 On an affine tetrahedron with barycentric coordinates lambda_0..3 (skfem's reference vertices
 0..3: lambda_0 = 1 - x - y - z, lambda_1 = x, ...), every P2 gradient is a combination of the
-constant barycentric gradients with coefficients linear in lambda:
+constant barycentric gradients with coefficients linear in lambda::
 
     vertex i:      phi = lambda_i (2 lambda_i - 1),  grad phi = (4 lambda_i - 1) grad lambda_i,
     edge (i, j):   phi = 4 lambda_i lambda_j,        grad phi = 4 (lambda_j grad lambda_i

@@ -189,7 +189,9 @@ def solve(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None, progress=None,
     # a flat mesh's unit, the Hertz radius, follows it without meshing again).  A mesh built
     # for a guess is first solved loosely, to learn whether it is that mesh: if so the solve
     # goes on from there, else the mesh is built again for the solved indentation.
-    force, rounds, held = scene.force_N, [], True
+    force, held = scene.force_N, True
+    rounds: list[dict] = []
+    ell = 0.0  # the previous round's length unit (a flat mesh rescales from it)
     solved = scene if force is None else scene.designed(analytic.indentation_estimate(scene))
     while True:
         _refuse_if_too_large(solved, mesh_size, sector_angle, reach_factor)
@@ -259,6 +261,30 @@ def _mesh_and_factorise(setup: dict, mesh_size: float, sector_angle: float,
     return mesh, skmesh, system, faces
 
 
+class _Condensed:
+    """The condensed operator D^T G K^-1 G^T D with a float32 factor: exact applications by
+    the refined solve, the constrained CG's steps and clipping updates by one float32
+    back-substitution (:class:`pillar_xval.contact.MixedPrecision`,
+    :class:`pillar_xval.contact.FewCellUpdates`)."""
+
+    def __init__(self, D, G, system, n: int):
+        self.D, self.G, self.system, self.n = D, G, system, n
+        # its error bound for the CG's bookkeeping (the accepted gap is always exact)
+        self.approximate_error = 10.0 * system.single_error
+
+    def __call__(self, lam):  # columns allowed
+        return self.D.T @ (self.G @ self.system.exact(self.G.T @ (self.D @ lam)))
+
+    def approximate(self, lam):
+        x, _ = self.system.solve(self.G.T @ (self.D @ lam), refine=0)
+        return self.D.T @ (self.G @ x)
+
+    def apply_few(self, index, values, single: bool = False):
+        lam = np.zeros(self.n)
+        lam[index] = values
+        return (self.approximate if single else self)(lam)
+
+
 def _contact(scene: Scene, setup: dict, system, faces, tol: float, clock: PhaseClock,
              force: float | None = None, start=None) -> dict:
     """The mortar contact by constrained CG on the condensed operator D^T G K^-1 G^T D (one
@@ -280,24 +306,8 @@ def _contact(scene: Scene, setup: dict, system, faces, tol: float, clock: PhaseC
     D, G = faces.D, faces.G
     single = system.single_error > 0.0
 
-    def apply(lam):  # columns allowed
-        return D.T @ (G @ system.exact(G.T @ (D @ lam)))
-
-    if single:
-        def approximate(lam):
-            x, _ = system.solve(G.T @ (D @ lam), refine=0)
-            return D.T @ (G @ x)
-
-        apply.approximate = approximate
-        # its error bound for the CG's bookkeeping (the accepted gap is always exact)
-        apply.approximate_error = 10.0 * system.single_error
-
-        def apply_few(index, values, single=False):
-            lam = np.zeros(faces.n_vertices)
-            lam[index] = values
-            return (apply.approximate if single else apply)(lam)
-
-        apply.apply_few = apply_few
+    apply = _Condensed(D, G, system, faces.n_vertices) if single else \
+        (lambda lam: D.T @ (G @ system.exact(G.T @ (D @ lam))))  # columns allowed
 
     def report(it, err):
         if it % 10 == 0:

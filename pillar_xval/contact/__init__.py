@@ -37,12 +37,16 @@ misses its tolerance returns ``converged = False`` and a message; it never raise
 """
 
 from ._active_set import solve_active_set
-from ._cg import constrained_cg, diagonal_preconditioner
+from ._cg import (FewCellUpdates, MixedPrecision, Operator, constrained_cg,
+                  diagonal_preconditioner)
 from ._load import approach_for_force, solve_at_force
 from ._solution import ContactSolution, evaluate, min_map_residual
 
 __all__ = [
     "ContactSolution",
+    "FewCellUpdates",
+    "MixedPrecision",
+    "Operator",
     "approach_for_force",
     "constrained_cg",
     "diagonal_preconditioner",

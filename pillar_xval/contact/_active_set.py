@@ -104,7 +104,7 @@ def _solve(A, b, scale, weights, groups, initial, tol, max_iterations, force=Non
         active = (touch <= touch.min()) if initial is None else np.asarray(initial, bool)
         if not active.any():
             active = touch <= touch.min()
-    seen = set()
+    seen: set = set()
     p = np.zeros(n)
     zeta = None
     method = "active-set"

@@ -19,7 +19,7 @@ steepest-descent step tau D^-1 gap, each as if it were alone: on pillars much so
 substrate, where a pillar's cells share a Hooke compliance up to 1e3 times a cell's own, a
 ring of cells entering together so overloads the pillar (x 170 its force in one step, measured)
 that the iteration never recovers (3,800 iterations on paper-fig3-sparse with Phi = 0.1,
-E_s = 10 E_p; issue 9).  Through the preconditioner the entering cells see the Hooke term.
+E_s = 10 E_p).  Through the preconditioner the entering cells see the Hooke term.
 
 Conjugacy.  beta is Polak-Ribiere's, floored at zero (PR+): it restarts itself when the free
 set changes what the previous direction meant, where Fletcher-Reeves' beta kept stale
@@ -79,8 +79,37 @@ References
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any, Protocol, runtime_checkable
+
 from ._solution import ContactSolution
 from ._xp import NUMPY
+
+
+class Operator(Protocol):
+    """What :func:`constrained_cg` applies: q (Pa) -> A q (m), A symmetric positive
+    definite."""
+
+    def __call__(self, q: Any) -> Any: ...
+
+
+@runtime_checkable
+class FewCellUpdates(Protocol):
+    """An operator that updates the gap after a step that clips a few pressures without a
+    whole application: A d for d = ``values`` on the cells ``index`` and zero elsewhere, or
+    None where a whole application is cheaper (``single``: in the cheap precision of
+    :class:`MixedPrecision`)."""
+
+    def apply_few(self, index: Any, values: Any, single: bool = False) -> Any: ...
+
+
+@runtime_checkable
+class MixedPrecision(Protocol):
+    """An operator with a cheaper application for the CG's steps (``approximate``, or None
+    when there is none) and a bound on its relative error (``approximate_error``)."""
+
+    approximate: Callable[[Any], Any] | None
+    approximate_error: float
 
 # The gap is recomputed from q (one more operator application) after this many iterations
 # with an unchanged contact set, so the recursively updated gap cannot drift.
@@ -125,20 +154,19 @@ def diagonal_preconditioner(diagonal, spring=0.0, pillar=None, n_pillars=0, back
     return apply
 
 
-def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, precondition=None,
+def constrained_cg(apply: Operator, b, q0, *, scale, tol=1e-8, max_iterations=10000, precondition=None,
                    inverse_diagonal=None, weights=None, callback=None,
                    backend=None, force=None, load=None) -> ContactSolution:
     """Constrained conjugate gradients on the free set, displacement- or force-controlled.
 
     Parameters
     ----------
-    apply : callable
-        q (Pa) -> A q (m); A symmetric positive definite.  If it has a method
-        ``apply_few(index, values)`` (A of a vector that is ``values`` on the cells ``index``
-        and zero elsewhere, or None where a whole application is cheaper), a step that clips
-        pressures updates the gap by it instead of a fresh application.  If it has a callable
-        ``approximate`` (and ``approximate_error``), the steps use that (mixed precision, see
-        the module docstring) and ``apply_few`` is called with ``single=True``.
+    apply : Operator
+        q (Pa) -> A q (m); A symmetric positive definite.  If it is also
+        :class:`FewCellUpdates`, a step that clips pressures updates the gap by its
+        ``apply_few`` instead of a fresh application.  If it is :class:`MixedPrecision` with a
+        callable ``approximate``, the steps use that (mixed precision, see the module
+        docstring) and ``apply_few`` is called with ``single=True``.
     b : array
         Undeformed gap minus indentation (m); under force control the undeformed gap alone.
     q0 : array
@@ -187,11 +215,12 @@ def constrained_cg(apply, b, q0, *, scale, tol=1e-8, max_iterations=10000, preco
         q = fc.start(q)
     # An operator may update the gap after a step that clips few pressures without a whole
     # application: apply.apply_few(index, values) -> A d, or None when it would not pay.
-    apply_few = getattr(apply, "apply_few", None)
+    apply_few = apply.apply_few if isinstance(apply, FewCellUpdates) else None
     # Mixed precision (module docstring): ``drift`` bounds the error the approximate
     # applications leave in the recursively updated gap.
-    approximate = getattr(apply, "approximate", None)
-    rel_error = float(getattr(apply, "approximate_error", 0.0)) if approximate else 0.0
+    mixed = apply if isinstance(apply, MixedPrecision) else None
+    approximate = None if mixed is None else mixed.approximate
+    rel_error = float(mixed.approximate_error) if mixed is not None and approximate else 0.0
     step_apply = approximate or apply
 
     def exact_gap(q):

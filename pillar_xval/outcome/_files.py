@@ -126,7 +126,7 @@ class FileLock:
     interrupted by a signal (Ctrl-C, SIGTERM) like any other system call."""
 
     def __init__(self, fd: int):
-        self._fd = fd
+        self._fd: int | None = fd
 
     @classmethod
     def acquire(cls, path: str | os.PathLike, wait: bool = True) -> "FileLock | None":

@@ -192,9 +192,10 @@ def _fmt_material(m: dict) -> str:
     if m.get("rigid") or m.get("E_Pa") is None:
         return f"rigid, nu = {m['nu']:.6g}"
     E = m["E_Pa"]
-    for factor, unit in ((1e9, "GPa"), (1e6, "MPa"), (1e3, "kPa"), (1.0, "Pa")):
-        if abs(E) >= factor or factor == 1.0:
+    for factor, unit in ((1e9, "GPa"), (1e6, "MPa"), (1e3, "kPa")):
+        if abs(E) >= factor:
             return f"E = {E / factor:.6g} {unit}, nu = {m['nu']:.6g}"
+    return f"E = {E:.6g} Pa, nu = {m['nu']:.6g}"
 
 
 def _fmt_disc(disc: dict) -> str:

@@ -45,7 +45,7 @@ def _preset_names() -> tuple[str, ...]:
     return tuple(sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml")))
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _preset_table(name: str) -> dict:
     """A preset's parsed table, read once: presets are package data (callers copy it)."""
     origin = f"preset {name}"

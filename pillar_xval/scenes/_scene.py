@@ -154,8 +154,9 @@ class Scene:
                                          None if p is None else (p.diameter_m, p.height_m),
                                          naming)
         if problem:
+            force = float("nan") if self.force_N is None else self.force_N
             raise ScopeError(f"{naming.key('load.force_N')} = "
-                             f"{show_amount(self.force_N * 1e6)}: "
+                             f"{show_amount(force * 1e6)}: "
                              + ck.implied_problem(indentation_m, how, problem, naming))
         return self.at_indentation(indentation_m)
 

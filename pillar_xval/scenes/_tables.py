@@ -88,7 +88,7 @@ class FileNaming(Naming):
     def missing(self, file_key: str, hint: str = "") -> SceneError:
         """A missing key; when every key of its table came from ``--set``, the table is one
         that the overrides added, and the message says so."""
-        table = file_key.split(".")[0]
+        table = file_key.split(".", maxsplit=1)[0]
         given = [k for k in self.data.get(table, {}) if f"{table}.{k}" in self.provenance]
         if given and len(given) == len(self.data[table]):
             return SceneError(f"--set {self.provenance[f'{table}.{given[0]}']}: adds a "

@@ -1,4 +1,4 @@
-"""Cost of the elastic-pillar BEM against fem-3d at equal accuracy (issue 17, item 5):
+"""Cost of the elastic-pillar BEM against fem-3d at equal accuracy:
 ``python -m validation.bench.elastic_fem3d --out DIR [--quick]`` (``make bench-elastic``).
 
 Scenes: Phi = 0.2 (``paper-fig3-sparse`` with ``pillars.surface_fraction=0.2``) and Phi = 0.82
@@ -503,7 +503,7 @@ def run(out: Path, quick: bool = False, runner=run_case, log=print, scenes=None)
         log(_progress(row), flush=True)
     analysis = analyse(rows)
     import platform
-    doc = {"benchmark": "elastic-pillar BEM against fem-3d (issue 17, item 5)",
+    doc = {"benchmark": "elastic-pillar BEM against fem-3d at equal accuracy",
            "command": "python -m validation.bench.elastic_fem3d --out " + str(out)
                       + (" --quick" if quick else "")
                       + (f" --scenes {','.join(scenes)}" if scenes else ""),

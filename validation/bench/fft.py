@@ -422,7 +422,7 @@ def _kept_columns(runs: list) -> dict:
 def format_table(rows: list, meta: dict) -> str:
     """The side-by-side table (markdown)."""
     peer = not meta["contactmechanics_skipped"]
-    lines = [f"FFT model (edge_correction=False) against the FFT pair floor"
+    lines = ["FFT model (edge_correction=False) against the FFT pair floor"
              + (" and ContactMechanics " + meta["contactmechanics"] if peer else "")
              + f": {meta['scene']}, rigid substrate, same grid and equations, tol "
              f"{meta['tolerance']:g} zeta; medians of {meta['repeats']} interleaved runs; "

@@ -272,6 +272,18 @@ def refuse_inapplicable(args, models, dests=None) -> None:
                if owners else ""))
 
 
+def pillar_models_type(text: str) -> tuple[str, ...]:
+    """argparse's type of ``--pillars`` (compare, figures): hooke, elastic, both or a comma
+    list, as a tuple of pillar models in the declaration's order
+    (:func:`validation.studies.compare.pillar_models`)."""
+    from ..studies.compare import pillar_models
+
+    try:
+        return pillar_models(text)
+    except InputError as exc:  # argparse names the option: "argument --pillars: ..."
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("--pillars ")) from None
+
+
 def scene_pillars(given, scene):
     """The pillar model(s) a command runs on ``scene``: ``--pillars`` as given, else the
     scene's default (:func:`validation.registry.default_pillars`: elastic on elastic pillars);

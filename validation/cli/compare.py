@@ -5,16 +5,15 @@ uncertainty beside every difference and a verdict against a stated tolerance
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
 from pillar_xval.scenes import InputError, load_scene
 
-from ..studies.compare import BEM, BOTH, FEM_COARSEST, FEM_MODELS, OUTPUTS, pillar_models
+from ..studies.compare import BEM, BOTH, FEM_COARSEST, FEM_MODELS, OUTPUTS
 from ._args import (Renamed, add_engine_arguments, add_levels_argument,
                     add_models_argument, add_output_arguments, add_refinement_arguments,
                     add_scene_arguments, check_out, engine_from_args, not_converged, print_json,
-                    refuse_inapplicable, scene_pillars)
+                    pillar_models_type, refuse_inapplicable, scene_pillars)
 
 
 def add_parser(sub) -> None:
@@ -38,7 +37,7 @@ def add_parser(sub) -> None:
                              defaults={"elements_per_diameter": 11,
                                        "mesh_size": " or ".join(
                                            f"{v:g} ({m})" for m, v in FEM_COARSEST.items())})
-    p.add_argument("--pillars", type=_pillars, default=None, metavar="MODEL",
+    p.add_argument("--pillars", type=pillar_models_type, default=None, metavar="MODEL",
                    help="the BEM's pillar model: 'hooke', the paper's uniformly shortening "
                         "spring, 'elastic', the whole pillar's top compliance (from a "
                         "Fourier-mode FEM of one pillar, cached; the default on elastic "
@@ -68,6 +67,8 @@ def run(args) -> int:
     fem = fem or fem_model_for(scene)
     check_options(args.levels, args.mesh_size, args.elements_per_diameter, fem)
     pillars = scene_pillars(args.pillars, scene) or "hooke"
+    if not isinstance(pillars, str) and len(pillars) == 1:  # one BEM: a two-way table
+        pillars = pillars[0]
     out = check_out(args.out or Path("out") / "compare" / scene.name)
     with engine_from_args(args, "compare") as engine:
         report = compare_study(scene, out, engine=engine, levels=args.levels,
@@ -89,15 +90,6 @@ def run(args) -> int:
     if report["converged"]:
         return 0
     return not_converged("compare", report["not_converged"])
-
-
-def _pillars(text: str):
-    """--pillars: one pillar model (a string, as before) or several (a tuple: three-way)."""
-    try:
-        kinds = pillar_models(text)
-    except InputError as exc:  # argparse names the option: "argument --pillars: ..."
-        raise argparse.ArgumentTypeError(str(exc).removeprefix("--pillars ")) from None
-    return kinds[0] if len(kinds) == 1 else kinds
 
 
 def _chosen_fem(models) -> str | None:

@@ -3,13 +3,12 @@ PNG with the CSV of its data, and ``figures.md`` (the paper's numbers beside our
 
 from __future__ import annotations
 
-import argparse
 import json
 from pathlib import Path
 
 from pillar_xval.scenes import InputError
 
-from ._args import add_engine_arguments, check_out, engine_from_args
+from ._args import add_engine_arguments, check_out, engine_from_args, pillar_models_type
 
 DEFAULT_MODEL = "bem-richardson"
 
@@ -32,7 +31,7 @@ def add_parser(sub) -> None:
     p.add_argument("--elements-per-diameter", type=int, default=None, metavar="P",
                    help="square elements across a pillar (bem-richardson: the coarse level); "
                         "default 5")
-    p.add_argument("--pillars", type=_pillars, default="hooke", metavar="MODEL",
+    p.add_argument("--pillars", type=pillar_models_type, default="hooke", metavar="MODEL",
                    help="the pillar model: 'hooke', the paper's uniformly shortening spring "
                         "(default), 'elastic', the whole pillar's top compliance, or 'both': "
                         "the two on the same axes, and figures.md checks each of the paper's "
@@ -102,13 +101,3 @@ def _summary(doc: dict) -> dict:
                          for c in doc["thresholds"]["curves"]]
     summary["exact_phi_s"] = doc["thresholds"]["exact"]
     return summary
-
-
-def _pillars(text: str) -> tuple[str, ...]:
-    """--pillars: hooke, elastic, both (or a comma list), as a tuple of pillar models."""
-    from ..studies.compare import pillar_models
-
-    try:
-        return pillar_models(text)
-    except InputError as exc:  # argparse names the option: "argument --pillars: ..."
-        raise argparse.ArgumentTypeError(str(exc).removeprefix("--pillars ")) from None

@@ -3,7 +3,6 @@ time and memory (:mod:`validation.planner`)."""
 
 from __future__ import annotations
 
-import json
 
 from pathlib import Path
 

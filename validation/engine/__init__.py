@@ -1,6 +1,6 @@
 """The study engine: cases, their keys and records, executors, progress.
 
-A :class:`Case` is (scene, model, options) -> :class:`pillar_xval.scenes.ContactResult`.  An
+A :class:`Case` is (scene, model, options) -> :class:`pillar_xval.outcome.ContactResult`.  An
 :class:`Engine` runs a list of cases into a folder (:class:`CaseStore`): each finished case is
 written at once, atomically, and skipped on a rerun; a corrupt or inconsistent record is
 recomputed; a case another process is computing is waited for, never duplicated.  Cases run

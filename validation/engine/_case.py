@@ -81,7 +81,7 @@ def package_root(name: str) -> Path | None:
     return Path(spec.origin) if spec.origin else None
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def code_digest(names: tuple[str, ...]) -> str:
     """:func:`source_digest` of the packages or modules ``names``."""
     return source_digest({name: package_root(name) for name in names})

@@ -354,7 +354,7 @@ def plot_tradeoff(doc: dict, path: Path) -> Path:
 def _frame(ax, points: list[tuple[float, float]], scale: str) -> None:
     """Limits around ``points`` (the models' and the measured), 8 % beyond them (a factor on
     log axes), so that a closed form far from them does not squeeze them into a corner."""
-    points = [(x, y) for x, y in points if x > 0 and y > 0 or scale == "linear"]
+    points = [(x, y) for x, y in points if (x > 0 and y > 0) or scale == "linear"]
     if not points:
         return
     for axis, values in (("x", [p[0] for p in points]), ("y", [p[1] for p in points])):

@@ -126,7 +126,7 @@ def _numbers(values: list, where: str, low: float | None = None, nulls: bool = F
 
 
 def _typed(value, kind, where: str, what: str):
-    if not isinstance(value, kind) or isinstance(value, bool) and kind is not bool:
+    if not isinstance(value, kind) or (isinstance(value, bool) and kind is not bool):
         raise _Bad(where, f"= {_show(value)}: expected {what}")
     return value
 

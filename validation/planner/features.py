@@ -17,7 +17,7 @@ Regime (thresholds of [P], computed by :mod:`pillar_xval.scenes.analytic`):
 Features (every one dimensionless, so tables measured on the paper's scenes apply to any
 scene with the same values):
 
-=============  ==========================================================================
+============== ==========================================================================
 ``w``          share of the half-spaces in the compliance of one pillar in contact,
                (gamma_l + gamma_s) / gamma*; 1 for rigid pillars (and flat scenes)
 ``log_phi_s``  log10(Phi / Phi_S): how deep in the multi-pillar regime (< 0: one pillar)
@@ -34,7 +34,7 @@ scene with the same values):
                E_s = E_p (0 where E_p = E_l, when the two coincide)
 ``aspect``     h / d
 ``log_zeta_r`` log10(zeta / R)
-=============  ==========================================================================
+============== ==========================================================================
 
 The stiffness axes of the tables that vary E_p and E_s (the Hooke pillar's error, the
 lattice studies' tables) are ``c_p`` and ``c_s``, not the log ratios.  A model error that

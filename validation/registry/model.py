@@ -5,7 +5,7 @@ from __future__ import annotations
 import importlib
 import inspect
 from dataclasses import dataclass, field
-from typing import Callable
+from collections.abc import Callable
 
 from pillar_xval.outcome import ContactResult
 from pillar_xval.scenes import Scene
@@ -45,8 +45,8 @@ class Model:
 
     ``solver`` is ``"module:function"``, imported on first use (a command that runs only the
     BEM never imports scikit-fem or gmsh); ``function(scene, **options)`` returns a
-    :class:`pillar_xval.scenes.ContactResult`.  ``options`` are the keywords it takes, with their specs
-    (:mod:`.options`).  The rest say how the studies use it:
+    :class:`pillar_xval.outcome.ContactResult`.  ``options`` are the keywords it takes, with
+    their specs (:mod:`.options`).  The rest say how the studies use it:
 
     - ``ladder``: how it is refined (``converge``, ``compare``, ``gecit``, ``tradeoff``, the
       planner's candidates); None for a model without a resolution;

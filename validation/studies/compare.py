@@ -39,7 +39,7 @@ from ..analysis.profiles import profile_at
 from ..analysis.verification import study
 from ..output.report import scene_label
 from .converge import check_ladder, level_cases, study_levels
-from .targets import TARGET_RULE, TARGETS, judge
+from .targets import TARGETS, judge
 
 FEM, FEM_3D, BEM = "fem-axisym", "fem-3d", "bem"
 FEM_MODELS = (FEM, FEM_3D)

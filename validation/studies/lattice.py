@@ -594,7 +594,7 @@ def _quantity_columns(q, kind: str) -> dict[str, str]:
 
 
 def rows_csv(report: dict) -> str:
-    """lattice.csv, one line per scene: the Hooke columns first (as before), then the
+    """lattice.csv, one line per scene: the Hooke columns first, then the
     substrate, the elastic BEM's columns and its targets."""
     cols = ["surface_fraction", "Ep_over_El", "status", "pillars_fem", "pillars_bem"]
     for q in QUANTITIES:
@@ -637,8 +637,8 @@ RING_COLUMNS = ["pillars", "ratio_mean", "ratio_min", "ratio_max", "ring_force_r
 
 
 def rings_csv(report: dict) -> str:
-    """rings.csv, one line per scene and ring: the Hooke BEM's finest-level ratios (as before),
-    then the elastic BEM's, each model's Richardson ring force and the ring target."""
+    """rings.csv, one line per scene and ring: the Hooke BEM's finest-level ratios, then the
+    elastic BEM's, each model's Richardson ring force and the ring target."""
     cols = ["surface_fraction", "Ep_over_El", "ring", *RING_COLUMNS, "fem_force_N",
             "bem_force_N", "substrate", *(f"elastic_{c}" for c in RING_COLUMNS),
             "elastic_force_N", "fem_estimate_N", "fem_band_N", "bem_estimate_N", "bem_band_N",

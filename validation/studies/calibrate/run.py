@@ -751,7 +751,7 @@ def is_hand(entry: dict, key: str = "source") -> bool:
 
 def keep_hand_entries(errors: dict, costs: dict, folder: Path | None = None) -> None:
     """Carry the installed data's hand entries (``source``/``note`` starting with "hand":
-    fem-3d and the elastic-pillar BEMs as candidates, issue 18) into a new calibration that
+    fem-3d and the elastic-pillar BEMs as candidates) into a new calibration that
     does not measure them yet: candidates, error tables, cost fits and cost variants that the
     calibration did not write itself.  ``folder``: the installed data (default the
     package's)."""

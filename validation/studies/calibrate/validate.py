@@ -1,8 +1,8 @@
 """The planner validated: on seeded scenes it never saw, is the planned model within
 tolerance of the best reference the toolkit has, and is it cheap?
 
-Scenes (:func:`validation_scenes`; seed :data:`VALIDATION_SEED`, neither the calibration's
-nor issue 9's 77): ``n_scenes`` in all (default 60), ``n_lattice`` of them (default 15)
+Scenes (:func:`validation_scenes`; seed :data:`VALIDATION_SEED`, not the calibration's
+seed): ``n_scenes`` in all (default 60), ``n_lattice`` of them (default 15)
 lattice-sigma0 scenes, the rest split as :data:`REST_SHARES` between a Latin-hypercube sample
 of the paper's family, a smaller stiff-substrate sample and flat scenes (:mod:`.scenes`).
 
@@ -124,7 +124,8 @@ TIME_FLOOR = 0.05
 # A reference quantity judges candidates only where its band is within this share of it (the
 # calibration's rule for fem-3d's estimates, FEM3D_BAND_MAX).
 REFERENCE_BAND_MAX = FEM3D_BAND_MAX
-# Issue 18's targets: shares of the judged scenes.
+# The planner's targets: the shares of the judged scenes where its choice is accurate, and
+# where it is also the cheapest adequate model.
 TARGETS = {"accurate_share": 0.95, "cheap_share": 0.90}
 REFERENCE_TEXT = {
     "lattice": "elastic pillars: fem-3d Richardson (mesh_size "

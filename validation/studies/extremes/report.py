@@ -21,7 +21,7 @@ SHORT = {"pass": "pass", "not converged": "n.c.", "refused": "refused", "skipped
 
 def counts(doc: dict) -> dict:
     """Verdicts per model: {model: {status: n}}."""
-    out = {m: {s: 0 for s in STATUSES} for m in doc["models"]}
+    out = {m: dict.fromkeys(STATUSES, 0) for m in doc["models"]}
     for r in doc["records"]:
         out[r["model"]][r["status"]] += 1
     return out

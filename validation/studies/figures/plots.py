@@ -156,8 +156,8 @@ def plot_fig3(panels: list[dict], path: Path, pixels: int = 520, dpi: int = 120,
 
 # --- Fig. 4 -----------------------------------------------------------------------------
 def plot_fig4(curves: dict, area_rows: dict, path: Path, dpi: int = 120) -> Path:
-    """(a) sigma_0(Phi) at zeta = 0.3 um per E_p/E_l with the fitted master curves;
-    (b) A against pi a^2 at E_p = E_l per Phi, with A = Phi pi a^2.  ``curves`` and
+    """Fig. 4: (a) sigma_0(Phi) at zeta = 0.3 um per E_p/E_l with the fitted master
+    curves; (b) A against pi a^2 at E_p = E_l per Phi, with A = Phi pi a^2.  ``curves`` and
     ``area_rows`` per pillar model."""
     plt = _pyplot()
     variants = list(curves)
@@ -246,9 +246,8 @@ def plot_fig6(points: dict, area_exponent: dict, path: Path, dpi: int = 120) -> 
     zetas = sorted({p["zeta_m"] for v in variants for p in points[v]})
     norm = plt.Normalize(min(zetas) * UM, max(zetas) * UM)
     markers = {1e-3: "v", 1.0: "o", 1e6: "^"}
-    sc = None
-    for v, ratio in [(v, r) for v in variants
-                     for r in sorted({p["ratio"] for p in points[v]})]:
+    for v, ratio in [(var, r) for var in variants
+                     for r in sorted({p["ratio"] for p in points[var]})]:
         st = variant_style(v, variants)
         sel = [p for p in points[v] if p["ratio"] == ratio]
         xs = np.array([p["phi_star"] for p in sel])
@@ -262,7 +261,7 @@ def plot_fig6(points: dict, area_exponent: dict, path: Path, dpi: int = 120) -> 
             colours = plt.cm.viridis(norm(cs[k]))
             kw = ({"facecolors": "none", "edgecolors": colours} if st["mfc"] == "none"
                   else {"c": colours})
-            sc = axis.scatter(xv[k], yv[k], s=14, marker=markers.get(ratio, "s"),
+            axis.scatter(xv[k], yv[k], s=14, marker=markers.get(ratio, "s"),
                               label=_ratio_label(ratio) + st["suffix"], **kw)
     line = np.geomspace(1e-2, 10, 200)
     ax.loglog(line, (1 + line) ** -3, "k-", lw=1.3, label="(1 + Φ*)⁻³ (paper)")
