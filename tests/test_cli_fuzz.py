@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import random
 import re
+import subprocess
 import sys
 
 import pytest
@@ -178,6 +179,17 @@ def test_binary_scene_file_names_the_file(tmp_path, cli):
     junk.write_bytes(bytes(range(256)))
     code, _, line = outcome(cli, "solve", "--scene", junk)
     assert code == 2 and str(junk) in line
+
+
+def test_version_loads_nothing_of_the_toolkit():
+    """``--version`` answers before the toolkit and the parser load (0.05-0.15 s against
+    0.5-0.66 s when every command module was imported first): no numpy, no scenes."""
+    code = ("import sys; from validation.cli import main; main(['--version']); "
+            "print(sorted(m for m in ('numpy', 'pillar_xval.scenes', 'validation.registry') "
+            "if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.splitlines()
+    assert out == [f"pillar-xval {package_version()}", "[]"]
 
 
 def test_version_and_descriptions(cli):

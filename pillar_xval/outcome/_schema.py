@@ -9,19 +9,13 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import asdict, dataclass, field
-from importlib import metadata
 from typing import Any
+
+from .._version import package_version
 
 SCHEMA_VERSION = 3
 # The contact regimes a result names (``ContactResult.regime``).
 REGIMES = ("flat", "single-pillar", "multi-pillar", "mixed")
-
-
-def package_version() -> str:
-    try:
-        return metadata.version("pillar-xval")
-    except metadata.PackageNotFoundError:
-        return "0+unknown"
 
 
 @dataclass

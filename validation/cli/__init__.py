@@ -110,6 +110,12 @@ def main(argv: list[str] | None = None) -> int:
         print("pillar-xval: error: standard output is closed; redirect it to a file or "
               "/dev/null", file=sys.stderr or sys.__stderr__)
         return EXIT_BAD_INPUT
+    if (sys.argv[1:] if argv is None else argv) == ["--version"]:
+        # The version needs neither the toolkit nor the parser (0.1 s, not 0.5).
+        from pillar_xval._version import package_version
+
+        print(f"pillar-xval {package_version()}")
+        return 0
     watchdog = Watchdog()
     errors = _tolerant(sys.stdout)
     try:
