@@ -360,7 +360,9 @@ def test_csv_values_are_plain_numbers():
     every CSV cell must read back with float()."""
     import numpy as np
 
-    text = study._csv(["a", "b", "c"], [{"a": np.float64(0.1), "b": None, "c": True}])
+    from validation.studies.lattice.tables import _csv
+
+    text = _csv(["a", "b", "c"], [{"a": np.float64(0.1), "b": None, "c": True}])
     assert text.splitlines()[1] == "0.1,,True"
 
 
