@@ -342,7 +342,7 @@ def test_the_calibration_places_each_substrate_convention_on_its_own_axis(fake_r
     E_p = E_l (the same scene under both conventions) at both ends; without E_s = E_p rows
     there is no such axis."""
     from validation.studies.calibrate import lattice_hooke_table
-    from validation.studies.calibrate.run import _lattice_features, _lattice_rows
+    from validation.studies.calibrate.lattice_tables import _lattice_features, _lattice_rows
 
     table = lattice_hooke_table(fake_report)
     assert table.features == ["phi", "c_p", "es_share"]

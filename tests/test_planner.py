@@ -603,7 +603,7 @@ SAMPLE_ESTIMATE_S = 600.0
 @pytest.mark.slow
 def test_planner_validation(tmp_path):
     from validation.engine import Engine
-    from validation.studies.calibrate import validate
+    from validation.studies import validate_plan as validate
 
     prepared = validate.prepare(validate.validation_scenes(SAMPLE_SCENES, SAMPLE_LATTICE))
     assert validate.estimate(prepared)["seconds"] < SAMPLE_ESTIMATE_S
@@ -636,7 +636,7 @@ def test_a_lattice_error_below_what_fem3d_resolves_is_floored():
     band (capped at the planner's relevance threshold): a chance zero would otherwise pull
     the log10 interpolation down by decades next to it; errors above the floor are kept."""
     from validation.planner.tables import LOO_RELEVANT
-    from validation.studies.calibrate.run import _resolved
+    from validation.studies.calibrate.lattice_tables import _resolved
 
     assert _resolved(0.0, {"fem": 2.0, "fem_band": 4e-4}) == pytest.approx(2e-4)
     assert _resolved(-1e-6, {"fem": 2.0, "fem_band": 0.02}) == pytest.approx(-LOO_RELEVANT)

@@ -232,7 +232,7 @@ def test_a_recalibration_keeps_the_hand_entries(tmp_path):
     """calibrate does not measure fem-3d or the elastic BEMs yet: its new data keeps the
     installed hand entries instead of dropping the candidates."""
     from validation.planner.tables import DATA_FORMAT, data_dir
-    from validation.studies.calibrate.run import keep_hand_entries
+    from validation.studies.calibrate.hand import keep_hand_entries
 
     shipped_errors = json.loads((data_dir() / "error_models.json").read_text())
     shipped_costs = json.loads((data_dir() / "cost_models.json").read_text())
@@ -291,7 +291,7 @@ def test_the_planner_validation_judges_only_measured_candidates():
     """validate-plan's Hooke-BEM reference (its scenes but the lattice-sigma0 ones): the
     hand-entered candidates (fem-3d, the elastic BEMs) stay out of the plans it judges there,
     and nothing else does."""
-    from validation.studies.calibrate.validate import measured_only
+    from validation.studies.validate_plan import measured_only
 
     data = load_data()
     kept = measured_only(data)

@@ -18,7 +18,7 @@ from pillar_xval.scenes import InputError
 from validation.engine import Engine
 from validation.planner.features import regime
 from validation.planner.tables import CostFit, ErrorTable, PlannerData, load_data
-from validation.studies.calibrate import validate
+from validation.studies import validate_plan as validate
 from validation.studies.calibrate.run import CALIBRATION_SEED
 from validation.studies.calibrate.scenes import _scene
 

@@ -67,7 +67,7 @@ def run(args) -> int:
 
 
 def _add_validate(sub) -> None:
-    from ..studies.calibrate.validate import (DEFAULT_LATTICE, DEFAULT_SCENES,
+    from ..studies.validate_plan import (DEFAULT_LATTICE, DEFAULT_SCENES,
                                               FEM3D_FINEST_MAX_S, MAX_LATTICE, MAX_SCENES,
                                               MAX_SEED, VALIDATION_SEED)
 
@@ -115,7 +115,7 @@ def _add_validate(sub) -> None:
 
 def run_validate(args) -> int:
     from ..planner.plan import check_request
-    from ..studies.calibrate.validate import (check_options, estimate, estimate_text,
+    from ..studies.validate_plan import (check_options, estimate, estimate_text,
                                               prepare, summary_text, validate_planner,
                                               validation_scenes, write_outputs)
 

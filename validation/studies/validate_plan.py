@@ -79,16 +79,18 @@ from pillar_xval.outcome import write_atomic
 from pillar_xval.outcome.memory import memory_short
 from pillar_xval.scenes import InputError
 
-from ...engine import Case, Engine
-from ...registry import MODELS, quantity_values
-from ...analysis.verification import gci_three
-from .run import CALIBRATION_SEED, FEM3D_BAND_MAX, is_hand
-from .scenes import PAPER_RANGES, drawn_scenes, flat_scenes, lattice_scenes
-from ...planner.features import regime
-from ...planner.plan import DEFAULT_QUANTITIES, DEFAULT_TOLERANCE, default_data, plan
-from ...planner.tables import PlannerData, load_data
-from ..lattice import FEM_LEVELS
-from ..tradeoff import reference_values
+from ..engine import Case, Engine
+from ..registry import MODELS, quantity_values
+from ..analysis.verification import gci_three
+from .calibrate.hand import is_hand
+from .calibrate.lattice_tables import FEM3D_BAND_MAX
+from .calibrate.run import CALIBRATION_SEED
+from .calibrate.scenes import PAPER_RANGES, drawn_scenes, flat_scenes, lattice_scenes
+from ..planner.features import regime
+from ..planner.plan import DEFAULT_QUANTITIES, DEFAULT_TOLERANCE, default_data, plan
+from ..planner.tables import PlannerData, load_data
+from .lattice import FEM_LEVELS
+from .tradeoff import reference_values
 
 __all__ = ["VALIDATION_SEED", "check_options", "estimate", "estimate_text", "fem3d_fits",
            "judged_data", "judged_quantities", "measured_only", "miss_reasons", "prepare",
