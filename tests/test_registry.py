@@ -10,6 +10,8 @@ from __future__ import annotations
 import json
 import shutil
 
+import dataclasses
+
 import pytest
 
 from pillar_xval.outcome import ContactResult
@@ -219,3 +221,21 @@ def test_the_registry_is_in_every_key(tmp_path, monkeypatch):
     monkeypatch.undo()
     _case.code_digest.cache_clear()
     _case.code_version.cache_clear()
+
+
+def test_the_studies_reference_models_come_from_the_registry(monkeypatch):
+    """Each reference role is declared by exactly one model, and the studies take theirs from
+    the registry: a role declared twice, or by none, is an error, not a silent choice."""
+    from validation.registry import MODELS, REFERENCE_ROLES, reference_model
+    from validation.studies import compare, gecit, lattice
+
+    assert {role: reference_model(role) for role in REFERENCE_ROLES} == {
+        "single-pillar": "fem-axisym", "lattice": "fem-3d"}
+    assert (compare.FEM, compare.FEM_3D, gecit.FEM, lattice.FEM_MODEL) == (
+        "fem-axisym", "fem-3d", "fem-axisym", "fem-3d")
+    twice = dataclasses.replace(MODELS["fem-3d"], reference_for=("lattice", "single-pillar"))
+    monkeypatch.setitem(MODELS, "fem-3d", twice)
+    with pytest.raises(ValueError, match="'single-pillar': 2 models"):
+        reference_model("single-pillar")
+    with pytest.raises(ValueError, match="'floor': 0 models"):
+        reference_model("floor")

@@ -25,11 +25,11 @@ from .model import CostLaw, Model
 from .models import DECLARED
 from .options import OptionSpec, check_option, flag
 
-__all__ = ["FLOOR_QUANTITIES", "LOAD_QUANTITIES", "MODELS", "QUANTITIES", "CostLaw", "Ladder",
-           "Model", "OptionSpec", "Quantity", "candidates", "check_option", "check_options",
-           "default_pillars", "family_options", "flag", "get_model", "ladder_for", "ladders",
-           "model_names", "option_vocabulary", "quantity_values", "run_model", "scene_defaults",
-           "stored_operator"]
+__all__ = ["FLOOR_QUANTITIES", "LOAD_QUANTITIES", "MODELS", "QUANTITIES", "REFERENCE_ROLES",
+           "CostLaw", "Ladder", "Model", "OptionSpec", "Quantity", "candidates", "check_option",
+           "check_options", "default_pillars", "family_options", "flag", "get_model",
+           "ladder_for", "ladders", "model_names", "option_vocabulary", "quantity_values",
+           "reference_model", "run_model", "scene_defaults", "stored_operator"]
 
 # Every model by its --model name, in declaration order (tests register fakes here).
 MODELS: dict[str, Model] = {m.name: m for m in DECLARED}
@@ -37,6 +37,20 @@ MODELS: dict[str, Model] = {m.name: m for m in DECLARED}
 
 def model_names() -> list[str]:
     return sorted(MODELS)
+
+
+# The roles a study's reference model plays (a model declares them: Model.reference_for).
+REFERENCE_ROLES = ("single-pillar", "lattice")
+
+
+def reference_model(role: str) -> str:
+    """The model the studies take as the reference in ``role`` (one of
+    :data:`REFERENCE_ROLES`): the one model whose declaration names it."""
+    found = [m.name for m in MODELS.values() if role in m.reference_for]
+    if role not in REFERENCE_ROLES or len(found) != 1:
+        raise ValueError(f"reference role {role!r}: {len(found)} models declare it "
+                         f"(roles: {', '.join(REFERENCE_ROLES)})")
+    return found[0]
 
 
 def get_model(name: str) -> Model:

@@ -78,6 +78,9 @@ class Model:
       whose lens reaches the floor; one without it refuses such a scene (its given
       indentation before the solve, the one it solved under a force after it:
       :func:`pillar_xval.scenes.floor.check_floor_scope`).
+    - ``reference_for``: the roles in which the studies take it as the reference
+      (:data:`REFERENCE_ROLES`: "single-pillar", the elastic pillar of one pillar or a flat
+      scene; "lattice", a lattice's); :func:`validation.registry.reference_model`;
     - ``request``: ``"module:function"`` that checks its options together where a spec
       cannot (``auto``: the planner's request, ``function(**options)`` raising InputError),
       imported on first use; "" for none.
@@ -103,6 +106,7 @@ class Model:
     force_control: str = "outer"
     floor: bool = False
     request: str = ""
+    reference_for: tuple[str, ...] = ()
 
     @property
     def function(self) -> Callable[..., ContactResult]:

@@ -91,7 +91,7 @@ DECLARED = (
         # The fast subset of extremes meshes it coarser: it checks robustness, not accuracy.
         robustness={"mesh_size": 2.0}, robustness_quick={"mesh_size": 4.0},
         keeps_fields=True, weak_contact=True,
-        force_control="native", floor=True),
+        force_control="native", floor=True, reference_for=("single-pillar",)),
     Model(
         "fem-3d", "fem_reference.solid3d:solve",
         "3D FEM of the lattice's pi/6 wedge with elastic pillars (PARDISO, constrained CG)",
@@ -104,7 +104,7 @@ DECLARED = (
         robustness={"mesh_size": 4.0}, weak_contact=True,
         # Its rungs take minutes each (validation/bench/fem3d.py).
         expensive=True,
-        force_control="native", floor=True),
+        force_control="native", floor=True, reference_for=("lattice",)),
     # Closed forms as models: the planner's cheapest candidates.
     Model(
         "hertz", "pillar_xval.closed_forms:solve_hertz",

@@ -34,14 +34,14 @@ from pillar_xval.outcome import write_atomic
 from pillar_xval.scenes import InputError, Scene, analytic
 
 from ..engine import Engine
-from ..registry import QUANTITIES, ladder_for, quantity_values
+from ..registry import QUANTITIES, ladder_for, quantity_values, reference_model
 from ..analysis.profiles import profile_at
 from ..analysis.verification import study
 from ..output.report import scene_label
 from .converge import check_ladder, level_cases, study_levels
 from .targets import TARGETS, judge
 
-FEM, FEM_3D, BEM = "fem-axisym", "fem-3d", "bem"
+FEM, FEM_3D, BEM = reference_model("single-pillar"), reference_model("lattice"), "bem"
 FEM_MODELS = (FEM, FEM_3D)
 # Display units: (scale factor from SI, unit label).
 DISPLAY = {"F_T": (1e6, "uN"), "sigma0": (1e-3, "kPa"), "a": (1e6, "um"), "A": (1e12, "um^2"),

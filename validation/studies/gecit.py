@@ -30,7 +30,7 @@ from pillar_xval.scenes import InputError, load_scene
 from pillar_xval.scenes.floor import floor_onset_bound, floor_reachable
 
 from ..engine import Case, Engine
-from ..registry import check_option, get_model, ladder_for
+from ..registry import check_option, get_model, ladder_for, reference_model
 from ..analysis.profiles import (EDGE_SKIP, EDGE_WINDOW, edge_exponent, outer_load_fraction,
                                  plateau_ratio)
 from .converge import check_ladder, study_levels
@@ -40,7 +40,7 @@ CONVENTION = "E_s = E_p (substrate as stiff as the pillars, the paper's conventi
 OUTPUTS = ("gecit.csv", "gecit.png", "gecit_profiles.png", "gecit.json")
 RATIOS = (1e-3, 1e-2, 0.1, 1.0, 10.0, 100.0, 1e3, 1e6)
 ASPECTS = (0.25, 0.5, 1.0)
-FEM, BEM = "fem-axisym", "bem"
+FEM, BEM = reference_model("single-pillar"), "bem"
 
 
 def study_scenes(scene: str, overrides=(), ratios=RATIOS, aspects=ASPECTS) -> list[dict]:

@@ -80,7 +80,7 @@ from pillar_xval.outcome.memory import memory_short
 from pillar_xval.scenes import InputError
 
 from ..engine import Case, Engine
-from ..registry import MODELS, quantity_values
+from ..registry import MODELS, quantity_values, reference_model
 from ..analysis.verification import gci_three
 from .calibrate.hand import is_hand
 from .calibrate.lattice_tables import FEM3D_BAND_MAX
@@ -115,7 +115,7 @@ REST_SHARES = (35, 6, 4)
 FLAT_ZETA_R = (3e-4, 3e-3, 0.03, 0.3)
 # The lattice-sigma0 scenes: fem-3d's ladder (the lattice study's), the longest its finest
 # level may be predicted to take, and where they are drawn (log10 ranges, module docstring).
-FEM3D = "fem-3d"
+FEM3D = reference_model("lattice")
 FEM3D_LEVELS = FEM_LEVELS
 FEM3D_FINEST_MAX_S = 120.0
 LATTICE_RANGES = {**PAPER_RANGES, "ratio": (-1.0, 3.0)}

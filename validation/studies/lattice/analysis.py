@@ -11,7 +11,7 @@ from ...analysis.verification import study
 from ...registry import QUANTITIES, quantity_values
 from ..compare import profile_key, profile_studies
 from ..targets import TARGETS, judge
-from .points import BEM_NAMES, ELASTIC, HOOKE, PROFILE_POINTS, LatticePoint
+from .points import BEM_NAMES, ELASTIC, FEM_MODEL, HOOKE, PROFILE_POINTS, LatticePoint
 
 
 def _single_levels(outcomes, option: str) -> list[dict]:
@@ -224,7 +224,7 @@ def compare_point(point: LatticePoint, fem_outcomes, bem_outcomes, elastic_outco
            "elastic_error": bems[ELASTIC]["error"], "quantities": {},
            "elastic_quantities": {}}
     failed = {name: ladder for name, ladder in
-              (("fem-3d", fem), (BEM_NAMES[HOOKE], bems[HOOKE]),
+              ((FEM_MODEL, fem), (BEM_NAMES[HOOKE], bems[HOOKE]),
                (BEM_NAMES[ELASTIC], bems[ELASTIC])) if ladder["error"]}
     good = {k: v for k, v in bems.items() if not v["error"]} if not fem["error"] else {}
     if good:

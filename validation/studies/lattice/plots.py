@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..targets import TARGETS
-from .points import BEM_NAMES, CONVENTIONS, ELASTIC, HOOKE, LENS, PILLAR
+from .points import BEM_NAMES, CONVENTIONS, ELASTIC, FEM_MODEL, HOOKE, LENS, PILLAR
 
 # Line style of each BEM, marker of each substrate convention.
 STYLES = {HOOKE: "--", ELASTIC: "-"}
@@ -119,7 +119,7 @@ def plot_profiles(report: dict, path) -> None:
 
         fem, band = np.array(kpa("fem_Pa")), np.array(kpa("fem_band_Pa"))
         ax.fill_between(x, fem - band, fem + band, color="0.8", lw=0)
-        ax.plot(x, fem, "k.-", lw=1, label="fem-3d")
+        ax.plot(x, fem, "k.-", lw=1, label=FEM_MODEL)
         ax.plot(x, kpa("elastic_Pa"), "-", color="tab:red", label=BEM_NAMES[ELASTIC])
         ax.plot(x, kpa("hooke_Pa"), "--", color="tab:blue", label=BEM_NAMES[HOOKE])
         met = ((r.get("targets") or {}).get("profile") or {}).get("met")
