@@ -7,10 +7,9 @@ rung of its ladder; auto asks for a loose tolerance, so that it plans a cheap mo
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
-
-import dataclasses
 
 import pytest
 
