@@ -48,6 +48,7 @@ import time
 from pathlib import Path
 
 from validation.bench.elastic_pillar import _timed
+from validation.output.formatting import percent
 
 TABLE1 = ["lens.E_Pa=1.6e6", "pillars.E_Pa=1.6e6", "substrate.E_Pa=1.6e6", "lens.nu=0.5",
           "pillars.nu=0.5", "substrate.nu=0.5", "load.indentation_um=0.3"]
@@ -358,7 +359,7 @@ COLUMNS = ("Phi", "model", "pillars", "res", "unknowns", "time s", "RSS GiB", "F
 
 
 def _pct(x) -> str:
-    return "" if x is None else f"{100 * x:+.2f} %"
+    return percent(x, "+.2f", missing="")
 
 
 def table_rows(rows: list) -> list[list[str]]:

@@ -47,6 +47,7 @@ from ..registry import QUANTITIES, get_model
 from . import machine
 from .features import features, regime
 from .tables import PlannerData, load_data, machine_data
+from ..output.formatting import percent
 
 __all__ = ["DEFAULT_QUANTITIES", "DEFAULT_TOLERANCE", "check_request", "combined_error",
            "default_data", "hooke_error", "hooke_note", "plan", "plan_text", "solve_auto"]
@@ -394,7 +395,7 @@ def _main_component(cands: list, q: str) -> str:
 
 
 def _pct(x: float) -> str:
-    return f"{100 * x:.2g} %"
+    return percent(x, ".2g")
 
 
 def _time_text(t: float) -> str:

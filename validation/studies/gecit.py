@@ -34,6 +34,7 @@ from ..registry import check_option, get_model, ladder_for, reference_model
 from ..analysis.profiles import (EDGE_SKIP, EDGE_WINDOW, edge_exponent, outer_load_fraction,
                                  plateau_ratio)
 from .converge import check_ladder, study_levels
+from ..output.formatting import percent
 
 # The paper's convention (Table 1: E_p = E_s): every scene of the study has it.
 CONVENTION = "E_s = E_p (substrate as stiff as the pillars, the paper's convention)"
@@ -209,10 +210,10 @@ def table_text(rows: list[dict]) -> str:
     lines = [head, "-" * len(head)]
 
     def pct(v):
-        return "-" if v is None else f"{100 * v:+.2f}%"
+        return percent(v, "+.2f", "")
 
     def band(v):
-        return "-" if v is None else f"{100 * v:.2f}%"
+        return percent(v, ".2f", "")
 
     def num(v, f):
         return "-" if v is None else format(v, f)

@@ -31,6 +31,7 @@ import numpy as np
 
 from pillar_xval.outcome import write_atomic
 from pillar_xval.scenes import InputError, Pillars, Scene
+from ..output.formatting import percent
 
 __all__ = ["CSV_COLUMNS", "DEFAULT_POINTS", "FAMILIES", "FORMAT", "HOOKE_LEVELS",
            "PHI_RANGE", "POINTS_RANGE", "ZETA_RANGE", "family_of", "grid_axes", "grid_scene",
@@ -172,7 +173,7 @@ def regime_map(base: Scene, tolerance: float = 0.05, quantities=("F_T", "sigma0"
 # ---- reading ------------------------------------------------------------------------------
 
 def _pct(x: float) -> str:
-    return f"{100 * x:.3g} %"
+    return percent(x, ".3g")
 
 
 def _span(values: list[float]) -> str:

@@ -91,6 +91,7 @@ from ..planner.plan import DEFAULT_QUANTITIES, DEFAULT_TOLERANCE, default_data, 
 from ..planner.tables import PlannerData, load_data
 from .lattice import FEM_LEVELS
 from .tradeoff import reference_values
+from ..output.formatting import percent
 
 __all__ = ["VALIDATION_SEED", "check_options", "estimate", "estimate_text", "fem3d_fits",
            "judged_data", "judged_quantities", "measured_only", "miss_reasons", "prepare",
@@ -468,7 +469,7 @@ def miss_reasons(row: dict, tolerance: float) -> list:
 
 
 def _pct(v) -> str:
-    return "-" if v is None else f"{100 * v:.2g} %"
+    return percent(v, ".2g")
 
 
 def _band(ref_q: dict) -> float:

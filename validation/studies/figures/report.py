@@ -13,6 +13,7 @@ from pillar_xval.outcome import write_atomic
 from .claims import verdict
 from .fits import PAPER_AREA_EXPONENT, PAPER_EXPONENT
 from .plots import PILLAR_NAMES
+from ...output.formatting import percent
 
 __all__ = ["write_report"]
 
@@ -28,7 +29,7 @@ PAPER = {
 
 
 def _pct(ours: float, paper: float) -> str:
-    return f"{100.0 * (ours / paper - 1.0):+.0f} %"
+    return percent(ours / paper - 1.0, "+.0f")
 
 
 def _rng(values) -> tuple[float, float]:

@@ -5,6 +5,7 @@ from __future__ import annotations
 from ...registry import QUANTITIES
 from .analysis import evaluate_targets, targets_met
 from .points import ELASTIC, HOOKE, LENS
+from ...output.formatting import percent
 
 
 def _convention(row: dict) -> str:
@@ -46,7 +47,7 @@ def _difference_table(report: dict, key: str) -> str:
 
 
 def _pct(v) -> str:
-    return "-" if v is None else f"{100 * v:+.2f}%"
+    return percent(v, "+.2f", "")
 
 
 def _verdict(d: dict, error: str = "error") -> str:
