@@ -22,6 +22,7 @@ if "PYTEST_XDIST_WORKER_COUNT" in os.environ:
     os.environ.setdefault(threads.THREADS_ENV, str(max(1, _share)))
 
 
+@pytest.hookimpl(optionalhook=True)  # a hook of pytest-xdist's, absent under -p no:xdist
 def pytest_xdist_auto_num_workers(config):
     """``-n auto``: one worker per CPU this process may use (its affinity and cgroup quota),
     not one per CPU the machine has."""
