@@ -25,7 +25,7 @@ pillar kind per stiffness ratio, its compliance built once) and E_s = E_l (the s
 lens material, as the lattice study's grid: only the pillars change).  The single pillar is
 Phi = 2.3e-3 (its neighbours 79 um away, out of the contact); the lattices cover Phi = 0.03
 to 0.4 and E_p/E_l = 0.1, 1 and 1e6, each at an indentation where the floor carries 6 to
-55 % of the load.
+56 % of the load (`make study-floor`: PHYSICS.md gives the table).
 """
 
 from __future__ import annotations
