@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 OUT    ?= out
 
-.PHONY: demo study-gecit study-lattice figures test test-slow bench-bem bench-fft bench-gpu bench-fem3d \
+.PHONY: demo study-gecit study-lattice study-floor figures test test-slow bench-bem bench-fft bench-gpu bench-fem3d \
 	bench-elastic bench-fem3d-floor bench-engine bench-figures bench-startup bench-force \
 	bench-floor bench-sweep bench-threads clean calibrate validate-planner extremes regimes \
 	docs lint
@@ -53,6 +53,13 @@ study-lattice: $(STAMP)
 		--out $(OUT)/lattice-zeta0.015
 	$(VENV)/bin/pillar-xval lattice --surface-fractions 0.03,0.1 --ratios 0.1,1,10,100,1e6 \
 		--paper-scenes grid --out $(OUT)/lattice-substrates
+
+# The floor between the pillars: the elastic-pillar bem-fft against fem-axisym (one pillar)
+# and fem-3d (four lattices, Phi 0.03 to 0.4, E_p/E_l 0.1, 1, 1e6) past the pillar tops, on
+# F_T, the floor's share, the floor area and the onset, targets judged; $(OUT)/floor-check/
+# floor_check.md (about 25 minutes on 2 cores; resumes after an interruption).
+study-floor: $(STAMP)
+	$(VENV)/bin/pillar-xval floor-check --out $(OUT)/floor-check
 
 # The paper's Figs. 3-8 (PNG + CSV each), figures.md and timing.json in $(OUT)/figures; about
 # 900 scenes and 400 bisection solves, a few minutes on 2 cores (resumes after an interruption).

@@ -165,7 +165,7 @@ def test_out_is_checked_before_any_solve(fakes, tmp_path, cli):
 
 
 @pytest.mark.parametrize("command", ["lattice", "figures", "calibrate", "validate-plan",
-                                     "extremes"])
+                                     "extremes", "floor-check"])
 def test_out_of_the_studies_is_checked_before_any_solve(fakes, tmp_path, cli, command):
     a_file = tmp_path / "a-file"
     a_file.write_text("not a folder")

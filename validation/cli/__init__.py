@@ -46,7 +46,8 @@ COMMANDS = ("validation.cli.solve", "validation.cli.compare", "validation.cli.co
             "validation.cli.gecit", "validation.cli.tradeoff", "validation.cli.sweep",
             "validation.cli.figures", "validation.cli.lattice", "validation.cli.plan",
             "validation.cli.calibrate", "validation.cli.extremes", "validation.cli.check",
-            "validation.cli.regimes", "validation.cli.curve", "validation.cli.onset")
+            "validation.cli.regimes", "validation.cli.curve", "validation.cli.onset",
+            "validation.cli.floor_check")
 
 
 _LAZY = ("Parser", "add_scene_arguments", "one_line")

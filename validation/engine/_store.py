@@ -150,9 +150,10 @@ class CaseStore:
             return (f"carries {result.total_force_N:.9g} N, the case's force is "
                     f"{force:.9g} N")
         if result.pillar_forces:
-            total = sum(p.force_N for p in result.pillar_forces)
+            # The floor between the pillars carries the rest of a mixed contact's load.
+            total = sum(p.force_N for p in result.pillar_forces) + result.floor_force_N
             if abs(total - result.total_force_N) > RTOL_FORCE_SUM * abs(result.total_force_N):
-                return (f"pillar forces sum to {total:.9g} N, total force is "
+                return (f"pillar and floor forces sum to {total:.9g} N, total force is "
                         f"{result.total_force_N:.9g} N")
         timing = record.get("timing")
         if not isinstance(timing, dict) or not isinstance(timing.get("wall_time_s"), float):
