@@ -41,7 +41,7 @@ from pillar_xval.scenes import InputError, Scene, load_scene
 
 from ..analysis.verification import study
 from ..engine import Case, Engine
-from .lattice import _estimate
+from .lattice.analysis import _estimate
 from .onset import onset_study
 from .targets import judge
 
