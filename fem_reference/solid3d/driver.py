@@ -306,8 +306,10 @@ def _contact(scene: Scene, setup: dict, system, faces, tol: float, clock: PhaseC
     D, G = faces.D, faces.G
     single = system.single_error > 0.0
 
-    apply = _Condensed(D, G, system, faces.n_vertices) if single else \
-        (lambda lam: D.T @ (G @ system.exact(G.T @ (D @ lam))))  # columns allowed
+    condensed = _Condensed(D, G, system, faces.n_vertices)
+    # In float64 the CG gets the exact application alone (no cheaper step, no few-cell
+    # update: either would cost a whole back-substitution).
+    apply = condensed if single else condensed.__call__
 
     def report(it, err):
         if it % 10 == 0:
