@@ -35,8 +35,10 @@ Devices.  The model is written once against an array namespace (:mod:`bem_solver
 ``device="cpu"`` (default) runs it with numpy and scipy.fft, ``device="gpu"`` with cupy and
 cuFFT on a CUDA GPU (optional extra ``[gpu]``), ``device="auto"`` takes the GPU when cupy
 finds one.  The grid geometry is built on the host; the kernel table, its spectrum, the
-near-field correction, the preconditioner, the constrained CG and the nested warm start run on
-the device, in float64; results come back to the host once.
+near-field correction, the preconditioner and the constrained CG run on the device, in
+float64; results come back to the host once.  On the GPU the default start is cold
+(``GPU_WARM_START_LEVELS``): the coarse levels' host work costs more there than the fine
+iterations it saves.
 
 Units: SI (m, Pa, N) in and out.
 
@@ -85,6 +87,11 @@ HISTORY_MAX = 2000
 # give the fine solve a good start; the fine tolerance decides the accuracy).
 WARM_START_MIN_CELLS = 8
 WARM_START_TOL = 1e-4
+# On a GPU the default warm start nests no level: each coarse level's grid, kernel table and
+# result are host work and launches that cost more than the CG iterations they save.  On an
+# H200 at 1e6 cells (paper-fig3-dense) a cold start took 0.63 s against 0.80 s with one level
+# and 1.05 s with all (39 iterations against 31); at 2e7 cells 3.6 against 5.5 and 6.2 s.
+GPU_WARM_START_LEVELS = 0
 # Fewest cells across the Hertz-like contact 2 sqrt(R zeta) on the centre pillar top for an
 # answer: the flat (Hertz) scene is the same problem, and there 5 cells across is the
 # coarsest grid whose contact stays clear of the candidate disk (F_T within 2 %).  At
@@ -95,7 +102,7 @@ MIN_CELLS_ACROSS_CONTACT = 5
 
 def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAULT_TOLERANCE,
               max_iterations: int | None = None, workers: int | None = None,
-              warm_start: bool = True, edge_correction: bool = True, progress=None,
+              warm_start: bool | int = True, edge_correction: bool = True, progress=None,
               device: str = "cpu", backend=None, preconditioner: str = "circulant",
               pillars: str = "hooke", compliance=None, precision: str = "mixed",
               _nested: bool = False, _workspace=None) -> ContactResult:
@@ -117,9 +124,12 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     workers : int, optional
         Threads for the FFTs (default: :func:`pillar_xval.threads.thread_count`, the CPUs the
         process may use or ``PILLAR_XVAL_THREADS``).
-    warm_start : bool
+    warm_start : bool or int
         Start from the solution at N // 2 cells per diameter (recursively, down to
-        ``WARM_START_MIN_CELLS``), interpolated bilinearly (nested iteration).
+        ``WARM_START_MIN_CELLS``), interpolated bilinearly (nested iteration).  An integer
+        k >= 0 nests at most k levels (the coarsest of them starts cold; 0 is False).  On a
+        GPU, True means ``GPU_WARM_START_LEVELS`` (none): there the coarse levels' set-up
+        outweighs the iterations they save.
     edge_correction : bool
         True (default): partly covered cells act on an equivalent square at the centroid of
         their covered part and are collocated there (module docstring).  False: the plain grid
@@ -168,6 +178,7 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     """
     start = time.perf_counter()
     check_pillars(pillars, scene)
+    check_warm_start(warm_start)
     if precision not in PRECISIONS:
         raise InputError(f"precision = {precision!r}: choose one of {', '.join(PRECISIONS)}")
     elastic = uses_elastic_block(scene, pillars)
@@ -193,6 +204,8 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     b = be.asarray(setup.grid.gap0, dtype=be.xp.float64)
     coarse = cells_per_diameter // 2
     lap = time.perf_counter()
+    if warm_start is True and be.device == "gpu":
+        warm_start = GPU_WARM_START_LEVELS
     if warm_start and coarse >= WARM_START_MIN_CELLS:
         # Nested iteration: the solution at half the resolution, interpolated, brings the
         # contact set nearly right, so the fine constrained CG restarts seldom.  The coarser
@@ -216,7 +229,7 @@ class _Options:
     tol: float
     max_iterations: int | None
     workers: int
-    warm_start: bool
+    warm_start: bool | int
     edge_correction: bool
     progress: object
     preconditioner: str
@@ -283,12 +296,22 @@ def _refuse_grid(scene: Scene, cells_per_diameter: int, be) -> None:
 
 def _coarser(scene: Scene, cells_per_diameter: int, opts: _Options, be, workspace):
     """The solution at ``cells_per_diameter`` (a warm start), with this solve's options."""
+    deeper = True if opts.warm_start is True else int(opts.warm_start) - 1
     return solve_fft(scene, cells_per_diameter, tol=max(opts.tol, WARM_START_TOL),
-                     workers=opts.workers, warm_start=True,
+                     workers=opts.workers, warm_start=deeper,
                      edge_correction=opts.edge_correction, backend=be,
                      preconditioner=opts.preconditioner, pillars=opts.pillars,
                      compliance=opts.compliance, precision=opts.precision, _nested=True,
                      _workspace=workspace)
+
+
+def check_warm_start(warm_start) -> None:
+    """Refuse (InputError) a ``warm_start`` that is neither a bool nor an int >= 0."""
+    if isinstance(warm_start, bool):
+        return
+    if not isinstance(warm_start, int) or warm_start < 0:
+        raise InputError(f"warm_start = {warm_start!r}: must be True, False or a number of "
+                         "nested levels >= 0")
 
 
 def warm_levels(rough: ContactResult, cells_per_diameter: int) -> list:
@@ -496,9 +519,9 @@ def _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, mess
     floor_force = float(cell_force[grid.floor].sum())
     floor_area = float(grid.covered[on_floor].sum() * L2)
     # Outer radius of the floor contact: as the tops' (collocation radius plus half the
-    # side of the equivalent square).
-    floor_radius = float((np.hypot(grid.colloc_x, grid.colloc_y)
-                          + 0.5 * np.sqrt(grid.covered) * L)[on_floor].max(initial=0.0))
+    # side of the equivalent square).  Radii of the cells in contact only (1e7 cells: a
+    # pass over all of them cost a second of a 2e7-cell GPU solve).
+    floor_radius = float(_reach(grid, np.flatnonzero(on_floor), L).max(initial=0.0))
     if grid.flat:
         # Same definition as the dense model: where p^2 (linear in r^2 at a square-root edge)
         # extrapolates to zero; area pi a^2.
@@ -510,11 +533,13 @@ def _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, mess
     else:
         # Outermost point of contact: collocation radius plus half the side of the
         # (equivalent) loaded square, as in the dense model, capped at the pillar's rim.
-        far = np.hypot(grid.colloc_x, grid.colloc_y) + 0.5 * np.sqrt(grid.covered) * L
+        touching = np.flatnonzero(contact)
+        far = _reach(grid, touching, L)
         rho = np.hypot(grid.pillar_xy[:, 0], grid.pillar_xy[:, 1])
-        top = ~grid.floor
-        far[top] = np.minimum(far[top], rho[grid.pillar[top]] + 0.5 * scene.pillars.diameter_m)
-        contact_radius = float(far[contact].max()) if contact.any() else 0.0
+        top = ~grid.floor[touching]
+        far[top] = np.minimum(far[top], rho[grid.pillar[touching][top]]
+                              + 0.5 * scene.pillars.diameter_m)
+        contact_radius = float(far.max()) if touching.size else 0.0
         area = float((grid.covered[contact]).sum() * L2)
     forces = []
     if not grid.flat:
@@ -579,6 +604,13 @@ def _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, mess
         pillar_top_profile=profile, diagnostics=diagnostics, fields=fields,
         floor_force_N=floor_force, floor_contact_area_m2=floor_area,
         floor_contact_radius_m=floor_radius)
+
+
+def _reach(grid: CellGrid, cells, L: float):
+    """Outermost radius of each of ``cells``: its collocation radius plus half the side of
+    its equivalent square (m)."""
+    return np.hypot(grid.colloc_x[cells], grid.colloc_y[cells]) \
+        + 0.5 * np.sqrt(grid.covered[cells]) * L
 
 
 def _centre_profile(scene, grid, pressure) -> dict:

@@ -209,8 +209,8 @@ def build_grid(scene: Scene, cells_per_diameter: int,
     if not flat:
         keep, covered, pillar, pillar_nm, pillar_xy, tops = _pillar_cells(
             scene, ax, L, r_cand, floor=r_floor > 0.0)
-    colloc_y, colloc_x = np.divmod(keep, n_side)
-    colloc_x, colloc_y = ax[colloc_x], ax[colloc_y]
+    row, col = np.divmod(keep, n_side)
+    colloc_x, colloc_y = ax[col], ax[row]
     if not flat:
         colloc_x, colloc_y = _centroids(colloc_x, colloc_y, covered, pillar, pillar_xy, L,
                                         0.5 * scene.pillars.diameter_m)
@@ -220,16 +220,17 @@ def build_grid(scene: Scene, cells_per_diameter: int,
         n_unique = keep.size + n_alone
         floor = np.concatenate([np.zeros(keep.size, dtype=bool), np.ones(fk.size, dtype=bool)])
         keep = np.concatenate([keep, fk])
+        row, col = np.divmod(keep, n_side)
         covered = np.concatenate([covered, fcov])
         pillar = np.concatenate([pillar, np.full(fk.size, len(pillar_nm), dtype=pillar.dtype)])
         colloc_x, colloc_y = np.concatenate([colloc_x, fx]), np.concatenate([colloc_y, fy])
-    keep, shape = _crop(keep, n_side)  # (box index, x / L, y / L)
+    keep, shape = _crop(row, col)
     if (2 * shape[0]) * (2 * shape[1]) > max_fft_points:
         raise SceneError(
             f"cells_per_diameter = {cells_per_diameter}: the grid would need {shape[0]} x "
             f"{shape[1]} cells (padded FFT {4 * shape[0] * shape[1]} points > "
             f"{max_fft_points}); choose fewer cells per diameter")
-    keep, x, y = keep[0], keep[1] * L, keep[2] * L
+    x, y = ax[col], ax[row]
     gap0 = lens_gap(R, np.hypot(colloc_x, colloc_y)) - zeta
     if floor is not None:
         gap0[floor] += scene.pillars.height_m
@@ -285,15 +286,12 @@ def _centroids(x, y, covered, pillar, pillar_xy, L, rad):
     return x, y
 
 
-def _crop(keep, n_side):
-    """Re-index the kept cells of the (n_side, n_side) grid into their bounding box:
-    (flat index in the box, x, y) and the box shape (ny, nx)."""
-    iy, ix = np.divmod(keep, n_side)
-    half = n_side // 2
+def _crop(iy, ix):
+    """Re-index the kept cells (rows ``iy``, columns ``ix`` of the candidate square) into
+    their bounding box: the flat index in the box and the box shape (ny, nx)."""
     y0, x0 = iy.min(), ix.min()
     shape = (int(iy.max() - y0 + 1), int(ix.max() - x0 + 1))
-    return ((iy - y0) * shape[1] + (ix - x0), (ix - half).astype(float),
-            (iy - half).astype(float)), shape
+    return (iy - y0) * shape[1] + (ix - x0), shape
 
 
 def _pillar_cells(scene, ax, L, r_cand, floor=False):
@@ -308,8 +306,9 @@ def _pillar_cells(scene, ax, L, r_cand, floor=False):
     half = side // 2
     best_frac = np.zeros((side, side))
     total_frac = np.zeros((side, side))
-    owner = np.full((side, side), -1, dtype=int)
+    owner = np.full((side, side), -1, dtype=np.int64)
     m = int(math.ceil(rad / L)) + 1
+    rims = []  # the square's indices of the cells each rim crosses
     if floor:
         moment_x, moment_y = np.zeros((side, side)), np.zeros((side, side))
     for k, (_, _, px, py) in enumerate(table):
@@ -333,6 +332,7 @@ def _pillar_cells(scene, ax, L, r_cand, floor=False):
         rx, ry = cx[ci], cy[ri]
         frac[ri, ci] = disk_rectangle_area(rx - 0.5 * L, rx + 0.5 * L, ry - 0.5 * L,
                                            ry + 0.5 * L, rad) / (L * L)
+        rims.append((ri + rows.start) * side + ci + cols.start)
         total_frac[rows, cols] += frac
         if floor:  # the covered parts' moments, full cells' at their centres
             area = frac * (L * L)
@@ -343,34 +343,60 @@ def _pillar_cells(scene, ax, L, r_cand, floor=False):
                     rx - 0.5 * L, rx + 0.5 * L, ry - 0.5 * L, ry + 0.5 * L, rad)
             moment_x[rows, cols] += area * (mx_ + px)
             moment_y[rows, cols] += area * (my_ + py)
-        best, own = best_frac[rows, cols], owner[rows, cols]
-        better = frac > best
-        own[better] = k
-        best[better] = frac[better]
-    in_disk = np.flatnonzero((total_frac > 0.0)
-                             & (np.hypot(ax[None, :], ax[:, None]) <= r_cand))
+        # Views of the square, updated in place: the pillar of the larger share owns a cell.
+        best = best_frac[rows, cols]
+        np.copyto(owner[rows, cols], k, where=frac > best)
+        np.maximum(best, frac, out=best)
+    del best_frac
     total_frac, owner = total_frac.ravel(), owner.ravel()
+    tops = (total_frac.copy(), moment_x.ravel(), moment_y.ravel()) if floor else None
+    # The tops outside the candidate disk are not candidates: cleared row by row, so that
+    # the kept cells come from one scan of the square (no distance per cell).
+    reach = _row_reach(ax, r_cand)
+    for iy in range(side):
+        row = total_frac[iy * side:(iy + 1) * side]
+        row[:max(half - reach[iy], 0)] = 0.0
+        row[half + reach[iy] + 1:] = 0.0
     # Near close packing a cell may overlap two tops: it goes to the larger share and carries
     # the sum of both (the Hooke term then acts on one pillar only, an O(L^2) effect).
-    keep = in_disk[total_frac[in_disk] > MIN_COVERED_FRACTION]
-    covered = np.minimum(total_frac[keep], 1.0)
+    keep = np.flatnonzero(total_frac > MIN_COVERED_FRACTION)
+    covered = total_frac[keep]
+    np.minimum(covered, 1.0, out=covered)
+    owners = owner[keep]
     # The dropped slivers' area goes to the other partly covered cells of the same pillar, so
-    # every top keeps its exact area.
+    # every top keeps its exact area.  Slivers are rim cells.
+    rim = np.concatenate(rims) if rims else np.zeros(0, dtype=np.int64)
+    sliver = np.unique(rim[(total_frac[rim] > 0.0) & (total_frac[rim] <= MIN_COVERED_FRACTION)])
     n_table = len(table)
-    lost = np.bincount(owner[in_disk], weights=np.minimum(total_frac[in_disk], 1.0),
-                       minlength=n_table) - np.bincount(owner[keep], weights=covered,
-                                                        minlength=n_table)
-    partial = covered < 1.0
-    share = np.bincount(owner[keep][partial], weights=covered[partial], minlength=n_table)
+    lost = np.bincount(owner[sliver], weights=np.minimum(total_frac[sliver], 1.0),
+                       minlength=n_table)
+    partial = np.flatnonzero(covered < 1.0)
+    share = np.bincount(owners[partial], weights=covered[partial], minlength=n_table)
     scale = 1.0 + np.divide(lost, share, out=np.zeros(n_table), where=share > 0)
-    covered[partial] = np.minimum(covered[partial] * scale[owner[keep][partial]], 1.0)
+    covered[partial] = np.minimum(covered[partial] * scale[owners[partial]], 1.0)
     # The pillars that own a kept cell, in table order, and each cell's rank among them
     # (np.unique's result, by counting instead of sorting 1e7 labels).
-    owners = owner[keep]
     present = np.bincount(owners, minlength=n_table) > 0
     used = np.flatnonzero(present)
     pillar = (np.cumsum(present) - 1)[owners]
     nm = table[used, :2].astype(int)
     xy = table[used, 2:4].astype(float)
-    tops = (total_frac, moment_x.ravel(), moment_y.ravel()) if floor else None
     return keep, covered, pillar, nm, xy, tops
+
+
+def _row_reach(ax, radius: float) -> np.ndarray:
+    """For each row of the square of centres ``ax`` x ``ax``: the largest j (-1 for none)
+    with the cell (row, centre + j) within ``radius`` of the origin, by the same
+    ``hypot(x, y) <= radius`` test as a cell-by-cell check (the square root's estimate
+    corrected by one cell either way)."""
+    half = ax.size // 2
+    y = ax
+    L = ax[half + 1] - ax[half] if ax.size > 1 else 1.0
+    j = np.floor(np.sqrt(np.maximum(radius * radius - y * y, 0.0)) / L).astype(np.int64)
+    j = np.minimum(j, half)
+    for _ in range(2):
+        up = np.minimum(j + 1, half)
+        j = np.where((up > j) & (np.hypot(ax[half + up], y) <= radius), up, j)
+        down = np.hypot(ax[half + np.maximum(j, 0)], y) > radius
+        j = np.where(down & (j >= 0), j - 1, j)
+    return np.where(np.abs(y) <= radius, j, -1)

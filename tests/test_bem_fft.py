@@ -9,7 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from pillar_xval.scenes import Lens, Material, Pillars, Scene, SceneError, analytic, load_scene
+from pillar_xval.scenes import (InputError, Lens, Material, Pillars, Scene, SceneError, analytic,
+                                 load_scene)
 
 from bem_solver._fft import solve_fft
 from bem_solver._disk import disk_rectangle_area, disk_rectangle_centroid
@@ -435,6 +436,23 @@ def test_warm_start_changes_nothing_but_work():
     warm = solve_fft(scene, 16, warm_start=True)
     assert warm.total_force_N == pytest.approx(cold.total_force_N, rel=RTOL_SOLVER)
     assert warm.centre_pressure_Pa == pytest.approx(cold.centre_pressure_Pa, rel=RTOL_SOLVER)
+
+
+def test_warm_start_depth_nests_that_many_levels():
+    """An integer warm start nests at most that many coarser levels (the coarsest of them
+    cold), and changes nothing but the work; anything else is refused by name."""
+    scene = load_scene("paper-fig3-sparse")
+    full = solve_fft(scene, 32)
+    levels = [v["cells_per_diameter"] for v in full.diagnostics["warm_start_levels"]]
+    assert levels == [8, 16]
+    for depth, expected in ((1, [16]), (2, [8, 16]), (5, [8, 16]), (0, [])):
+        r = solve_fft(scene, 32, warm_start=depth)
+        assert [v["cells_per_diameter"] for v in r.diagnostics["warm_start_levels"]] \
+            == expected
+        assert r.total_force_N == pytest.approx(full.total_force_N, rel=RTOL_SOLVER)
+    for bad in (-1, 1.5, "2", None):
+        with pytest.raises(InputError, match="warm_start"):
+            solve_fft(scene, 16, warm_start=bad)
 
 
 # Pillars 1000 times softer than the lens near close packing under a nearly flat lens (253

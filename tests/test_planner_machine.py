@@ -3,9 +3,7 @@
 solves on this machine at 1 and 2 threads."""
 
 import json
-import math
 import statistics
-import time
 
 import pytest
 
@@ -14,9 +12,7 @@ from pillar_xval.scenes import InputError
 from validation.planner import machine
 from validation.planner.plan import default_data, plan, plan_text
 from validation.planner.tables import CostFit, PlannerData, ScaledCost, load_data, machine_data
-from validation.registry import run_model
-from validation.studies.calibrate.run import CALIBRATION_SEED
-from validation.studies.calibrate.scenes import lattice_scenes
+from validation.bench.planner_threads import BAND_RMS, case_rows
 
 REFERENCE = {"threads": 1, "seconds": {"fft": 0.02, "factorisation": 0.1, "assembly": 0.05}}
 
@@ -136,23 +132,16 @@ def test_a_plan_says_how_its_times_were_carried(monkeypatch, here):
     monkeypatch.setattr(machine, "measure", lambda threads_, repeats=5: {
         "fft": 0.04, "factorisation": 0.3, "assembly": 0.05})
     p = plan(load_scene("hertz"))
-    reference = load_data().costs["bem-fft"].machine["seconds"]["fft"]
-    assert p["machine"]["speed"]["bem-fft"] == pytest.approx(0.04 / reference)
+    fit = load_data().costs["bem-fft"]
+    here = {"fft": 0.04, "factorisation": 0.3, "assembly": 0.05}
+    expected = sum(share * here[w] / fit.machine["seconds"][w]
+                   for w, share in fit.workload.items())
+    assert p["machine"]["speed"]["bem-fft"] == pytest.approx(expected)
     assert "this machine's at" in plan_text(p)
 
 
-# Calibration scenes (calibrate's own draw) and rungs of the two BEMs, solves of 0.05-1 s.
-CASES = (("c10", "bem-fft", {"cells_per_diameter": 24}),
-         ("c15", "bem-fft", {"cells_per_diameter": 16}),
-         ("c20", "bem-fft", {"cells_per_diameter": 24}),
-         ("c10", "bem", {"elements_per_diameter": 15}),
-         ("c20", "bem", {"elements_per_diameter": 11}),
-         ("c25", "bem", {"elements_per_diameter": 11}))
 # A solve's time is the median of this many (after one unmeasured run: first-call costs).
 SOLVE_REPEATS = 3
-# The calibrated band: twice a fit's rms misfit in ln(time) over its calibration samples
-# (bem-fft 0.51, bem 0.44: about 95 % of the fits' own samples lie within it).
-BAND_RMS = 2.0
 
 
 # Slow: wall times of solves on this shared machine (about 17 s), which other users' load
@@ -167,21 +156,7 @@ def test_rescaled_predictions_stay_within_the_calibrated_band(here, monkeypatch,
     units of each fit's rms) stay within the fits' band, as on the machine they were fitted
     on."""
     monkeypatch.setenv(threads.THREADS_ENV, str(count))
-    scenes = {e["name"]: e["scene"]
-              for e in lattice_scenes(40, CALIBRATION_SEED, "pillars", "c")}
-    data = default_data()
-    misfit = []
-    for name, model, options in CASES:
-        scene = scenes[name]
-        run_model(model, scene, **options)
-        walls = []
-        for _ in range(SOLVE_REPEATS):
-            start = time.perf_counter()
-            run_model(model, scene, **options)
-            walls.append(time.perf_counter() - start)
-        fit = data.costs[model]
-        predicted = fit.predict(scene, options)[0]
-        misfit.append(math.log(predicted / statistics.median(walls)) / fit.rms)
+    misfit = [r["misfit_rms"] for r in case_rows(SOLVE_REPEATS)]
     assert abs(statistics.mean(misfit)) <= BAND_RMS, [round(v, 2) for v in misfit]
 
 

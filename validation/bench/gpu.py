@@ -59,6 +59,7 @@ def _solve(spec: dict) -> dict:
     from pillar_xval.scenes import load_scene
 
     scene = load_scene(SCENE, list(PILLARS[spec["pillars"]]))
+    warm = spec.get("warm_start", True)
     if spec["device"] == "cpu":
         backend = NumpyDevice(spec["workers"], max_fft_points=spec["cpu_max_fft_points"])
     else:
@@ -66,7 +67,8 @@ def _solve(spec: dict) -> dict:
     runs = []
     for _ in range(2):
         start = time.perf_counter()
-        res = solve_fft(scene, spec["n"], tol=TOL, workers=spec["workers"], backend=backend)
+        res = solve_fft(scene, spec["n"], tol=TOL, workers=spec["workers"], backend=backend,
+                        warm_start=warm)
         runs.append((time.perf_counter() - start, res))
     (wall, res), (again, res2) = runs
     d = res.diagnostics
@@ -122,6 +124,9 @@ def main(argv=None) -> int:
     ap.add_argument("--budget-s", type=float, default=None,
                     help="start no case after this many seconds (the rest are reported as "
                          "skipped), for a machine lent for a fixed time")
+    ap.add_argument("--gpu-warm", type=int, nargs="*", default=[],
+                    help="GPU variants with at most this many nested warm-start levels "
+                         "(0: a cold start), beside the default (all levels)")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.repeats < 1:
@@ -135,7 +140,7 @@ def main(argv=None) -> int:
 
     gpu_reason = available_devices()["gpu"]
     levels = args.levels or list(LEVELS if not gpu_reason else CPU_ONLY_LEVELS)
-    devices = ["cpu"] + ([] if gpu_reason else ["gpu"])
+    devices = ["cpu"] + ([] if gpu_reason else ["gpu"] + [f"gpu-w{k}" for k in args.gpu_warm])
     base = {"workers": thread_count(), "cpu_max_fft_points": _cpu_max_fft_points()}
     meta = {"scene": SCENE, "tolerance": TOL, "edge_correction": True,
             "python": platform.python_version(), "machine": platform.machine(),
@@ -155,7 +160,9 @@ def main(argv=None) -> int:
             row = {"pillars": pillars, "n": n}
             rows.append(row)
             for device in devices:
-                spec = {**base, "device": device, "pillars": pillars, "n": n}
+                spec = {**base, "device": device.split("-")[0], "pillars": pillars, "n": n}
+                if device.startswith("gpu-w"):
+                    spec["warm_start"] = int(device[len("gpu-w"):])
                 elapsed = time.monotonic() - start
                 if device == "cpu" and _too_big(rows, pillars, n, args.cpu_max_cells):
                     row[device] = {"error": f"skipped: over --cpu-max-cells "
@@ -175,10 +182,14 @@ def main(argv=None) -> int:
 
 
 def _too_big(rows, pillars, n, limit) -> bool:
-    """The CPU path's grid at N, estimated from a measured level (cells grow as N^2)."""
+    """The CPU path's grid at N, estimated from a measured level (cells grow as N^2), else
+    from the candidate square's side (the grid's bounding box is at most that square)."""
     done = [r for r in rows if r["pillars"] == pillars and "grid_cells" in r.get("cpu", {})]
     if not done:
-        return False
+        from bem_solver._fft_grid import candidate_side
+        from pillar_xval.scenes import load_scene
+
+        return candidate_side(load_scene(SCENE, list(PILLARS[pillars])), n) ** 2 > limit
     last = done[-1]
     return last["cpu"]["grid_cells"] * (n / last["n"]) ** 2 > limit
 
@@ -210,8 +221,19 @@ def write_report(out: Path, rows: list, meta: dict) -> str:
                      + (_cell(gpu) if gpu is not None else f"{'pending':>27}") + " "
                      + _ratio(cpu, gpu))
         r["force_rel_diff"] = _force_diff(cpu, gpu)
+    for r in rows:  # the GPU's warm-start variants, against the CPU and the default GPU
+        for path in sorted(k for k in r if k.startswith("gpu-w")):
+            v, cpu, gpu = r[path], r.get("cpu", {}), r.get("gpu", {})
+            if "wall_time_s" in v:
+                lines.append(
+                    f"{r['pillars']} N = {r['n']} {path} (at most {path[5:]} nested levels): "
+                    f"{v['wall_time_s']:.2f} s, again {v['again_wall_time_s']:.2f} s, "
+                    f"{v['iterations']} + {v['warm_start_iterations']} iterations; default GPU "
+                    f"{gpu.get('wall_time_s', float('nan')):.2f} s; CPU over this "
+                    f"{cpu.get('wall_time_s', float('nan')) / v['wall_time_s']:.1f}x; dF_T rel "
+                    f"{_force_diff(cpu, v) if 'total_force_N' in cpu else float('nan'):.1e}")
     for r in rows:
-        for path in ("cpu", "gpu"):
+        for path in [k for k in r if k in ("cpu", "gpu") or k.startswith("gpu-w")]:
             if "error" in r.get(path, {}):
                 lines.append(f"{r['pillars']} N = {r['n']} {path}: {r[path]['error']}")
     if meta["gpu_pending"]:

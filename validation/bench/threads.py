@@ -236,7 +236,7 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--split-threads", default="1",
                     help="thread counts of the FFT iteration split (default 1; add 2 for "
-                         "the measured wall ratio)")
+                         "the measured wall ratio; empty: no split)")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.worker:
@@ -262,7 +262,7 @@ def main(argv=None) -> int:
                 runs.append({"name": name, **_run("solve", {"case": cases[name]}, t)})
         for n in SPLIT_LEVELS:
             for pillars in ("rigid", "elastic"):
-                for t in (int(v) for v in args.split_threads.split(",")):
+                for t in (int(v) for v in args.split_threads.split(",") if v):
                     splits.append(_run("split", {"n": n, "pillars": pillars}, t))
     meta = {"cpus": cpu_count(), "repeats": args.repeats, "load_before": load_before,
             "load_after": [round(v, 2) for v in os.getloadavg()], "threads": counts}
@@ -270,7 +270,8 @@ def main(argv=None) -> int:
     table = format_tables(scaling, split, meta)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "bench_threads.json").write_text(json.dumps(
-        {"meta": meta, "scaling": scaling, "split": split, "runs": runs, "splits": splits},
+        {"meta": meta, "scaling": scaling, "split": split, "runs": runs, "splits": splits,
+         "table": table},
         indent=1))
     (args.out / "bench_threads.md").write_text(table + "\n")
     print(table)
