@@ -9,6 +9,12 @@ from __future__ import annotations
 import numpy as np
 
 
+def _as_float(a):
+    """``a`` as a float array of its own library (numpy for scalars and lists): the
+    functions here also run on a GPU's arrays, whose ufuncs numpy's calls dispatch to."""
+    return a.astype(float, copy=False) if hasattr(a, "astype") else np.asarray(a, float)
+
+
 def _segment_integral(y, a, b, rad):
     """Integral over x in [a, b] (already clipped to [-rad, rad]) of clip(y, -s(x), s(x)),
     s(x) = sqrt(rad^2 - x^2); arrays broadcast."""
@@ -16,7 +22,7 @@ def _segment_integral(y, a, b, rad):
         xc = np.clip(x / rad, -1.0, 1.0)
         return 0.5 * rad * rad * (xc * np.sqrt(1.0 - xc * xc) + np.arcsin(xc))
 
-    w = np.sqrt(np.clip(rad * rad - y * y, 0.0, None))
+    w = np.sqrt(np.maximum(rad * rad - y * y, 0.0))
     a_in = np.clip(a, -w, w)
     b_in = np.clip(b, -w, w)
     # Where |x| <= w the chord covers y itself; elsewhere the clip is +-s(x).
@@ -34,17 +40,17 @@ def disk_rectangle_area(x0, x1, y0, y1, rad):
     """
     a = np.clip(x0, -rad, rad)
     b = np.clip(x1, -rad, rad)
-    area = _segment_integral(np.asarray(y1, float), a, b, rad) \
-        - _segment_integral(np.asarray(y0, float), a, b, rad)
-    return np.clip(area, 0.0, None)
+    area = _segment_integral(_as_float(y1), a, b, rad) \
+        - _segment_integral(_as_float(y0), a, b, rad)
+    return np.maximum(area, 0.0)
 
 
 def _segment_moment(y, a, b, rad):
     """Integral over x in [a, b] (clipped to [-rad, rad]) of x clip(y, -s(x), s(x))."""
     def prim(x):  # antiderivative of x s(x)
-        return -np.clip(rad * rad - x * x, 0.0, None) ** 1.5 / 3.0
+        return -np.maximum(rad * rad - x * x, 0.0) ** 1.5 / 3.0
 
-    w = np.sqrt(np.clip(rad * rad - y * y, 0.0, None))
+    w = np.sqrt(np.maximum(rad * rad - y * y, 0.0))
     a_in = np.clip(a, -w, w)
     b_in = np.clip(b, -w, w)
     inner = 0.5 * y * (b_in * b_in - a_in * a_in)
@@ -59,8 +65,8 @@ def disk_rectangle_centroid(x0, x1, y0, y1, rad):
     area = disk_rectangle_area(x0, x1, y0, y1, rad)
     a, b = np.clip(x0, -rad, rad), np.clip(x1, -rad, rad)
     c, d = np.clip(y0, -rad, rad), np.clip(y1, -rad, rad)
-    mx = _segment_moment(np.asarray(y1, float), a, b, rad) \
-        - _segment_moment(np.asarray(y0, float), a, b, rad)
-    my = _segment_moment(np.asarray(x1, float), c, d, rad) \
-        - _segment_moment(np.asarray(x0, float), c, d, rad)
+    mx = _segment_moment(_as_float(y1), a, b, rad) \
+        - _segment_moment(_as_float(y0), a, b, rad)
+    my = _segment_moment(_as_float(x1), c, d, rad) \
+        - _segment_moment(_as_float(x0), c, d, rad)
     return mx / area, my / area

@@ -34,7 +34,8 @@ keeps float64 throughout.
 Devices.  The model is written once against an array namespace (:mod:`bem_solver._xp`):
 ``device="cpu"`` (default) runs it with numpy and scipy.fft, ``device="gpu"`` with cupy and
 cuFFT on a CUDA GPU (optional extra ``[gpu]``), ``device="auto"`` takes the GPU when cupy
-finds one.  The grid geometry is built on the host; the kernel table, its spectrum, the
+finds one.  The grid geometry is built on the host (on the GPU itself from
+``GPU_GRID_MIN_POINTS`` points of the candidate square on); the kernel table, its spectrum, the
 near-field correction, the preconditioner and the constrained CG run on the device, in
 float64; results come back to the host once.  On the GPU the default start is cold
 (``GPU_WARM_START_LEVELS``): the coarse levels' host work costs more there than the fine
@@ -92,6 +93,11 @@ WARM_START_TOL = 1e-4
 # H200 at 1e6 cells (paper-fig3-dense) a cold start took 0.63 s against 0.80 s with one level
 # and 1.05 s with all (39 iterations against 31); at 2e7 cells 3.6 against 5.5 and 6.2 s.
 GPU_WARM_START_LEVELS = 0
+# A GPU builds the grid itself (cupy) from this many points of the candidate square: its
+# construction is ~10 launches per pillar, about 0.7-1.2 s at any size on an H200, where the
+# host takes ~0.1 s per 1e6 points (1e6 cells: 0.15 s on the host, 0.65-1.2 s on the device;
+# 2e7 cells: 1.4-2.7 s on the host, 0.8-1.4 s on the device).
+GPU_GRID_MIN_POINTS = 10_000_000
 # Fewest cells across the Hertz-like contact 2 sqrt(R zeta) on the centre pillar top for an
 # answer: the flat (Hertz) scene is the same problem, and there 5 cells across is the
 # coarsest grid whose contact stays clear of the candidate disk (F_T within 2 %).  At
@@ -254,7 +260,10 @@ def _prepare(scene: Scene, cells_per_diameter: int, opts: _Options, be, workspac
     """Grid, operator and preconditioner of ``scene`` (indentation-controlled: its
     indentation sets the candidate region, and on a flat scene the cell size)."""
     _refuse_grid(scene, cells_per_diameter, be)
-    grid = build_grid(scene, cells_per_diameter, max_fft_points=be.max_fft_points)
+    xp = getattr(be, "numpy_like", np)
+    if candidate_side(scene, cells_per_diameter) ** 2 < GPU_GRID_MIN_POINTS:
+        xp = np  # a small grid is built faster on the host than by a device's launches
+    grid = build_grid(scene, cells_per_diameter, max_fft_points=be.max_fft_points, xp=xp)
     if not opts.edge_correction:
         grid = _plain_grid(grid, scene)
     L = grid.cell_size

@@ -34,7 +34,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from pillar_xval.scenes import Scene, SceneError
-from pillar_xval.scenes.analytic import lens_gap
 from pillar_xval.scenes.floor import floor_reach
 from pillar_xval.scenes.lattice import pillars_within
 
@@ -187,10 +186,11 @@ def check_grid_side(n_side: int, cells_per_diameter: int, max_fft_points: int) -
 
 
 def build_grid(scene: Scene, cells_per_diameter: int,
-               max_fft_points: int = MAX_FFT_POINTS) -> CellGrid:
+               max_fft_points: int = MAX_FFT_POINTS, xp=np) -> CellGrid:
     """Candidate cells of ``scene`` with ``cells_per_diameter`` cells across a pillar (or
     across the Hertz contact diameter for a flat scene); a grid whose padded FFT would exceed
-    ``max_fft_points`` points is refused (SceneError)."""
+    ``max_fft_points`` points is refused (SceneError).  ``xp``: the array library that builds
+    it (numpy, or cupy on a GPU: the same steps, and the grid comes back to the host)."""
     R, zeta = scene.lens.radius_m, scene.indentation_m
     flat = scene.pillars is None
     L, r_cand, half = _candidate(scene, cells_per_diameter)
@@ -198,32 +198,33 @@ def build_grid(scene: Scene, cells_per_diameter: int,
     check_grid_side(n_side, cells_per_diameter, max_fft_points)
     # Cell (row iy, column ix) of the candidate square, flat index iy n_side + ix, has its
     # centre at (ax[ix], ax[iy]): the square's coordinates are never stored whole.
-    ax = (np.arange(n_side) - half) * L
+    ax = (xp.arange(n_side) - half) * L
     if flat:
-        keep = np.flatnonzero(np.hypot(ax[None, :], ax[:, None]) <= r_cand)
-        covered = np.ones(keep.size)
-        pillar = np.zeros(keep.size, dtype=int)
+        keep = xp.flatnonzero(xp.hypot(ax[None, :], ax[:, None]) <= r_cand)
+        covered = xp.ones(keep.size)
+        pillar = xp.zeros(keep.size, dtype=xp.int64)
         pillar_nm = np.zeros((1, 2), dtype=int)
         pillar_xy = np.zeros((1, 2))
     r_floor = 0.0 if flat else floor_reach(scene)
     if not flat:
         keep, covered, pillar, pillar_nm, pillar_xy, tops = _pillar_cells(
-            scene, ax, L, r_cand, floor=r_floor > 0.0)
-    row, col = np.divmod(keep, n_side)
+            scene, ax, L, r_cand, floor=r_floor > 0.0, xp=xp)
+    row, col = xp.divmod(keep, n_side)
     colloc_x, colloc_y = ax[col], ax[row]
     if not flat:
-        colloc_x, colloc_y = _centroids(colloc_x, colloc_y, covered, pillar, pillar_xy, L,
+        colloc_x, colloc_y = _centroids(colloc_x, colloc_y, covered, pillar,
+                                        xp.asarray(pillar_xy), L,
                                         0.5 * scene.pillars.diameter_m)
-    n_unique, floor = keep.size, None
+    n_unique, floor = int(keep.size), None
     if r_floor > 0.0:
-        fk, fcov, fx, fy, n_alone = _floor_cells(ax, L, r_floor, keep, tops)
-        n_unique = keep.size + n_alone
-        floor = np.concatenate([np.zeros(keep.size, dtype=bool), np.ones(fk.size, dtype=bool)])
-        keep = np.concatenate([keep, fk])
-        row, col = np.divmod(keep, n_side)
-        covered = np.concatenate([covered, fcov])
-        pillar = np.concatenate([pillar, np.full(fk.size, len(pillar_nm), dtype=pillar.dtype)])
-        colloc_x, colloc_y = np.concatenate([colloc_x, fx]), np.concatenate([colloc_y, fy])
+        fk, fcov, fx, fy, n_alone = _floor_cells(ax, L, r_floor, keep, tops, xp)
+        n_unique = int(keep.size) + n_alone
+        floor = xp.concatenate([xp.zeros(keep.size, dtype=bool), xp.ones(fk.size, dtype=bool)])
+        keep = xp.concatenate([keep, fk])
+        row, col = xp.divmod(keep, n_side)
+        covered = xp.concatenate([covered, fcov])
+        pillar = xp.concatenate([pillar, xp.full(fk.size, len(pillar_nm), dtype=pillar.dtype)])
+        colloc_x, colloc_y = xp.concatenate([colloc_x, fx]), xp.concatenate([colloc_y, fy])
     keep, shape = _crop(row, col)
     if (2 * shape[0]) * (2 * shape[1]) > max_fft_points:
         raise SceneError(
@@ -231,20 +232,23 @@ def build_grid(scene: Scene, cells_per_diameter: int,
             f"{shape[1]} cells (padded FFT {4 * shape[0] * shape[1]} points > "
             f"{max_fft_points}); choose fewer cells per diameter")
     x, y = ax[col], ax[row]
-    gap0 = lens_gap(R, np.hypot(colloc_x, colloc_y)) - zeta
+    r2 = xp.hypot(colloc_x, colloc_y) ** 2  # lens_gap's own steps, on xp's arrays
+    gap0 = r2 / (R + xp.sqrt(R * R - r2)) - zeta
     if floor is not None:
         gap0[floor] += scene.pillars.height_m
-    centre = np.nonzero((np.abs(x) < 0.5 * L) & (np.abs(y) < 0.5 * L))[0]
+    centre = xp.nonzero((xp.abs(x) < 0.5 * L) & (xp.abs(y) < 0.5 * L))[0]
     if floor is not None:
         centre = centre[~floor[centre]]
     if centre.size != 1:
         raise RuntimeError("grid construction lost the centre cell")  # a bug, not user input
-    return CellGrid(L, shape, keep, x, y, covered, gap0, pillar, pillar_nm, pillar_xy,
-                    int(centre[0]), r_cand, flat, colloc_x, colloc_y, floor, n_unique,
-                    r_floor)
+    host = getattr(xp, "asnumpy", np.asarray)  # cupy's arrays come back once
+    return CellGrid(L, shape, host(keep), host(x), host(y), host(covered), host(gap0),
+                    host(pillar), pillar_nm, pillar_xy, int(centre[0]), r_cand, flat,
+                    host(colloc_x), host(colloc_y), None if floor is None else host(floor),
+                    n_unique, r_floor)
 
 
-def _floor_cells(ax, L, r_floor, keep, tops):
+def _floor_cells(ax, L, r_floor, keep, tops, xp=np):
     """Floor cells within ``r_floor`` of the origin (centres ``ax`` x ``ax``): indices into
     the square, floor fractions 1 - phi, collocation points, and how many of them stand
     alone at their position (they come first; the rest share a position with a kept top
@@ -252,18 +256,18 @@ def _floor_cells(ax, L, r_floor, keep, tops):
     the covered parts about the origin (m^3) on rim cells."""
     total, mx, my = tops
     side = ax.size
-    reach = np.flatnonzero(np.hypot(ax[None, :], ax[:, None]).ravel() <= r_floor)
-    frac = 1.0 - np.minimum(total[reach], 1.0)
+    reach = xp.flatnonzero(xp.hypot(ax[None, :], ax[:, None]).ravel() <= r_floor)
+    frac = 1.0 - xp.minimum(total[reach], 1.0)
     # A floor sliver is dropped like a top sliver (MIN_COVERED_FRACTION); its area, below
     # 1e-3 L^2, is lost from the floor.
     cand = reach[frac > MIN_COVERED_FRACTION]
-    frac = 1.0 - np.minimum(total[cand], 1.0)
-    shared = np.zeros(side * side, dtype=bool)
+    frac = 1.0 - xp.minimum(total[cand], 1.0)
+    shared = xp.zeros(side * side, dtype=bool)
     shared[keep] = True
     alone = ~shared[cand]
-    order = np.concatenate([np.flatnonzero(alone), np.flatnonzero(~alone)])
+    order = xp.concatenate([xp.flatnonzero(alone), xp.flatnonzero(~alone)])
     cand, frac = cand[order], frac[order]
-    iy, ix = np.divmod(cand, side)
+    iy, ix = xp.divmod(cand, side)
     cx, cy = ax[ix], ax[iy]
     part = frac < 1.0 - 1e-12
     area = frac * L * L
@@ -271,13 +275,13 @@ def _floor_cells(ax, L, r_floor, keep, tops):
     cx, cy = cx.copy(), cy.copy()
     cx[part] = (cx[part] * L * L - mx[cand[part]]) / area[part]
     cy[part] = (cy[part] * L * L - my[cand[part]]) / area[part]
-    return cand, frac, cx, cy, int(np.count_nonzero(alone))
+    return cand, frac, cx, cy, int(xp.count_nonzero(alone))
 
 
 def _centroids(x, y, covered, pillar, pillar_xy, L, rad):
     """Collocation points: centroids of the covered parts of partly covered cells (m)."""
     x, y = x.copy(), y.copy()
-    part = np.nonzero(covered < 1.0 - 1e-12)[0]
+    part = (covered < 1.0 - 1e-12).nonzero()[0]
     px, py = pillar_xy[pillar[part], 0], pillar_xy[pillar[part], 1]
     cx, cy = x[part] - px, y[part] - py
     mx, my = disk_rectangle_centroid(cx - 0.5 * L, cx + 0.5 * L, cy - 0.5 * L, cy + 0.5 * L,
@@ -289,12 +293,12 @@ def _centroids(x, y, covered, pillar, pillar_xy, L, rad):
 def _crop(iy, ix):
     """Re-index the kept cells (rows ``iy``, columns ``ix`` of the candidate square) into
     their bounding box: the flat index in the box and the box shape (ny, nx)."""
-    y0, x0 = iy.min(), ix.min()
-    shape = (int(iy.max() - y0 + 1), int(ix.max() - x0 + 1))
+    y0, x0 = int(iy.min()), int(ix.min())
+    shape = (int(iy.max()) - y0 + 1, int(ix.max()) - x0 + 1)
     return (iy - y0) * shape[1] + (ix - x0), shape
 
 
-def _pillar_cells(scene, ax, L, r_cand, floor=False):
+def _pillar_cells(scene, ax, L, r_cand, floor=False, xp=np):
     """Cells on pillar tops within the candidate disk: indices into the (n, n) square of
     centres ``ax`` x ``ax``, covered fractions, owning pillar, the pillar table, and with
     ``floor`` the tops' covered fraction of every cell of the square and the moments of the
@@ -304,13 +308,13 @@ def _pillar_cells(scene, ax, L, r_cand, floor=False):
     table = pillars_within(r_cand + rad, p.pitch_m)
     side = ax.size
     half = side // 2
-    best_frac = np.zeros((side, side))
-    total_frac = np.zeros((side, side))
-    owner = np.full((side, side), -1, dtype=np.int64)
+    best_frac = xp.zeros((side, side))
+    total_frac = xp.zeros((side, side))
+    owner = xp.full((side, side), -1, dtype=xp.int64)
     m = int(math.ceil(rad / L)) + 1
     rims = []  # the square's indices of the cells each rim crosses
     if floor:
-        moment_x, moment_y = np.zeros((side, side)), np.zeros((side, side))
+        moment_x, moment_y = xp.zeros((side, side)), xp.zeros((side, side))
     for k, (_, _, px, py) in enumerate(table):
         # The small window around this pillar only: views of the square, no gathers.
         ix0 = int(round(px / L)) + half
@@ -322,13 +326,13 @@ def _pillar_cells(scene, ax, L, r_cand, floor=False):
         # nearest point is outside it are not (0); the closed-form area only for the ~4 d / L
         # cells the rim crosses, not all (d / L)^2 of the window (9x fewer at N = 32, 47x
         # at N = 180).
-        fx, fy = (np.abs(cx) + 0.5 * L) ** 2, (np.abs(cy) + 0.5 * L) ** 2
-        nx_, ny_ = (np.maximum(np.abs(cx) - 0.5 * L, 0.0) ** 2,
-                    np.maximum(np.abs(cy) - 0.5 * L, 0.0) ** 2)
+        fx, fy = (xp.abs(cx) + 0.5 * L) ** 2, (xp.abs(cy) + 0.5 * L) ** 2
+        nx_, ny_ = (xp.maximum(xp.abs(cx) - 0.5 * L, 0.0) ** 2,
+                    xp.maximum(xp.abs(cy) - 0.5 * L, 0.0) ** 2)
         far2 = fx[None, :] + fy[:, None]
         near2 = nx_[None, :] + ny_[:, None]
         frac = (far2 <= rad * rad).astype(float)
-        ri, ci = np.nonzero((near2 < rad * rad) & (far2 > rad * rad))
+        ri, ci = xp.nonzero((near2 < rad * rad) & (far2 > rad * rad))
         rx, ry = cx[ci], cy[ri]
         frac[ri, ci] = disk_rectangle_area(rx - 0.5 * L, rx + 0.5 * L, ry - 0.5 * L,
                                            ry + 0.5 * L, rad) / (L * L)
@@ -336,8 +340,8 @@ def _pillar_cells(scene, ax, L, r_cand, floor=False):
         total_frac[rows, cols] += frac
         if floor:  # the covered parts' moments, full cells' at their centres
             area = frac * (L * L)
-            mx_, my_ = np.broadcast_to(cx[None, :], area.shape).copy(), \
-                np.broadcast_to(cy[:, None], area.shape).copy()
+            mx_, my_ = xp.broadcast_to(cx[None, :], area.shape).copy(), \
+                xp.broadcast_to(cy[:, None], area.shape).copy()
             if ri.size:
                 mx_[ri, ci], my_[ri, ci] = disk_rectangle_centroid(
                     rx - 0.5 * L, rx + 0.5 * L, ry - 0.5 * L, ry + 0.5 * L, rad)
@@ -345,58 +349,63 @@ def _pillar_cells(scene, ax, L, r_cand, floor=False):
             moment_y[rows, cols] += area * (my_ + py)
         # Views of the square, updated in place: the pillar of the larger share owns a cell.
         best = best_frac[rows, cols]
-        np.copyto(owner[rows, cols], k, where=frac > best)
-        np.maximum(best, frac, out=best)
+        xp.copyto(owner[rows, cols], k, where=frac > best)
+        xp.maximum(best, frac, out=best)
     del best_frac
     total_frac, owner = total_frac.ravel(), owner.ravel()
     tops = (total_frac.copy(), moment_x.ravel(), moment_y.ravel()) if floor else None
-    # The tops outside the candidate disk are not candidates: cleared row by row, so that
-    # the kept cells come from one scan of the square (no distance per cell).
-    reach = _row_reach(ax, r_cand)
-    for iy in range(side):
-        row = total_frac[iy * side:(iy + 1) * side]
-        row[:max(half - reach[iy], 0)] = 0.0
-        row[half + reach[iy] + 1:] = 0.0
+    # The tops outside the candidate disk are not candidates: cleared row by row (on the
+    # host; on a device by one mask), so that the kept cells come from one scan of the
+    # square (no distance per cell).
+    reach = _row_reach(ax, r_cand, xp)
+    if xp is np:
+        for iy in range(side):
+            row = total_frac[iy * side:(iy + 1) * side]
+            row[:max(half - reach[iy], 0)] = 0.0
+            row[half + reach[iy] + 1:] = 0.0
+    else:
+        beyond = xp.abs(xp.arange(side)[None, :] - half) > reach[:, None]
+        total_frac[beyond.ravel()] = 0.0
     # Near close packing a cell may overlap two tops: it goes to the larger share and carries
     # the sum of both (the Hooke term then acts on one pillar only, an O(L^2) effect).
-    keep = np.flatnonzero(total_frac > MIN_COVERED_FRACTION)
+    keep = xp.flatnonzero(total_frac > MIN_COVERED_FRACTION)
     covered = total_frac[keep]
-    np.minimum(covered, 1.0, out=covered)
+    xp.minimum(covered, 1.0, out=covered)
     owners = owner[keep]
     # The dropped slivers' area goes to the other partly covered cells of the same pillar, so
     # every top keeps its exact area.  Slivers are rim cells.
-    rim = np.concatenate(rims) if rims else np.zeros(0, dtype=np.int64)
-    sliver = np.unique(rim[(total_frac[rim] > 0.0) & (total_frac[rim] <= MIN_COVERED_FRACTION)])
+    rim = xp.concatenate(rims) if rims else xp.zeros(0, dtype=xp.int64)
+    sliver = xp.unique(rim[(total_frac[rim] > 0.0) & (total_frac[rim] <= MIN_COVERED_FRACTION)])
     n_table = len(table)
-    lost = np.bincount(owner[sliver], weights=np.minimum(total_frac[sliver], 1.0),
+    lost = xp.bincount(owner[sliver], weights=xp.minimum(total_frac[sliver], 1.0),
                        minlength=n_table)
-    partial = np.flatnonzero(covered < 1.0)
-    share = np.bincount(owners[partial], weights=covered[partial], minlength=n_table)
-    scale = 1.0 + np.divide(lost, share, out=np.zeros(n_table), where=share > 0)
-    covered[partial] = np.minimum(covered[partial] * scale[owners[partial]], 1.0)
+    partial = xp.flatnonzero(covered < 1.0)
+    share = xp.bincount(owners[partial], weights=covered[partial], minlength=n_table)
+    scale = 1.0 + lost / xp.where(share > 0, share, 1.0) * (share > 0)
+    covered[partial] = xp.minimum(covered[partial] * scale[owners[partial]], 1.0)
     # The pillars that own a kept cell, in table order, and each cell's rank among them
     # (np.unique's result, by counting instead of sorting 1e7 labels).
-    present = np.bincount(owners, minlength=n_table) > 0
-    used = np.flatnonzero(present)
-    pillar = (np.cumsum(present) - 1)[owners]
+    present = xp.bincount(owners, minlength=n_table) > 0
+    pillar = (xp.cumsum(present) - 1)[owners]
+    used = np.flatnonzero(getattr(xp, "asnumpy", np.asarray)(present))
     nm = table[used, :2].astype(int)
     xy = table[used, 2:4].astype(float)
     return keep, covered, pillar, nm, xy, tops
 
 
-def _row_reach(ax, radius: float) -> np.ndarray:
+def _row_reach(ax, radius: float, xp=np):
     """For each row of the square of centres ``ax`` x ``ax``: the largest j (-1 for none)
     with the cell (row, centre + j) within ``radius`` of the origin, by the same
     ``hypot(x, y) <= radius`` test as a cell-by-cell check (the square root's estimate
     corrected by one cell either way)."""
     half = ax.size // 2
     y = ax
-    L = ax[half + 1] - ax[half] if ax.size > 1 else 1.0
-    j = np.floor(np.sqrt(np.maximum(radius * radius - y * y, 0.0)) / L).astype(np.int64)
-    j = np.minimum(j, half)
+    L = float(ax[half + 1] - ax[half]) if ax.size > 1 else 1.0
+    j = xp.floor(xp.sqrt(xp.maximum(radius * radius - y * y, 0.0)) / L).astype(xp.int64)
+    j = xp.minimum(j, half)
     for _ in range(2):
-        up = np.minimum(j + 1, half)
-        j = np.where((up > j) & (np.hypot(ax[half + up], y) <= radius), up, j)
-        down = np.hypot(ax[half + np.maximum(j, 0)], y) > radius
-        j = np.where(down & (j >= 0), j - 1, j)
-    return np.where(np.abs(y) <= radius, j, -1)
+        up = xp.minimum(j + 1, half)
+        j = xp.where((up > j) & (xp.hypot(ax[half + up], y) <= radius), up, j)
+        down = xp.hypot(ax[half + xp.maximum(j, 0)], y) > radius
+        j = xp.where(down & (j >= 0), j - 1, j)
+    return xp.where(xp.abs(y) <= radius, j, -1)

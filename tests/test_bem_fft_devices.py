@@ -15,6 +15,7 @@ import pytest
 from pillar_xval.scenes import InputError, load_scene
 
 from bem_solver import available_devices
+import bem_solver._fft as fft_module
 from bem_solver._fft import GPU_WARM_START_LEVELS, solve_fft
 from bem_solver._fft_grid import build_grid
 from bem_solver._fft_operator import CompliancePlan, near_field_correction
@@ -330,6 +331,10 @@ def test_cupy_backend_glue_on_a_numpy_stand_in(monkeypatch):
         assert len(stand_in.diagnostics["warm_start_levels"]) == GPU_WARM_START_LEVELS
         _agree(solve_fft(scene, 16, precision="double", warm_start=GPU_WARM_START_LEVELS),
                stand_in, RTOL_ROUNDOFF, scene.indentation_m)
+        # the grid built by the device's library (large grids): the same answer
+        monkeypatch.setattr(fft_module, "GPU_GRID_MIN_POINTS", 0)
+        _agree(stand_in, solve_fft(scene, 16, device="auto", precision="double"),
+               RTOL_ROUNDOFF, scene.indentation_m)
         # Mixed precision: a round-off difference in a float64 part (the sparse product's
         # summation order) can flip a float32 rounding, and the CG then reaches the same
         # tolerance by another path.

@@ -34,6 +34,7 @@ class NumpyArrays:
     name = "numpy"
     device = "cpu"
     xp = np
+    numpy_like = np  # numpy's own API (beyond the standard), for code written against it
 
     def asarray(self, a, dtype=None):
         return np.asarray(a, dtype=dtype)
@@ -101,6 +102,7 @@ class CupyArrays:
         import cupy
 
         self._cp = cupy
+        self.numpy_like = cupy
         try:  # the standard's names (asinh, concat, ...) on every cupy version
             import array_api_compat.cupy as xp
         except ImportError:  # cupy >= 14 mirrors numpy 2's namespace itself
