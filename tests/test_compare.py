@@ -322,7 +322,7 @@ def test_compare_refuses_a_bad_pillar_model(pillar_fakes, tmp_path, cli, value):
 
 
 def test_pillar_models_reads_every_spelling():
-    from validation.studies.compare import pillar_models
+    from validation.registry.options import pillar_models
 
     assert pillar_models("hooke") == ("hooke",)
     assert pillar_models("both") == pillar_models(" elastic , hooke") == ("hooke", "elastic")

@@ -9,7 +9,8 @@ from pathlib import Path
 
 from pillar_xval.scenes import InputError, load_scene
 
-from ..studies.compare import BEM, BOTH, FEM_COARSEST, FEM_MODELS, OUTPUTS
+from ..registry.options import BOTH
+from ..studies.compare import BEM, FEM_COARSEST, FEM_MODELS, OUTPUTS
 from ._args import (Renamed, add_engine_arguments, add_levels_argument,
                     add_models_argument, add_output_arguments, add_refinement_arguments,
                     add_scene_arguments, check_out, engine_from_args, not_converged, print_json,

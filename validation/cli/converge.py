@@ -47,8 +47,8 @@ def _fixed_options(args, scene) -> dict:
 
 def run(args) -> int:
     """Study, write the report folder, print the table; exit 1 if a level did not converge."""
-    from ..studies.converge import (OUTPUTS, check_ladder, converge_study, study_table,
-                                    write_report)
+    from ..studies._ladder import check_ladder
+    from ..studies.converge import OUTPUTS, converge_study, study_table, write_report
     from ..output.report import clear_outputs
 
     refuse_inapplicable(args, [args.model])
