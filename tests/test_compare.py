@@ -138,9 +138,7 @@ def test_compare_json_is_one_document(fakes, tmp_path, cli):
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["--bem-levels", "0"], "--bem-levels was renamed: use --levels"),
-    (["--fem-levels", "0"], "--fem-levels was renamed: use --levels"),
-    (["--fem-coarsest", "1"], "--fem-coarsest was renamed: use --mesh-size"),
+    (["--bem-levels", "0"], "unrecognized arguments: --bem-levels 0"),
     (["--levels", "0"], "argument --levels: 0: allowed range is [2, 8]"),
     (["--levels", "1"], "allowed range is [2, 8]"),
     (["--elements-per-diameter", "1"], "1: allowed range is [2, 400]"),
