@@ -117,7 +117,7 @@ bench-gpu: $(STAMP)
 bench-fem3d: $(STAMP)
 	$(PY) -m validation.bench.fem3d --out $(OUT)/bench-fem3d --levels 2.83,2,1.41 --dense 2.83,2,1.41
 
-# The elastic-pillar BEM's cost against fem-3d at equal accuracy (issue 17, item 5): Phi = 0.2
+# The elastic-pillar BEM's cost against fem-3d at equal accuracy: Phi = 0.2
 # and 0.82, fem-3d at mesh_size 2.83, 2, 1.41 (its Richardson estimate the reference), the FFT
 # and dense BEMs with Hooke and elastic pillars, the compliance build uncached; the table and
 # the claims in $(OUT)/bench-elastic/elastic_fem3d.md (30-60 minutes; resumes).
