@@ -8,7 +8,7 @@ OUT    ?= out
 .PHONY: demo study-gecit study-lattice study-floor figures test test-slow bench-bem bench-fft bench-gpu bench-fem3d \
 	bench-elastic bench-fem3d-floor bench-engine bench-figures bench-startup bench-force \
 	bench-floor bench-sweep bench-threads clean calibrate validate-planner extremes regimes \
-	docs lint
+	docs lint reproduce
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -81,6 +81,15 @@ docs: $(STAMP)
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/mypy
+
+# Byte-for-byte reproduction against another revision (AGAINST, default main): the figures'
+# data (quick), a four-scene lattice study and the planner's lattice tables from it, each side
+# in its own interpreters with its own pillar-compliance cache (about 5 minutes on 2 cores);
+# $(OUT)/reproduce/reproduce.json lists what reproduced.  FULL=1: the full figures (minutes).
+AGAINST ?= main
+reproduce: $(STAMP)
+	rm -rf $(OUT)/reproduce
+	$(PY) -m validation.reproduce --against $(AGAINST) --out $(OUT)/reproduce $(if $(FULL),--full)
 
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -m slow
