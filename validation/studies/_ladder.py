@@ -6,7 +6,10 @@ between several models' Richardson estimates."""
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from typing import Any, TypedDict
 
+from pillar_xval.outcome import ContactResult
 from pillar_xval.scenes import InputError, Scene
 
 from ..analysis.profiles import profile_at
@@ -16,6 +19,69 @@ from ..registry import (FLOOR_QUANTITIES, MODELS, QUANTITIES, check_option, flag
                         ladder_for, quantity_values)
 
 LEVELS_RANGE = (2, 8)
+
+
+class LadderInfo(TypedDict):
+    """How the studied model was refined: its refined option, what h means, h's power of
+    the option's value, the options every level shares."""
+    option: str
+    h_meaning: str
+    h_power: float
+    fixed: dict[str, Any]
+
+
+class LadderStudy(TypedDict):
+    """:func:`study_levels`' result, as compare, gecit, the pytest plugin,
+    :mod:`validation.testing` and the convergence plot read it (JSON-ready but ``results``).
+
+    ``levels``: one row per level, coarse to fine: ``level``, ``options``, ``value`` (the
+    refined option's), ``h``, ``cached``, ``converged``, ``message``, ``wall_time_s``, ``vtu``
+    and every quantity of :func:`validation.registry.quantity_values` by key (SI).
+    ``studies``: per quantity key, :func:`validation.analysis.verification.study`'s dict."""
+    model: str
+    label: str
+    scene: dict[str, Any]
+    ladder: LadderInfo
+    levels: list[dict[str, Any]]
+    studies: dict[str, dict[str, Any]]
+    all_converged: bool
+    results: list[ContactResult]
+
+
+class Estimate(TypedDict):
+    """A Richardson estimate: the extrapolated value, the order, the band (absolute, SI) and
+    the cell sizes h it came from."""
+    f_exact: float | None
+    order: float | None
+    band: float | None
+    sizes: list[float]
+
+
+class ModelEstimate(Estimate):
+    """One model's estimates of one quantity: the observed order's, with its GCI status, its
+    asymptotic ratio and why it looks pre-asymptotic (empty when it does not), and the one at
+    the model's expected order (``assumed``; None without one)."""
+    status: str
+    asymptotic_ratio: float | None
+    pre_asymptotic: list[str]
+    assumed: Estimate | None
+
+
+class Reference(TypedDict):
+    """:func:`reference_values`' reference of one quantity, as calibrate, validate-plan and
+    the tradeoff's tables read it: ``value`` (SI), the model(s) it came from, its order and
+    band (None without a Richardson estimate), the sizes, how it was chosen (``status``,
+    ``basis``), whether it is pre-asymptotic, the flags raised and every model's estimate."""
+    value: float
+    model: str | None
+    order: float | None
+    band: float | None
+    sizes: list[float]
+    status: str
+    basis: str | None
+    pre_asymptotic: bool | None
+    flags: list[str]
+    per_model: dict[str, ModelEstimate]
 
 
 def check_ladder(model: str, levels: int, coarsest: float | None = None,
@@ -56,7 +122,7 @@ def level_cases(model: str, scene: Scene, levels: int, *, coarsest: float | None
                  tag=f"{tag + ' ' if tag else ''}{k + 1}/{levels}") for k in range(levels)]
 
 
-def study_levels(model: str, scene: Scene, outcomes: list[Outcome]) -> dict:
+def study_levels(model: str, scene: Scene, outcomes: list[Outcome]) -> LadderStudy:
     """The verification study of finished levels (coarse to fine).
 
     Returns a JSON-ready dict with the ladder, one row per level and, per quantity, the
@@ -65,7 +131,8 @@ def study_levels(model: str, scene: Scene, outcomes: list[Outcome]) -> dict:
     level that failed raises its error.
     """
     ladder = ladder_for(model)
-    rows, results = [], []
+    rows: list[dict[str, Any]] = []
+    results: list[ContactResult] = []
     for k, o in enumerate(outcomes):
         result = o.unwrap()
         value = o.case.options[ladder.option]
@@ -125,7 +192,7 @@ ORDER_TOL = 0.3
 ASYMPTOTIC_RATIO_TOL = 0.25
 
 
-def _model_estimate(rows: list, short: str, model: str) -> dict | None:
+def _model_estimate(rows: list, short: str, model: str) -> ModelEstimate | None:
     """The Richardson estimates of one model from its finest converged rungs: the observed
     order's over three (``f_exact``, ``order``, ``band``, ``status``, and the reasons it is
     pre-asymptotic, empty when it looks asymptotic) and, for a model with an expected order,
@@ -137,9 +204,9 @@ def _model_estimate(rows: list, short: str, model: str) -> dict | None:
         return None
     h, f = [r["h"] for r in mine[:3]], [r[short] for r in mine[:3]]
     g = gci_three(h, f)
-    est = {"f_exact": g.f_exact, "order": g.order, "band": g.uncertainty, "status": g.status,
-           "asymptotic_ratio": g.asymptotic_ratio, "sizes": g.h, "pre_asymptotic": [],
-           "assumed": None}
+    est: ModelEstimate = {"f_exact": g.f_exact, "order": g.order, "band": g.uncertainty,
+                          "status": g.status, "asymptotic_ratio": g.asymptotic_ratio,
+                          "sizes": g.h, "pre_asymptotic": [], "assumed": None}
     expected = MODELS[model].expected_order if model in MODELS else None
     if expected is not None and f[0] != f[1]:
         a = gci_two(h[:2], f[:2], expected)
@@ -156,12 +223,14 @@ def _model_estimate(rows: list, short: str, model: str) -> dict | None:
     return est
 
 
-def _tiers(per_model: dict) -> tuple[dict, dict, dict]:
+def _tiers(per_model: dict[str, ModelEstimate]) -> tuple[dict[str, Estimate], ...]:
     """The models' estimates in order of trust: observed-order estimates that look
     asymptotic; for models whose observed order is pre-asymptotic or unobservable (or
     oscillating), the estimate at their expected order; observed-order estimates that are
     pre-asymptotic and have no expected order."""
-    asymptotic, assumed, pre = {}, {}, {}
+    asymptotic: dict[str, Estimate] = {}
+    assumed: dict[str, Estimate] = {}
+    pre: dict[str, Estimate] = {}
     for m, e in per_model.items():
         observed = e["status"] == "ok" and e["band"] is not None
         if observed and not e["pre_asymptotic"]:
@@ -173,7 +242,7 @@ def _tiers(per_model: dict) -> tuple[dict, dict, dict]:
     return asymptotic, assumed, pre
 
 
-def _disagreements(estimates: dict) -> list[str]:
+def _disagreements(estimates: Mapping[str, Estimate]) -> list[str]:
     """Pairs of estimates further apart than their bands combined in quadrature (independent
     uncertainties; the test ``compare`` applies to BEM against FEM)."""
     flags, names = [], sorted(estimates)
@@ -188,7 +257,7 @@ def _disagreements(estimates: dict) -> list[str]:
     return flags
 
 
-def reference_values(rows: list) -> dict:
+def reference_values(rows: list) -> dict[str, Reference]:
     """Per quantity: a reference cross-checked between the models' Richardson estimates.
 
     Each model with three converged rungs gives an estimate (observed order, Richardson value,
@@ -204,11 +273,11 @@ def reference_values(rows: list) -> dict:
     estimate and every disagreement between the models' estimates is flagged.  Without any
     estimate, the most expensive converged solution stands in (no band).
     """
-    out = {}
+    out: dict[str, Reference] = {}
     models = sorted({r["model"] for r in rows})
     tier_names = ("asymptotic", "expected order", "pre-asymptotic")
     for short in (q.key for q in QUANTITIES):
-        per_model = {}
+        per_model: dict[str, ModelEstimate] = {}
         for m in models:
             est = _model_estimate(rows, short, m)
             if est is not None:
@@ -223,23 +292,27 @@ def reference_values(rows: list) -> dict:
             if text not in flags:
                 flags.append(text)
         level = next((k for k, tier in enumerate(tiers) if tier), None)
+        # Every model's own extrapolation (per_model): do the models converge to the same
+        # answer?  The keys keep the order the reports have always printed.
+        ref: Reference
         if level is not None:
             pool = tiers[level]
+            tier = f" ({tier_names[level]})"
             if not _disagreements(pool):
                 m = min(pool, key=lambda k: pool[k]["band"])
                 e = pool[m]
                 ref = {"value": e["f_exact"], "model": m, "order": e["order"],
                        "band": e["band"], "sizes": e["sizes"], "status": "richardson",
-                       "basis": "the narrowest of agreeing estimates"}
+                       "basis": "the narrowest of agreeing estimates" + tier,
+                       "pre_asymptotic": level > 0, "flags": flags, "per_model": per_model}
             else:
                 lo = min(e["f_exact"] - e["band"] for e in pool.values())
                 hi = max(e["f_exact"] + e["band"] for e in pool.values())
                 ref = {"value": 0.5 * (lo + hi), "model": "+".join(sorted(pool)),
                        "order": None, "band": 0.5 * (hi - lo), "sizes": [],
                        "status": "richardson",
-                       "basis": "the union of disagreeing estimates' bands"}
-            ref["basis"] += f" ({tier_names[level]})"
-            ref["pre_asymptotic"] = level > 0
+                       "basis": "the union of disagreeing estimates' bands" + tier,
+                       "pre_asymptotic": level > 0, "flags": flags, "per_model": per_model}
         else:
             # Sizes h of different models are in different units: take the most expensive
             # converged solution, a unit-free stand-in for the most resolved one.
@@ -249,9 +322,6 @@ def reference_values(rows: list) -> dict:
                    "model": finest["model"] if finest else None, "order": None,
                    "band": None, "status": "most expensive solution (no Richardson estimate)",
                    "sizes": [finest["h"]] if finest else [], "basis": None,
-                   "pre_asymptotic": None}
-        ref["flags"] = flags
-        # Every model's own extrapolation: do the models converge to the same answer?
-        ref["per_model"] = per_model
+                   "pre_asymptotic": None, "flags": flags, "per_model": per_model}
         out[short] = ref
     return out
