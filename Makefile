@@ -7,8 +7,8 @@ OUT    ?= out
 
 .PHONY: demo study-gecit study-lattice study-floor figures test test-slow bench-bem bench-fft bench-gpu bench-fem3d \
 	bench-elastic bench-fem3d-floor bench-engine bench-figures bench-startup bench-force \
-	bench-floor bench-sweep bench-threads bench-planner-threads clean calibrate validate-planner extremes regimes \
-	docs lint
+	bench-floor bench-sweep bench-threads bench-planner-threads clean calibrate validate-planner extremes \
+	regimes docs lint reproduce
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -82,6 +82,15 @@ lint: $(STAMP)
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/mypy
 
+# Byte-for-byte reproduction against another revision (AGAINST, default main): the figures'
+# data (quick), a four-scene lattice study and the planner's lattice tables from it, each side
+# in its own interpreters with its own pillar-compliance cache (about 5 minutes on 2 cores);
+# $(OUT)/reproduce/reproduce.json lists what reproduced.  FULL=1: the full figures (minutes).
+AGAINST ?= main
+reproduce: $(STAMP)
+	rm -rf $(OUT)/reproduce
+	$(PY) -m validation.reproduce --against $(AGAINST) --out $(OUT)/reproduce $(if $(FULL),--full)
+
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -m slow
 
@@ -117,7 +126,7 @@ bench-gpu: $(STAMP)
 bench-fem3d: $(STAMP)
 	$(PY) -m validation.bench.fem3d --out $(OUT)/bench-fem3d --levels 2.83,2,1.41 --dense 2.83,2,1.41
 
-# The elastic-pillar BEM's cost against fem-3d at equal accuracy (issue 17, item 5): Phi = 0.2
+# The elastic-pillar BEM's cost against fem-3d at equal accuracy: Phi = 0.2
 # and 0.82, fem-3d at mesh_size 2.83, 2, 1.41 (its Richardson estimate the reference), the FFT
 # and dense BEMs with Hooke and elastic pillars, the compliance build uncached; the table and
 # the claims in $(OUT)/bench-elastic/elastic_fem3d.md (30-60 minutes; resumes).

@@ -138,9 +138,7 @@ def test_compare_json_is_one_document(fakes, tmp_path, cli):
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["--bem-levels", "0"], "--bem-levels was renamed: use --levels"),
-    (["--fem-levels", "0"], "--fem-levels was renamed: use --levels"),
-    (["--fem-coarsest", "1"], "--fem-coarsest was renamed: use --mesh-size"),
+    (["--bem-levels", "0"], "unrecognized arguments: --bem-levels 0"),
     (["--levels", "0"], "argument --levels: 0: allowed range is [2, 8]"),
     (["--levels", "1"], "allowed range is [2, 8]"),
     (["--elements-per-diameter", "1"], "1: allowed range is [2, 400]"),
@@ -322,7 +320,7 @@ def test_compare_refuses_a_bad_pillar_model(pillar_fakes, tmp_path, cli, value):
 
 
 def test_pillar_models_reads_every_spelling():
-    from validation.studies.compare import pillar_models
+    from validation.registry.options import pillar_models
 
     assert pillar_models("hooke") == ("hooke",)
     assert pillar_models("both") == pillar_models(" elastic , hooke") == ("hooke", "elastic")

@@ -93,7 +93,7 @@ def test_converge_defaults_to_bem_like_solve(fakes, tmp_path, cli):
 @pytest.mark.parametrize("argv, message", [
     # integer options parse strictly: 5.5 is not rounded to 5
     (["--elements-per-diameter", "5.5"], "'5.5': expected an integer"),
-    (["--coarsest", "5"], "--coarsest was renamed"),
+    (["--coarsest", "5"], "unrecognized arguments: --coarsest 5"),
     (["--mesh-size", "0.5"], "--mesh-size 0.5: does not apply to --model bem"),
     (["--model", "fem-axisym", "--elements-per-diameter", "11"],
      "--elements-per-diameter 11: does not apply to --model fem-axisym"),

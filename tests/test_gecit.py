@@ -112,8 +112,7 @@ def test_cli_gecit_on_fakes_and_resume(fakes, tmp_path, capsys):
     # h/d = 0.05 gives h = 0.2 um below the indentation 0.3 um: the floor is in reach
     (["--aspect", "0.05"], "reaches the floor between the pillars"),
     (["--levels", "0"], "argument --levels: 0: allowed range is [1, 5]"),
-    (["--bem-levels", "2"], "--bem-levels was renamed: use --levels"),
-    (["--jobs", "2"], "--jobs was renamed: use --workers"),
+    (["--jobs", "2"], "unrecognized arguments: --jobs 2"),
     (["--mesh-size", "5"], "argument --mesh-size: 5: allowed range is [0.02, 4]"),
     (["--elements-per-diameter", "300", "--levels", "2"], "level 2 would be"),
 ])

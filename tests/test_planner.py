@@ -17,7 +17,7 @@ from validation.cli import main
 from validation.planner.plan import plan, plan_text
 from validation.planner.features import features, regime
 from validation.planner.tables import CostFit, ErrorTable, PlannerData, load_data
-from validation.studies.tradeoff import reference_values
+from validation.studies._ladder import reference_values
 from validation.analysis.verification import gci_three
 
 # The dense BEM converges at order ~1 (tests/test_bem_limits.py): Richardson over

@@ -9,7 +9,8 @@ import pytest
 
 from pillar_xval.scenes import load_scene
 from validation.registry import Ladder, OptionSpec, ladders
-from validation.studies.tradeoff import reference_values, tradeoff, write_outputs
+from validation.studies._ladder import reference_values
+from validation.studies.tradeoff import tradeoff, write_outputs
 
 
 def _ladder(option, rungs):

@@ -107,7 +107,7 @@ class XVal:
         """A convergence study of ``model`` (``levels`` rungs of its ladder; ``options``: its
         other options, the same on every rung, checked as :meth:`run` checks them), for
         :func:`validation.testing.assert_agree` and :func:`~validation.testing.assert_order`."""
-        from .studies.converge import level_cases, study_levels
+        from .studies._ladder import level_cases, study_levels
 
         from .registry import ladder_for
 
@@ -198,6 +198,8 @@ def pytest_terminal_summary(terminalreporter, config):
     checks, counts = config._xval_checks, config._xval_counts
     if not checks and not any(counts.values()):
         return
+    from .output.formatting import aligned
+
     tr = terminalreporter
     tr.write_sep("=", "pillar-xval checks")
     if checks:
@@ -206,9 +208,8 @@ def pytest_terminal_summary(terminalreporter, config):
             rows.append((c["test"], c["name"], c["quantity"],
                          f"{c['value']:.6g}", f"{c['reference']:.6g}", c["tolerance"],
                          "pass" if c["passed"] else "FAIL"))
-        widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
-        for r in rows:
-            tr.write_line("  ".join(v.ljust(w) for v, w in zip(r, widths)).rstrip())
+        for line in aligned(rows):
+            tr.write_line(line)
         failed = sum(not c["passed"] for c in checks)
         tr.write_line(f"{len(checks)} checks, {failed} failed")
     if any(counts.values()):

@@ -1,5 +1,5 @@
 """Closed forms as models: ``solve_hertz`` and ``solve_spring`` return a
-:class:`~outcome.ContactResult` like every numerical model, so the study engine,
+:class:`~pillar_xval.outcome.ContactResult` like every numerical model, so the study engine,
 ``compare`` and the planner treat them alike.
 
 - ``hertz``: the lens on a continuum ([J] sec. 4.2; [P] eq. S0Hertz) with
@@ -11,7 +11,7 @@
 - ``spring``: the paper's soft-flat-punch model ([P] eq. S0SFP): one Hooke pillar between
   two half-spaces, sigma_0S = 2 zeta / (pi d gamma*), F = d zeta / gamma*, the flat-punch
   profile over the whole pillar top.  Refused when a second pillar touches (Phi >= Phi_S,
-  eq. rSzeta at the next ring's rim: ``scenes.analytic.single_pillar_threshold_rim``) or when the lens curvature across the pillar top, d^2 / (8 R), reaches zeta
+  eq. rSzeta at the next ring's rim: ``pillar_xval.scenes.analytic.single_pillar_threshold_rim``) or when the lens curvature across the pillar top, d^2 / (8 R), reaches zeta
   (then the contact covers only part of the top, which the flat punch cannot represent).
 
 Under a given force both invert exactly: Hertz's F = (4/3) sqrt(R) zeta^(3/2) / gamma gives

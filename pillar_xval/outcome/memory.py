@@ -3,8 +3,8 @@
 Models estimate the peak memory of a solve from the scene before building anything
 (``bem_solver.estimate_memory``, ``fem_reference.axisym.estimate_memory``,
 ``fem_reference.solid3d.estimate_memory``) and refuse a scene that
-would not fit with a :class:`~scenes.ScopeError` naming the estimate, instead of dying of a
-memory error minutes later.  What binds is the smallest of three limits: the machine's
+would not fit with a :class:`~pillar_xval.scenes.ScopeError` naming the estimate, instead of
+dying of a memory error minutes later.  What binds is the smallest of three limits: the machine's
 available memory, the container's (cgroup v2 ``memory.max``) and the process's own
 address-space limit (``ulimit -v``), each less what is already used against it.
 """

@@ -200,7 +200,7 @@ def table(rows) -> str:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--baseline", type=Path, required=True,
-                    help="checkout of the old code (its root: bem_solver/, contact/, ...)")
+                    help="checkout of the old code (its root: bem_solver/, pillar_xval/, ...)")
     ap.add_argument("--this", type=Path, default=ROOT,
                     help="checkout of the new code (default: this one)")
     ap.add_argument("--out", type=Path, required=True, help="folder for bench_ab.md/.json")

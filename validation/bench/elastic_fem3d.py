@@ -48,7 +48,7 @@ import time
 from pathlib import Path
 
 from validation.bench.elastic_pillar import _timed
-from validation.output.formatting import percent
+from validation.output.formatting import markdown_table, percent
 
 TABLE1 = ["lens.E_Pa=1.6e6", "pillars.E_Pa=1.6e6", "substrate.E_Pa=1.6e6", "lens.nu=0.5",
           "pillars.nu=0.5", "substrate.nu=0.5", "load.indentation_um=0.3"]
@@ -472,8 +472,7 @@ def render_markdown(doc: dict) -> str:
            f"`{doc['command']}`: wall time {doc['wall_s']:.0f} s, load average "
            f"{_load(doc['load_average_start'])} at the start, {_load(doc['load_average_end'])}"
            f" at the end; {doc['machine']}.", "",
-           "| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
-    out += ["| " + " | ".join(b) + " |" for b in body]
+           *markdown_table(COLUMNS, body)]
     out += ["", "dF_T, dsigma0: relative to the reference below.  " + TIMING_NOTE
             + ".  Memory: " + MEMORY_NOTE + ".", "", "## References", ""]
     out += [f"- {x}" for x in doc["reference_lines"]]

@@ -8,7 +8,7 @@
    (F_T, sigma0, a: threads must change nothing beyond round-off).  Cases: ``fft`` (bem-fft
    on paper-fig3-dense at N = 58, a 1005 x 1005 grid: 1.0e6 cells), ``dense`` (the dense BEM
    at P = 11 on paper-fig3-dense), ``fem3d`` (fem-3d on paper-fig3-sparse with Phi = 0.2 at
-   mesh_size 2.83; ``--fem3d-mesh`` and ``--fem3d-phi`` for the issue's Phi = 0.82 at 2).
+   mesh_size 2.83; ``--fem3d-mesh`` and ``--fem3d-phi`` for the dense Phi = 0.82 at 2).
 2. The FFT iteration.  The fine level's CG of bem-fft (a rigid substrate, rigid or Hooke
    pillars, cells collocated at their centres: validation/bench/fft.py's "ours") at N = 32
    and 58 (3.1e5 and 1.0e6 cells) on one thread, its CPU time split into the pocketfft

@@ -19,7 +19,7 @@
   (:func:`add_engine_arguments`); ``--threads`` alone for a command that solves in its own
   process (:func:`add_threads_argument`);
 - outcomes: :func:`not_converged` (exit 1 and its line), :func:`study_status` (a study of many
-  cases), :func:`failure_status`; an old spelling: :class:`Renamed`.
+  cases), :func:`failure_status`.
 
 Numbers are parsed strictly (:func:`integer`, :func:`number`): ``5.5`` is not an integer,
 ``1_0``, ``nan`` and ``inf`` are not numbers.  Every refusal is one line that names the option
@@ -46,7 +46,7 @@ from ..engine import engine_from_args
 from ..registry import family_options, flag, option_vocabulary
 
 __all__ = [
-    "DEBUG_ENV", "EXIT_INTERNAL_ERROR", "Parser", "Renamed", "add_choice_arguments",
+    "DEBUG_ENV", "EXIT_INTERNAL_ERROR", "Parser", "add_choice_arguments",
     "add_engine_arguments", "add_levels_argument", "add_model_argument", "add_threads_argument",
     "add_models_argument", "add_output_arguments", "add_refinement_arguments",
     "add_scene_arguments", "check_out", "engine_from_args", "failure_status", "flag", "integer",
@@ -141,18 +141,6 @@ class Parser(argparse.ArgumentParser):
         print(f"{self.prog}: error: {one_line(message)} (see {self.prog} --help)",
               file=sys.stderr)
         raise SystemExit(2)
-
-
-class Renamed(argparse.Action):
-    """An old option spelling: refused with one line naming its successor."""
-
-    def __init__(self, option_strings, dest, successor: str = "", **kwargs):
-        kwargs.setdefault("nargs", "?")
-        super().__init__(option_strings, dest, help=argparse.SUPPRESS, **kwargs)
-        self.successor = successor
-
-    def __call__(self, parser, namespace, values, option_string=None):
-        parser.error(f"{option_string} was renamed: use {self.successor}")
 
 
 def add_scene_arguments(parser: argparse.ArgumentParser, required: bool = True,
@@ -275,8 +263,8 @@ def refuse_inapplicable(args, models, dests=None) -> None:
 def pillar_models_type(text: str) -> tuple[str, ...]:
     """argparse's type of ``--pillars`` (compare, figures): hooke, elastic, both or a comma
     list, as a tuple of pillar models in the declaration's order
-    (:func:`validation.studies.compare.pillar_models`)."""
-    from ..studies.compare import pillar_models
+    (:func:`validation.registry.options.pillar_models`)."""
+    from ..registry.options import pillar_models
 
     try:
         return pillar_models(text)

@@ -1,23 +1,24 @@
-"""The CLI's exit statuses: one per outcome of the failure policy (:mod:`pillar_xval.scenes._errors`).
+"""The CLI's exit statuses: one per outcome of the failure policy
+(:mod:`pillar_xval.scenes._errors`).
 
-=========================  ======================================  ====
-what happened              reported as                             exit
-=========================  ======================================  ====
-done                                                               0
-solver missed tolerance    ``ContactResult.converged = False``     1
-bad input, or a scene      :class:`~scenes.InputError`             2
-outside a model            (:class:`~scenes.ScopeError`)
-no model for the request   :class:`~scenes.ScopeError`: ``plan``   2
+=========================  ==================================================  ====
+what happened              reported as                                         exit
+=========================  ==================================================  ====
+done                                                                           0
+solver missed tolerance    ``ContactResult.converged = False``                 1
+bad input, or a scene      :class:`~pillar_xval.scenes.InputError`             2
+outside a model            (:class:`~pillar_xval.scenes.ScopeError`)
+no model for the request   :class:`~pillar_xval.scenes.ScopeError`: ``plan``   2
                            (``--budget`` leaves no candidate, or
                            none can run the scene; the line names
                            the budget and the cheapest candidate's
                            time), ``solve --model auto`` likewise
-a tool underneath failed   :class:`~scenes.ToolError`, memory,     3
+a tool underneath failed   :class:`~pillar_xval.scenes.ToolError`, memory,     3
                            the file system
-an internal error (a bug)  any other exception                     4
-interrupted                Ctrl-C                                  130
-terminated                 SIGTERM                                 143
-=========================  ======================================  ====
+an internal error (a bug)  any other exception                                 4
+interrupted                Ctrl-C                                              130
+terminated                 SIGTERM                                             143
+=========================  ==================================================  ====
 """
 
 EXIT_OK = 0

@@ -9,8 +9,9 @@ from pathlib import Path
 
 from pillar_xval.scenes import InputError, load_scene
 
-from ..studies.compare import BEM, BOTH, FEM_COARSEST, FEM_MODELS, OUTPUTS
-from ._args import (Renamed, add_engine_arguments, add_levels_argument,
+from ..registry.options import BOTH
+from ..studies.compare import BEM, FEM_COARSEST, FEM_MODELS, OUTPUTS
+from ._args import (add_engine_arguments, add_levels_argument,
                     add_models_argument, add_output_arguments, add_refinement_arguments,
                     add_scene_arguments, check_out, engine_from_args, not_converged, print_json,
                     pillar_models_type, refuse_inapplicable, scene_pillars)
@@ -48,9 +49,6 @@ def add_parser(sub) -> None:
                                     "observed order and a GCI)")
     add_output_arguments(p, "report folder (default out/compare/<scene>)")
     p.add_argument("--no-render", action="store_true", help="skip the pyvista render")
-    for old, new in (("--fem-levels", "--levels"), ("--bem-levels", "--levels"),
-                     ("--fem-coarsest", "--mesh-size")):
-        p.add_argument(old, action=Renamed, successor=new)
     add_engine_arguments(p)
     p.set_defaults(func=run)
 

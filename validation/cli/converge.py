@@ -8,7 +8,7 @@ from pathlib import Path
 from pillar_xval.scenes import load_scene
 
 from ..registry import ladders
-from ._args import (Renamed, add_choice_arguments, add_engine_arguments, add_levels_argument,
+from ._args import (add_choice_arguments, add_engine_arguments, add_levels_argument,
                     add_model_argument, add_output_arguments, add_refinement_arguments,
                     add_scene_arguments, check_out, engine_from_args, not_converged, print_json,
                     refuse_inapplicable, scene_pillars)
@@ -29,8 +29,6 @@ def add_parser(sub) -> None:
     add_choice_arguments(p, ["pillars"])
     add_levels_argument(p, 3, 2, 8, "refinement levels (3 or more give an observed order)")
     add_output_arguments(p, "report folder (default out/converge/<scene>-<model>)")
-    p.add_argument("--coarsest", action=Renamed, successor="the model's refinement option "
-                   "(--elements-per-diameter, --cells-per-diameter or --mesh-size)")
     add_engine_arguments(p, "recompute cached levels")
     p.set_defaults(func=run)
 
@@ -47,8 +45,8 @@ def _fixed_options(args, scene) -> dict:
 
 def run(args) -> int:
     """Study, write the report folder, print the table; exit 1 if a level did not converge."""
-    from ..studies.converge import (OUTPUTS, check_ladder, converge_study, study_table,
-                                    write_report)
+    from ..studies._ladder import check_ladder
+    from ..studies.converge import OUTPUTS, converge_study, study_table, write_report
     from ..output.report import clear_outputs
 
     refuse_inapplicable(args, [args.model])

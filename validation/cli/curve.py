@@ -92,7 +92,7 @@ def _scenes(args, loads, flag_text: str, key: str) -> list:
 
 def run(args) -> int:
     from ..output.report import clear_outputs
-    from ..studies.converge import check_ladder
+    from ..studies._ladder import check_ladder
     from ..studies.curve import OUTPUTS, curve_study, read_data, write_outputs
 
     models = args.models or list(DEFAULT_MODELS)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from ..analysis.profiles import EDGE_SKIP, EDGE_WINDOW
 from ..studies.gecit import ASPECTS, CONVENTION, RATIOS
-from ._args import (Renamed, add_engine_arguments, add_output_arguments,
+from ._args import (add_engine_arguments, add_output_arguments,
                     add_refinement_arguments, add_scene_arguments, check_out,
                     engine_from_args, integer, number, print_json, study_status)
 from ._exit import EXIT_BAD_INPUT, EXIT_TOOL_FAILURE
@@ -47,8 +47,6 @@ def add_parser(sub) -> None:
     p.add_argument("--edge-nodes", type=integer(3, 10_000), default=None, metavar="N",
                    help="fit instead over the N nodes nearest the edge after the skipped ones")
     add_output_arguments(p, "report folder (default out/gecit)")
-    for old, new in (("--jobs", "--workers"), ("--bem-levels", "--levels")):
-        p.add_argument(old, action=Renamed, successor=new)
     add_engine_arguments(p)
     p.set_defaults(func=run)
 

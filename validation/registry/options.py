@@ -22,7 +22,7 @@ from pillar_xval.scenes import InputError
 
 __all__ = ["CELLS", "CELLS_PER_DIAMETER", "CONTACT", "DEVICE", "ELEMENTS_PER_DIAMETER",
            "MAX_ITERATIONS", "MESH_SIZE", "MESH_SIZE_3D", "OptionSpec", "PILLARS", "PLANNED",
-           "check_option", "flag"]
+           "BOTH", "check_option", "flag", "pillar_models"]
 
 
 @dataclass(frozen=True)
@@ -138,3 +138,26 @@ def check_option(name: str, value, where: str = "", spec: OptionSpec | None = No
     if (spec.lo is not None and value < spec.lo) or (spec.hi is not None and value > spec.hi):
         raise InputError(f"{shown} {value!r}: allowed range is {spec.allowed()}")
     return value
+
+
+# What --pillars takes beyond the BEM's own choices: every one of them, for a three-way table.
+BOTH = "both"
+
+
+def pillar_models(pillars) -> tuple[str, ...]:
+    """The BEMs' pillar models a compare runs, in the declaration's order: ``pillars`` is one
+    of the BEM's choices, ``"both"``, a comma list (``"hooke,elastic"``) or a sequence.
+    InputError (one line naming --pillars, the value and the allowed values) otherwise."""
+    allowed = tuple(PILLARS.choices)
+    if isinstance(pillars, str):
+        names = list(allowed) if pillars.strip() == BOTH else \
+            [p.strip() for p in pillars.split(",")]
+    else:
+        names = list(pillars)
+    if not names or any(p not in allowed for p in names) or len(set(names)) != len(names):
+        shown = pillars if isinstance(pillars, str) else ",".join(map(str, pillars))
+        twice = len(set(names)) != len(names) and all(p in allowed for p in names)
+        raise InputError(f"--pillars {shown!r}: allowed: {', '.join(allowed)}, {BOTH}, or a "
+                         f"comma list of {', '.join(allowed)}"
+                         + (" (each once)" if twice else ""))
+    return tuple(p for p in allowed if p in names)

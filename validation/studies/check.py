@@ -30,6 +30,7 @@ from pathlib import Path
 
 from pillar_xval.scenes import InputError, ScopeError, load_scene, preset_names
 
+from ..output.formatting import aligned
 from ..testing import (CLOSED_FORMS, QUANTITY_BY_KEY, assert_close,
                        assert_matches_closed_form, check_tolerance, closed_form_refusal,
                        quantity_value)
@@ -229,9 +230,7 @@ def table_text(rows: list[dict]) -> str:
     lines = [header] + [(r["name"], r.get("model_label", r["model"]),
                          r.get("reference_label", r["reference"]), ",".join(r["quantities"]),
                          f"{r['rtol']:g}", "pass" if r["passed"] else "FAIL") for r in rows]
-    widths = [max(len(str(line[i])) for line in lines) for i in range(len(header))]
-    out = ["  ".join(str(v).ljust(w) for v, w in zip(line, widths)).rstrip()
-           for line in lines]
+    out = aligned(lines)
     for r in rows:
         if not r["passed"]:
             out.append(f"\n{r['name']}:\n{r['message']}")

@@ -26,19 +26,20 @@ import json
 import math
 import shutil
 import time
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 
 from pillar_xval.outcome import write_atomic
-from pillar_xval.scenes import InputError, Scene, analytic
+from pillar_xval.scenes import Scene, analytic
 
 from ..engine import Engine
 from ..registry import QUANTITIES, ladder_for, quantity_values, reference_model
+from ..registry.options import pillar_models
 from ..analysis.profiles import profile_at
-from ..analysis.verification import study
 from ..output.report import scene_label
-from .converge import check_ladder, level_cases, study_levels
+from ._ladder import check_ladder, level_cases, profile_key, profile_studies, study_levels
 from .targets import TARGETS, judge
 
 FEM, FEM_3D, BEM = reference_model("single-pillar"), reference_model("lattice"), "bem"
@@ -58,31 +59,6 @@ FEM_COARSEST = {FEM: 2.0, FEM_3D: 2.0 * 2.0**0.5}
 # The report folder's files, report.json last: its presence means a whole report.
 OUTPUTS = ("summary.md", "profiles.png", "profiles.csv", "fem_finest.vtu", "fem_finest.json",
            "fem_stress_3d.png", "report.json")
-
-
-# What --pillars takes beyond the BEM's own choices: every one of them, for a three-way table.
-BOTH = "both"
-
-
-def pillar_models(pillars) -> tuple[str, ...]:
-    """The BEMs' pillar models a compare runs, in the declaration's order: ``pillars`` is one
-    of the BEM's choices, ``"both"``, a comma list (``"hooke,elastic"``) or a sequence.
-    InputError (one line naming --pillars, the value and the allowed values) otherwise."""
-    from ..registry.options import PILLARS
-
-    allowed = tuple(PILLARS.choices)
-    if isinstance(pillars, str):
-        names = list(allowed) if pillars.strip() == BOTH else \
-            [p.strip() for p in pillars.split(",")]
-    else:
-        names = list(pillars)
-    if not names or any(p not in allowed for p in names) or len(set(names)) != len(names):
-        shown = pillars if isinstance(pillars, str) else ",".join(map(str, pillars))
-        twice = len(set(names)) != len(names) and all(p in allowed for p in names)
-        raise InputError(f"--pillars {shown!r}: allowed: {', '.join(allowed)}, {BOTH}, or a "
-                         f"comma list of {', '.join(allowed)}"
-                         + (" (each once)" if twice else ""))
-    return tuple(p for p in allowed if p in names)
 
 
 def pillar_label(pillars: str) -> str:
@@ -236,25 +212,6 @@ def _values(result, r_ref: float) -> dict:
     return vals
 
 
-def profile_key(x: float) -> str:
-    """The name of the profile sample at r = x r_ref: ``sigma(r=0.5)``."""
-    return f"sigma(r={x:g})"
-
-
-def profile_studies(data: dict, r_ref: float, points=PROFILE_POINTS) -> dict:
-    """The convergence study of the pillar-top pressure at r = x r_ref for each x in
-    ``points``, over a ladder's ``levels`` (each with its ``h``) and ``results``; a point
-    outside any level's profile is left out."""
-    h = [lv["h"] for lv in data["levels"]]
-    samples = [profile_at(res.pillar_top_profile, r_ref, points) for res in data["results"]]
-    out = {}
-    for i, x in enumerate(points):
-        f = [s[i] for s in samples]
-        if all(v is not None for v in f) and len(f) >= 2:
-            out[profile_key(x)] = study(h, f)
-    return out
-
-
 def _quantity_name(key: str, r_label: str) -> str:
     _, unit = DISPLAY.get(key, DISPLAY["profile"])
     if key.startswith("sigma(r="):
@@ -307,6 +264,17 @@ def verdict_notes(rows: list[dict], kinds) -> list[str]:
     return lines
 
 
+def _cell(v, w: int = 10, f: str = ".5g", *, scale: float) -> str:
+    """``v`` in display units (``v * scale``), right-aligned in ``w``; "-" where it is None."""
+    return f"{'-':>{w}}" if v is None else f"{v * scale:>{w}{f}}"
+
+
+def _band_cell(u, is_gci: bool, *, scale: float) -> str:
+    """A band's cell: marked * when it is not a GCI."""
+    mark = " " if is_gci else "*"
+    return f"{'-':>9}" if u is None else f"{_cell(u, 8, '.2g', scale=scale)}{mark}"
+
+
 def _three_way_text(rows: list[dict], ref_name: str, r_label: str,
                     levels: int | None = None) -> str:
     """The three-way table: each BEM and the FEM with their bands, and each BEM's relative
@@ -325,12 +293,7 @@ def _three_way_text(rows: list[dict], ref_name: str, r_label: str,
     for r in rows:
         scale, _ = DISPLAY.get(r["quantity"], DISPLAY["profile"])
 
-        def fmt(v, w=10, f=".5g"):
-            return f"{'-':>{w}}" if v is None else f"{v * scale:>{w}{f}}"
-
-        def band(u, is_gci):
-            return f"{'-':>9}" if u is None else f"{fmt(u, 8, '.2g')}{' ' if is_gci else '*'}"
-
+        fmt, band = partial(_cell, scale=scale), partial(_band_cell, scale=scale)
         line = f"{_quantity_name(r['quantity'], r_label):<18}"
         for p in kinds:
             b = r["bems"][p]
@@ -369,12 +332,7 @@ def table_text(rows: list[dict], ref_name: str, r_label: str, levels: int | None
         scale, _ = DISPLAY.get(key, DISPLAY["profile"])
         name = _quantity_name(key, r_label)
 
-        def fmt(v, w=10, f=".5g"):
-            return f"{'-':>{w}}" if v is None else f"{v * scale:>{w}{f}}"
-
-        def band(u, is_gci):
-            return f"{'-':>9}" if u is None else f"{fmt(u, 8, '.2g')}{' ' if is_gci else '*'}"
-
+        fmt, band = partial(_cell, scale=scale), partial(_band_cell, scale=scale)
         diff = r["difference"]
         if diff is not None and abs(diff) <= 1e-12 * max(abs(r["bem"]), abs(r["fem"])):
             diff = 0.0  # round-off
@@ -566,7 +524,7 @@ def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None, leve
             engine.close()
     fem_data = study_levels(fem, scene, outcomes[:len(fem_cases)])
     fem_res = fem_data["results"][-1]
-    fem_studies = dict(fem_data["studies"]) | profile_studies(fem_data, r_ref)
+    fem_studies = dict(fem_data["studies"]) | profile_studies(fem_data, r_ref, PROFILE_POINTS)
     ref_name, reference = closed_form(scene)
     bem_data, bem_res, rows_by = {}, {}, {}
     start = len(fem_cases)
@@ -574,7 +532,8 @@ def compare_study(scene: Scene, out: Path, *, engine: Engine | None = None, leve
         bem_data[p] = study_levels(BEM, scene, outcomes[start:start + len(bem_cases[p])])
         start += len(bem_cases[p])
         bem_res[p] = bem_data[p]["results"][-1]
-        bem_studies = dict(bem_data[p]["studies"]) | profile_studies(bem_data[p], r_ref)
+        bem_studies = dict(bem_data[p]["studies"]) | profile_studies(bem_data[p], r_ref,
+                                                                     PROFILE_POINTS)
         rows_by[p] = compare_rows(_values(bem_res[p], r_ref), _values(fem_res, r_ref),
                                   bem_studies, fem_studies, reference,
                                   expected_model_errors(scene, p))

@@ -9,87 +9,15 @@ import json
 from pathlib import Path
 
 from pillar_xval.outcome import write_atomic
-from pillar_xval.scenes import InputError, Scene
+from pillar_xval.scenes import Scene
 
-from ..engine import Case, Engine, Outcome
-from ..registry import (FLOOR_QUANTITIES, QUANTITIES, check_option, flag, get_model,
-                        ladder_for, quantity_values)
-from ..analysis.verification import study
+from ..engine import Engine
+from ..registry import FLOOR_QUANTITIES, QUANTITIES
+from ..output.formatting import number, percent
+from ._ladder import level_cases, study_levels
 
 # The report folder's files, report (converge.json) last: its presence means a whole report.
 OUTPUTS = ("levels.csv", "gci.csv", "convergence.png", "converge.json")
-LEVELS_RANGE = (2, 8)
-
-
-def check_ladder(model: str, levels: int, coarsest: float | None = None,
-                 levels_flag: str = "--levels", lo: int = LEVELS_RANGE[0]) -> list:
-    """The option values of ``levels`` refinements of ``model`` from ``coarsest`` (default:
-    the ladder's), coarse to fine; InputError (one line) unless every level is allowed."""
-    ladder = ladder_for(model)
-    hi = LEVELS_RANGE[1]
-    if isinstance(levels, bool) or not isinstance(levels, int) or not lo <= levels <= hi:
-        raise InputError(f"{levels_flag} {levels!r}: allowed range is [{lo}, {hi}]")
-    name = flag(ladder.option)
-    spec = get_model(model).options[ladder.option]
-    if coarsest is not None:
-        check_option(ladder.option, coarsest, spec=spec)
-    values = [ladder.value(k, coarsest) for k in range(levels)]
-    for k, value in enumerate(values):
-        try:
-            check_option(ladder.option, value, spec=spec)
-        except InputError:
-            start = f"{name} {coarsest:g}" if coarsest is not None else \
-                f"{model}'s default {name} {ladder.coarsest:g}"
-            raise InputError(
-                f"{start} with {levels_flag} {levels}: level {k + 1} would be "
-                f"{ladder.option} = {value:g}, outside {spec.allowed()} "
-                f"(fewer levels, or another coarsest level)") from None
-    return values
-
-
-def level_cases(model: str, scene: Scene, levels: int, *, coarsest: float | None = None,
-                tag: str = "", vtu_finest: bool = False,
-                options: dict | None = None) -> list[Case]:
-    """The cases of ``levels`` refinements of ``model`` on ``scene``, coarse to fine;
-    ``options``: the model's other options, the same on every level (``pillars``, say)."""
-    check_ladder(model, levels, coarsest)
-    ladder = ladder_for(model)
-    return [Case(model, scene, {**ladder.options(k, coarsest), **(options or {})},
-                 vtu=vtu_finest and k == levels - 1,
-                 tag=f"{tag + ' ' if tag else ''}{k + 1}/{levels}") for k in range(levels)]
-
-
-def study_levels(model: str, scene: Scene, outcomes: list[Outcome]) -> dict:
-    """The verification study of finished levels (coarse to fine).
-
-    Returns a JSON-ready dict with the ladder, one row per level and, per quantity, the
-    :func:`validation.analysis.verification.study` dict, ``label`` (the model with its pillar
-    model, as tables and plots name it), plus ``results`` (the ContactResults, not JSON).  A
-    level that failed raises its error.
-    """
-    ladder = ladder_for(model)
-    rows, results = [], []
-    for k, o in enumerate(outcomes):
-        result = o.unwrap()
-        value = o.case.options[ladder.option]
-        vtu = o.files.get("fields.vtu")
-        rows.append({"level": k, "options": dict(o.case.options), "value": value,
-                     "h": ladder.size(value), "cached": o.cached,
-                     "converged": bool(result.converged),
-                     "message": str(result.diagnostics.get("message", "")),
-                     "wall_time_s": o.timing["wall_time_s"],
-                     "vtu": None if vtu is None else str(vtu), **quantity_values(result)})
-        results.append(result)
-    h = [r["h"] for r in rows]
-    mixed = any(r.floor_force_N > 0.0 for r in results)  # the floor's quantities too
-    studies = {q.key: study(h, [r[q.key] for r in rows])
-               for q in QUANTITIES + (FLOOR_QUANTITIES if mixed else ())}
-    return {"model": model, "label": results[-1].label if results else model,
-            "scene": scene.to_dict(),
-            "ladder": {"option": ladder.option, "h_meaning": ladder.h_meaning,
-                       "h_power": ladder.h_power, "fixed": ladder.fixed},
-            "levels": rows, "studies": studies,
-            "all_converged": all(r["converged"] for r in rows), "results": results}
 
 
 def converge_study(model: str, scene: Scene, levels: int, cache_dir: Path, *,
@@ -119,19 +47,15 @@ def study_table(data: dict) -> str:
         g = data["studies"][q.key]["gci"]
         lines.append(
             f"{q.key:<8}{g['f'][0]:>13.6g} {q.unit:<4}"
-            + f"{_num(g['order'], '.3f'):>9}{_num(g['f_exact'], '.7g'):>14}"
-            + f"{_num(None if g['gci_fine'] is None else 100 * g['gci_fine'], '.3g', '%'):>10}"
-            + f"{_num(g['asymptotic_ratio'], '.3f'):>16}  {g['status']}")
+            + f"{number(g['order'], '.3f'):>9}{number(g['f_exact'], '.7g'):>14}"
+            + f"{percent(g['gci_fine'], '.3g', ''):>10}"
+            + f"{number(g['asymptotic_ratio'], '.3f'):>16}  {g['status']}")
     return "\n".join(lines)
 
 
 def studied(data: dict) -> tuple:
     """The quantities of a study: :data:`QUANTITIES`, and the floor's on a mixed contact."""
     return tuple(q for q in QUANTITIES + FLOOR_QUANTITIES if q.key in data["studies"])
-
-
-def _num(x, fmt: str, suffix: str = "") -> str:
-    return "-" if x is None else f"{x:{fmt}}{suffix}"
 
 
 def levels_csv(data: dict) -> str:

@@ -37,7 +37,7 @@ from pillar_xval.scenes import InputError, Scene, analytic
 from ..analysis.verification import study
 from ..engine import Case, Engine
 from ..registry import MODELS, ladder_for
-from .converge import check_ladder
+from ._ladder import check_ladder
 
 __all__ = ["CSV_COLUMNS", "DATA_COLUMNS", "OUTPUTS", "closed_form_curves", "curve_study",
            "read_data", "write_outputs"]

@@ -41,7 +41,7 @@ from pillar_xval.scenes import InputError, Scene, load_scene
 
 from ..analysis.verification import study
 from ..engine import Case, Engine
-from .lattice.analysis import _estimate
+from ._ladder import estimate
 from .onset import onset_study
 from .targets import judge
 
@@ -155,8 +155,8 @@ def _quantities(result) -> dict:
 def _compare(key: str, fem_st, bem_st) -> dict:
     if fem_st is None or bem_st is None:
         return {"fem": None, "bem": None, **judge(None, None, None, None, FLOOR_TARGETS[key])}
-    fv, fb, fhow = _estimate(fem_st)
-    bv, bb, bhow = _estimate(bem_st)
+    fv, fb, fhow = estimate(fem_st)
+    bv, bb, bhow = estimate(bem_st)
     rule = judge_points if key == "floor_share" else judge
     return {"fem": fv, "fem_band": fb, "fem_how": fhow, "bem": bv, "bem_band": bb,
             "bem_how": bhow, **rule(bv, bb, fv, fb, FLOOR_TARGETS[key])}

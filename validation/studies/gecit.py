@@ -33,8 +33,8 @@ from ..engine import Case, Engine
 from ..registry import check_option, get_model, ladder_for, reference_model
 from ..analysis.profiles import (EDGE_SKIP, EDGE_WINDOW, edge_exponent, outer_load_fraction,
                                  plateau_ratio)
-from .converge import check_ladder, study_levels
-from ..output.formatting import percent
+from ._ladder import check_ladder, study_levels
+from ..output.formatting import number, percent
 
 # The paper's convention (Table 1: E_p = E_s): every scene of the study has it.
 CONVENTION = "E_s = E_p (substrate as stiff as the pillars, the paper's convention)"
@@ -215,9 +215,6 @@ def table_text(rows: list[dict]) -> str:
     def band(v):
         return percent(v, ".2f", "")
 
-    def num(v, f):
-        return "-" if v is None else format(v, f)
-
     for r in rows:
         e = r.get("edge_fit") or {}
         rng = ("-" if e.get("rho_min_rel") is None
@@ -226,10 +223,10 @@ def table_text(rows: list[dict]) -> str:
             f"{r['ratio']:>8.3g}{r['aspect']:>6.3g}{pct(r.get('err_F_T')):>9}"
             f"{band(r.get('U_BEM_F_T')):>7}{pct(r.get('err_sigma0')):>9}"
             f"{band(r.get('U_BEM_sigma0')):>7}{pct(r.get('err_F_spring')):>9}"
-            f"{num(r.get('plateau'), '.3f'):>8}{num(r.get('edge_exponent'), '.3f'):>7}"
-            f"{num(e.get('r_squared'), '.3f'):>6}{rng:>19}"
-            f"{num(r.get('outer_load_fraction'), '.3f'):>9}"
-            f"{num(r.get('fem_time_s'), '.1f'):>7}{num(r.get('bem_time_s'), '.1f'):>7}"
+            f"{number(r.get('plateau'), '.3f'):>8}{number(r.get('edge_exponent'), '.3f'):>7}"
+            f"{number(e.get('r_squared'), '.3f'):>6}{rng:>19}"
+            f"{number(r.get('outer_load_fraction'), '.3f'):>9}"
+            f"{number(r.get('fem_time_s'), '.1f'):>7}{number(r.get('bem_time_s'), '.1f'):>7}"
             f"  {r['status']}")
     return "\n".join(lines)
 

@@ -40,7 +40,7 @@ __all__ = ["CSV_COLUMNS", "DEFAULT_POINTS", "FAMILIES", "FORMAT", "HOOKE_LEVELS"
 FORMAT = "pillar-xval regimes 1"
 # Phi from a sparse lattice to just below close packing (pi / (2 sqrt 3) = 0.9069).
 PHI_RANGE = (0.002, 0.9)
-# zeta / h up to the deep indentations: past h + g(d/2) the lens can reach the floor
+# zeta / h up to deep indentations: past h + g(d/2) the lens can reach the floor
 # between the pillars (the mixed regime), where only a model with the floor is a candidate.
 ZETA_RANGE = (0.01, 10.0)
 # Points per axis: the default map plans 30 x 30 scenes (about 25 ms each on an idle core).

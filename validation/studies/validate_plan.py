@@ -23,7 +23,7 @@ The best reference per scene:
   2, 1, 0.5 (blocks 1e5 radii wide: truncation ~5e-6);
 - several pillars touch (the other scenes): the Hooke pillars, the cross-checked Richardson
   estimate of the dense BEM (P = 11, 15, 21) and the FFT BEM (N = 32, 48, 64) of
-  :func:`validation.studies.tradeoff.reference_values`.  The Hooke pillar's own error there
+  :func:`validation.studies._ladder.reference_values`.  The Hooke pillar's own error there
   is measured by the lattice study (fem-3d) and reported by the plan as unavoidable;
 - flat: the half-spaces, cross-checked over both BEMs and fem-axisym.
 
@@ -90,23 +90,19 @@ from ..planner.features import regime
 from ..planner.plan import DEFAULT_QUANTITIES, DEFAULT_TOLERANCE, default_data, plan
 from ..planner.tables import PlannerData, load_data
 from .lattice import FEM_LEVELS
-from .tradeoff import reference_values
-from ..output.formatting import percent
+from ._ladder import reference_values
+from ..output.formatting import number, percent
 
 __all__ = ["VALIDATION_SEED", "check_options", "estimate", "estimate_text", "fem3d_fits",
            "judged_data", "judged_quantities", "measured_only", "miss_reasons", "prepare",
            "report_totals", "resolved_miss", "scene_counts", "sigma0_lattices", "summary_text",
            "validate_planner", "validation_scenes", "write_outputs"]
 
-# The seed the shipped data was validated on.  Seeds 20251126, 20251201, 20261126, 20261127
-# and 20261128 validated earlier data, and their runs then set the elastic BEMs' cost factors
-# (cost_models.json), showed where the Gecit grid needed more indentations and where the
-# elastic rungs were too far apart: they are no longer unseen.  20261129-20261132 (the last
-# with 120 scenes) validated the data before its errors carried signs, and their runs,
-# re-planned offline, chose how signed errors combine (tables.DEFAULT_POLICY); 20261133-35
-# validated the signed data before the FFT BEM's rung N = 28 (their runs showed it missing);
-# 20261137-39 validated the shipped data too (all four, 240 scenes: 95.8 % within tolerance,
-# 90.6 % within 2x of the cheapest accurate candidate).
+# The seed the shipped data was validated on.  Seeds 20251126, 20251201 and 20261126 to
+# 20261135 are not unseen: their runs shaped the data (the elastic BEMs' cost factors, the
+# Gecit grid's indentations, the elastic and FFT rungs, how signed errors combine:
+# tables.DEFAULT_POLICY).  20261137-39 validated the shipped data too (with this seed, 240
+# scenes: 95.8 % within tolerance, 90.6 % within 2x of the cheapest accurate candidate).
 VALIDATION_SEED = 20261136
 DEFAULT_SCENES, DEFAULT_LATTICE = 60, 15
 MAX_SCENES, MAX_LATTICE, MAX_SEED = 500, 100, 2**32 - 1
@@ -598,11 +594,11 @@ def summary_text(doc: dict) -> str:
                       "" if r["cheap"] in (None, True) else ", MISS time"))
         regime_text = r["regime"] + (" *" if r["reference_kind"] == "lattice" else "")
         lines.append(
-            f"{r['name']:<7}{regime_text:<16}{_num(r['phi'], '.3g'):>8}"
-            f"{_num(r['zeta_um'], '.3g'):>9}{_num(r['ratio'], '.3g'):>9}  "
+            f"{r['name']:<7}{regime_text:<16}{number(r['phi'], '.3g'):>8}"
+            f"{number(r['zeta_um'], '.3g'):>9}{number(r['ratio'], '.3g'):>9}  "
             f"{(r['planned'] or '-'):<20}{_pct(pred):>9}{_pct(act):>11}"
-            f"{_num(r.get('time_s'), '.3g'):>9}  {(r.get('cheapest') or '-'):<20}"
-            f"{_num(r.get('cheapest_time_s'), '.3g'):>9}  {verdict}")
+            f"{number(r.get('time_s'), '.3g'):>9}  {(r.get('cheapest') or '-'):<20}"
+            f"{number(r.get('cheapest_time_s'), '.3g'):>9}  {verdict}")
     lat = t["lattice"]
     lines += ["* lattice-sigma0 scene: fem-3d reference, every candidate (hand entries "
               "included) judged", "",
@@ -647,10 +643,6 @@ def summary_text(doc: dict) -> str:
         lines.append(f"misses ({len(doc['misses'])}):")
         lines += [f"  {m['name']}: " + "; ".join(m["reasons"]) for m in doc["misses"]]
     return "\n".join(lines)
-
-
-def _num(v, fmt):
-    return "-" if v is None else format(v, fmt)
 
 
 def write_outputs(doc: dict, out: Path) -> list:

@@ -17,7 +17,7 @@ from ...planner.tables import LOO_RELEVANT, ErrorTable
 from .measured import HOOKE_MODELS, QKEYS, _measured
 
 
-# A lattice study run before rows carried their indentation was at this one.
+# The indentation of a report whose rows do not carry theirs: the study's default.
 LATTICE_ZETA_UM = 0.3
 
 

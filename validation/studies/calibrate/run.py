@@ -8,7 +8,7 @@ Every number comes from studies run on the engine (resumable, cached in ``OUT/ca
   fem-axisym's ladder where one pillar touches, all three on flat scenes.  The discretisation
   error of a rung is measured against a converged reference of the same physics: the Hooke
   pillar's is ``tradeoff``'s cross-checked Richardson estimate from both BEMs
-  (:func:`validation.studies.tradeoff.reference_values`), the elastic pillar's the FEM's
+  (:func:`validation.studies._ladder.reference_values`), the elastic pillar's the FEM's
   Richardson estimate over mesh_size 2, 1, 0.5;
 - the Gecit-like study (:func:`validation.studies.gecit.gecit_study`) on a full grid of
   E_p/E_l x E_s/E_l x h/d x zeta (:data:`.scenes.GECIT_ZETAS_UM`): the Hooke pillar's error
@@ -43,7 +43,7 @@ from ...analysis.verification import gci_three
 from .scenes import GECIT_ZETAS_UM, flat_scenes, gecit_scenes, lattice_scenes, punch_scenes
 from ...planner.features import features, regime
 from ...planner.tables import DATA_FORMAT, DEFAULT_POLICY, ErrorTable
-from ..tradeoff import reference_values
+from .._ladder import reference_values
 from .costs import _cost_fits, _cost_samples
 from .hand import keep_hand_entries
 from .lattice_tables import with_lattice

@@ -13,7 +13,7 @@ from pillar_xval.outcome import write_atomic
 from .claims import verdict
 from .fits import PAPER_AREA_EXPONENT, PAPER_EXPONENT
 from .plots import PILLAR_NAMES
-from ...output.formatting import percent
+from ...output.formatting import markdown_table, percent
 
 __all__ = ["write_report"]
 
@@ -48,8 +48,7 @@ def _star_at(curve: dict, phi: float) -> float:
 
 
 def _table(doc: dict) -> list[str]:
-    rows = ["| quantity | paper | ours | difference | note |", "|---|---|---|---|---|"]
-    return rows + [f"| {' | '.join(r)} |" for r in _table_rows(doc)]
+    return markdown_table(("quantity", "paper", "ours", "difference", "note"), _table_rows(doc))
 
 
 def _table_rows(doc: dict) -> list[tuple[str, str, str, str, str]]:
@@ -235,7 +234,7 @@ def _merged_table(docs: dict) -> list[str]:
     names = [PILLAR_NAMES.get(v, v) for v in docs]
     head = ["quantity", "paper"] + [x for n in names for x in (f"ours, {n} pillars",
                                                                "difference")] + ["note"]
-    rows = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    body = []
     for q in order:
         got = parsed[q]
         any_ = next(iter(got.values()))
@@ -249,21 +248,21 @@ def _merged_table(docs: dict) -> list[str]:
         notes = {v: c[4] for v, c in got.items()}
         cells.append(any_[4] if len(set(notes.values())) == 1 else "; ".join(
             f"{PILLAR_NAMES.get(v, v)}: {n}" for v, n in notes.items() if n))
-        rows.append("| " + " | ".join(cells) + " |")
-    return rows
+        body.append(cells)
+    return markdown_table(head, body)
 
 
 def _claims_table(claims: list[dict], variants) -> list[str]:
     names = [PILLAR_NAMES.get(v, v) for v in variants]
     head = ["figure", "the paper's claim", "criterion"] + \
         [x for n in names for x in (f"{n} pillars", "holds")]
-    rows = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    body = []
     for c in claims:
         cells = [c["figure"], c["claim"], c["criterion"]]
         for v in variants:
             cells += [c[v]["value"], f"**{verdict(c[v]['holds'])}**"]
-        rows.append("| " + " | ".join(cells) + " |")
-    return rows
+        body.append(cells)
+    return markdown_table(head, body)
 
 
 # What the claims judged on the coarse grid of `figures --quick` are worth.

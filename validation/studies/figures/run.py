@@ -131,7 +131,7 @@ def pillar_variants(pillars) -> tuple[str, ...]:
     """The pillar models of a figures run: ``"hooke"`` (default), ``"elastic"``, ``"both"``
     (or a comma list / sequence), in the declaration's order.  InputError (one line naming
     --pillars, the value and the allowed values) otherwise."""
-    from ..compare import pillar_models
+    from ...registry.options import pillar_models
 
     return pillar_models(pillars)
 

@@ -9,7 +9,7 @@ from pillar_xval.scenes import InputError, lattice
 
 from ...analysis.verification import study
 from ...registry import QUANTITIES, quantity_values
-from ..compare import profile_key, profile_studies
+from .._ladder import estimate, profile_key, profile_studies
 from ..targets import TARGETS, judge
 from .points import BEM_NAMES, ELASTIC, FEM_MODEL, HOOKE, PROFILE_POINTS, LatticePoint
 
@@ -46,15 +46,6 @@ def _ladder(outcomes, option, h_power) -> dict:
     studies = {q.key: study(h, [r[q.key] for r in rows]) for q in QUANTITIES}
     return {"levels": rows, "studies": studies, "results": [o.result for o in done],
             "error": None}
-
-
-def _estimate(st: dict) -> tuple[float, float, str]:
-    """(value, band, how): the Richardson estimate and its GCI band when the finest levels
-    are asymptotic; otherwise the finest value with the fallback band (3 x the spread)."""
-    g = st["gci"]
-    if g["status"] == "ok" and g["f_exact"] is not None:
-        return g["f_exact"], g["uncertainty"], "richardson"
-    return g["f"][0], g["fallback_uncertainty"], g["status"]
 
 
 def ring_ratios(fem_result, bem_result) -> list[dict]:
@@ -125,8 +116,8 @@ def _differences(fem: dict, bem: dict) -> dict:
     |BEM|, and whether the difference is beyond them."""
     out = {}
     for q in QUANTITIES:
-        fv, fb, fhow = _estimate(fem["studies"][q.key])
-        bv, bb, bhow = _estimate(bem["studies"][q.key])
+        fv, fb, fhow = estimate(fem["studies"][q.key])
+        bv, bb, bhow = estimate(bem["studies"][q.key])
         diff = (fv - bv) / bv if bv else None
         band = (fb + bb) / abs(bv) if bv else None
         out[q.key] = {
@@ -140,7 +131,7 @@ def _estimates(studies: dict, key, prefix: str, unit: str) -> dict:
     """``{prefix_unit, prefix_band_unit, prefix_how}`` of one study (None when absent)."""
     if key not in studies:
         return {f"{prefix}_{unit}": None, f"{prefix}_band_{unit}": None, f"{prefix}_how": None}
-    v, b, how = _estimate(studies[key])
+    v, b, how = estimate(studies[key])
     return {f"{prefix}_{unit}": v, f"{prefix}_band_{unit}": b, f"{prefix}_how": how}
 
 
