@@ -132,6 +132,29 @@ def test_preconditioner_keeps_a_rim_cell_s_two_parts_apart():
     assert result.regime == "mixed"
 
 
+def test_preconditioner_s_rim_term_acts_only_where_both_parts_are_free():
+    """The parts' Jacobi term is for a rim cell whose two parts are both free; with one part
+    free the circulant part sees it alone, and the term would only overweight it (on the tops
+    of a mixed contact, 21 instead of 14 PCG iterations on its final contact set)."""
+    from bem_solver._fft_operator import CirculantPreconditioner
+
+    _, setup = _setup(["load.indentation_um=2.8", "pillars.rigid=true"])
+    grid, plan = setup.grid, setup.plan
+    pre = CirculantPreconditioner(plan)
+    bare = CirculantPreconditioner(plan)
+    bare.pairs = None
+    r = np.random.default_rng(2).random(grid.n_cells)
+    rim_tops = np.zeros(grid.n_cells, dtype=bool)
+    rim_tops[pre.pairs[0]] = True
+    rim_floors = np.arange(grid.n_cells) >= grid.n_unique
+    assert rim_tops.any() and rim_floors.sum() == rim_tops.sum()
+    for free in (~grid.floor, grid.floor, rim_tops | (grid.floor & ~rim_floors)):
+        np.testing.assert_array_equal(pre(r, free), bare(r, free))  # never both parts
+    rims = rim_tops | rim_floors
+    changed = pre(r, rims) != bare(r, rims)
+    assert changed[rims].all() and not changed[~rims].any()
+
+
 def test_short_pillars_tend_to_hertz_on_the_flat_substrate():
     heights = (0.02, 0.01, 0.005)
     errors = []
