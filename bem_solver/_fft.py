@@ -86,8 +86,9 @@ HISTORY_MAX = 2000
 # interpolated start's residual is 0.05-0.2 zeta whatever the coarse tolerance (the
 # discretisation differs between the levels), so a coarse residual below 1e-2 buys the fine
 # solve nothing: at 1e-2 instead of 1e-4 the coarse levels took 11 and 3 iterations instead
-# of 19 and 11 with the floor reached (R = 1 mm, Phi = 0.03, N = 36), the fine one 25
-# instead of 27; 17 and 19 on the suspended scene, 32 and 33 on paper-fig3-dense (N = 32).
+# of 19 and 11 with the floor reached (R = 1 mm, Phi = 0.03, N = 36) and the fine one 25
+# instead of 27; the fine level took 19 instead of 17 on the suspended scene and 33 instead
+# of 32 on paper-fig3-dense (N = 32), its coarse levels 7 and 10 fewer.
 WARM_START_MIN_CELLS = 8
 WARM_START_TOL = 1e-2
 # Fewest cells across the Hertz-like contact 2 sqrt(R zeta) on the centre pillar top for an
