@@ -85,9 +85,15 @@ DEFAULT_TOLERANCE = 1e-8
 # Residual histories longer than this are thinned (every k-th entry, first and last kept).
 HISTORY_MAX = 2000
 # Nested iteration: coarsest level and tolerance of the coarse solves (their only job is to
-# give the fine solve a good start; the fine tolerance decides the accuracy).
+# give the fine solve a good start; the fine tolerance decides the accuracy).  The
+# interpolated start's residual is 0.05-0.2 zeta whatever the coarse tolerance (the
+# discretisation differs between the levels), so a coarse residual below 1e-2 buys the fine
+# solve nothing: at 1e-2 instead of 1e-4 the coarse levels took 11 and 3 iterations instead
+# of 19 and 11 with the floor reached (R = 1 mm, Phi = 0.03, N = 36) and the fine one 25
+# instead of 27; the fine level took 19 instead of 17 on the suspended scene and 33 instead
+# of 32 on paper-fig3-dense (N = 32), its coarse levels 7 and 10 fewer.
 WARM_START_MIN_CELLS = 8
-WARM_START_TOL = 1e-4
+WARM_START_TOL = 1e-2
 # On a GPU the default warm start nests no level: each coarse level's grid, kernel table and
 # result are host work and launches that cost more than the CG iterations they save.  On an
 # H200 at 1e6 cells (paper-fig3-dense) a cold start took 0.63 s against 0.80 s with one level
@@ -424,27 +430,59 @@ def _interpolate(rough: ContactResult, grid: CellGrid, be, slivers: bool = True)
     the least accurate one and, with the equivalent-square self-compliance ~ 1 / sqrt(phi), a
     wrong sliver pressure costs many constrained-CG iterations to undo.  Without the edge
     correction (``slivers=False``) every cell takes the plain bilinear interpolation.  The
-    tops and the floor are carried separately, each from its own coarse cells."""
+    tops and the floor are carried separately, each from its own coarse cells, and each
+    pillar's top and the floor then carry the coarse solution's forces
+    (:func:`_keep_forces`)."""
     f = rough.fields
     coarse_floor = f.get("floor")
     if not grid.has_floor and (coarse_floor is None or not coarse_floor.any()):
-        return _interpolate_layer(f, None, grid, None, be, slivers)
+        return _keep_forces(rough, grid, _interpolate_layer(f, None, grid, slice(None), be,
+                                                            slivers), be)
     xp = be.xp
     q = xp.zeros(grid.n_cells, dtype=xp.float64)
-    fine_floor = be.asarray(grid.floor)
     for layer in (False, True):
         coarse = np.ones(len(f["x_m"]), dtype=bool) if coarse_floor is None else \
             coarse_floor == layer
-        if not coarse.any() or not (grid.floor == layer).any():
+        cells = np.flatnonzero(grid.floor == layer)
+        if not coarse.any() or not cells.size:
             continue
-        part = _interpolate_layer(f, coarse, grid, grid.floor == layer, be, slivers)
-        q = xp.where(fine_floor == layer, part, q)
-    return q
+        part = _interpolate_layer(f, coarse, grid, cells, be, slivers)
+        q = be.put(q, be.asarray(cells), part)
+    return _keep_forces(rough, grid, q, be)
 
 
-def _interpolate_layer(f: dict, coarse, grid: CellGrid, fine, be, slivers: bool):
-    """:func:`_interpolate` from the coarse cells ``coarse`` (a mask, or None: all) onto every
-    fine cell (``fine`` only names the layer; the caller keeps its cells)."""
+def _keep_forces(rough: ContactResult, grid: CellGrid, q, be):
+    """``q`` (the coarse pressure interpolated onto ``grid``) scaled on each pillar's top and
+    on the floor to the force the coarse solution puts there.
+
+    The coarse level's forces are accurate to its discretisation error (F_T within 0.1 %
+    between N = 18 and 36), but the interpolation misses the pressure's edge singularity at
+    the pillars' rims: it lost 12 % of the tops' force at N = 36 (rigid pillars, R = 1 mm,
+    Phi = 0.03, zeta = 3 um).  With the floor reached, that deficit lets the lens sink
+    onto the floor around its contact (1.6e5 cells interpenetrating at the start, the first
+    residual 0.18 zeta); kept, 1.1e3 cells and 0.08 zeta.  A pillar or the floor without a
+    force on either side keeps its interpolated values."""
+    if grid.flat or (not rough.pillar_forces and not rough.floor_force_N):
+        return q
+    xp = be.xp
+    n_pillars = len(grid.pillar_nm)
+    coarse = np.zeros(n_pillars + 1)
+    where = {(int(n), int(m)): k for k, (n, m) in enumerate(grid.pillar_nm)}
+    for pf in rough.pillar_forces:
+        k = where.get((pf.n, pf.m))
+        if k is not None:
+            coarse[k] = pf.force_N
+    coarse[n_pillars] = rough.floor_force_N
+    fine = np.bincount(grid.pillar, weights=be.to_numpy(q) * grid.cell_size**2,
+                       minlength=n_pillars + 1)[:n_pillars + 1]
+    ratio = np.where((coarse > 0.0) & (fine > 0.0), coarse / np.where(fine > 0.0, fine, 1.0),
+                     1.0)
+    return q * xp.take(be.asarray(ratio, dtype=xp.float64), be.asarray(grid.pillar))
+
+
+def _interpolate_layer(f: dict, coarse, grid: CellGrid, cells, be, slivers: bool):
+    """:func:`_interpolate` from the coarse cells ``coarse`` (a mask, or None: all) onto the
+    fine cells ``cells`` (indices on the host, or a slice): their values, in that order."""
     xp = be.xp
     if coarse is not None:
         f = {k: (v[coarse] if isinstance(v, np.ndarray) and v.shape == coarse.shape else v)
@@ -460,14 +498,14 @@ def _interpolate_layer(f: dict, coarse, grid: CellGrid, fine, be, slivers: bool)
     pressure[at] = np.where(solid, f["pressure_Pa"], 0.0)
     weight[at] = solid
     smeared[at] = f["pressure_Pa"] * f["covered_fraction"]
-    cy = be.asarray(grid.y, dtype=xp.float64) / Lc - float(iy.min())
-    cx = be.asarray(grid.x, dtype=xp.float64) / Lc - float(ix.min())
+    cy = be.asarray(grid.y[cells], dtype=xp.float64) / Lc - float(iy.min())
+    cx = be.asarray(grid.x[cells], dtype=xp.float64) / Lc - float(ix.min())
     bulk = _bilinear(xp, be.asarray(smeared), cy, cx)
     if not slivers:
         return xp.maximum(bulk, 0.0)
     num = _bilinear(xp, be.asarray(pressure), cy, cx)
     den = _bilinear(xp, be.asarray(weight), cy, cx)
-    covered = be.asarray(grid.covered, dtype=xp.float64)
+    covered = be.asarray(grid.covered[cells], dtype=xp.float64)
     sliver = xp.where(den > 1e-3, num / xp.maximum(den, 1e-3), 0.0) * covered
     return xp.maximum(xp.where(covered >= 0.5, bulk, sliver), 0.0)
 
