@@ -66,11 +66,17 @@ MAX_MESHINGS = 4
 # has at most half the fine mesh's unknowns, mesh_size <= 2.83), as the FFT model's levels
 # design its grids.  The pillars' reach changes every ~1.4 % of zeta on paper-fig3-dense
 # (30 sector pillars): the closed-form guess (+0.9 % there) meshed a pillar too many, and a
-# second fine mesh and factorisation were paid; the coarse answer (mesh_size 4 against 2:
-# zeta within ~0.5 %) costs a quarter of the unknowns.  The coarse mesh is built for the
-# guess times COARSE_MARGIN and again, larger, until it holds every pillar in the reach of
-# its answer (pillars beyond carry no load, so a wider coarse mesh answers alike).
+# second fine mesh and factorisation were paid; the coarse answer costs a quarter of the
+# unknowns.  The coarse mesh is stiffer: at mesh_size 4 against 2 it carried 0.74-1.19 %
+# more force on paper-fig3-dense (zeta 0.1-0.5 um) and 1.0-4.0 % on four other lattices
+# (Phi 0.2-0.82, E_p / E_l 1 and 10), its zeta for a given force 0.50-2.6 % short; the
+# design adds COARSE_SHORTFALL per halving of the element size, the least measured.  It
+# then holds the solved pillars on 96 % of paper-fig3-dense's zeta 0.1-0.5 um (31 pillar
+# changes), against 84 % without.  The coarse mesh is built for the guess times
+# COARSE_MARGIN and again, larger, until it holds every pillar in the reach of its answer
+# (pillars beyond carry no load, so a wider coarse mesh answers alike).
 COARSE_FACTOR = 2.0
+COARSE_SHORTFALL = 0.005
 COARSE_MARGIN = 1.05
 # Element size on the centre pillar's top over the contact element size (see _setup).
 CENTRE_RATIO = 0.25
@@ -213,7 +219,9 @@ def solve(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None, progress=None,
     else:  # refused at the guess, as the closed-form path is, before the coarse solves
         guess = scene.designed(analytic.indentation_estimate(scene))
         _refuse_if_too_large(guess, mesh_size, sector_angle, reach_factor)
-        solved = scene.designed(_coarse_design(scene, coarse, options, clock, rounds))
+        shortfall = 1.0 + COARSE_SHORTFALL * math.log2(coarse / mesh_size)
+        solved = scene.designed(shortfall * _coarse_design(scene, coarse, options, clock,
+                                                           rounds))
     fine_rounds = len(rounds)
     while True:
         _refuse_if_too_large(solved, mesh_size, sector_angle, reach_factor)
