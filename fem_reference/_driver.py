@@ -68,7 +68,11 @@ class PhaseClock:
         self._marks.append((phase, time.perf_counter()))
 
     def durations(self) -> dict:
-        return {k: t - t0 for (_, t0), (k, t) in zip(self._marks, self._marks[1:])}
+        """Seconds by phase, summed over the rounds that repeat it."""
+        out: dict = {}
+        for (_, t0), (k, t) in zip(self._marks, self._marks[1:]):
+            out[k] = out.get(k, 0.0) + t - t0
+        return out
 
     def elapsed(self) -> float:
         return time.perf_counter() - self._marks[0][1]

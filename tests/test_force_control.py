@@ -100,12 +100,30 @@ def test_round_trip_with_elastic_pillars(compliance_cache):
 
 
 @pytest.mark.slow
-def test_round_trip_fem3d_on_a_lattice():
+@pytest.mark.parametrize("mesh_size", [4.0, 2.83])
+def test_round_trip_fem3d_on_a_lattice(mesh_size):
+    """Without a coarser level (4: the guess's mesh) and with one (2.83, designed at 4)."""
     scene = load_scene("paper-fig3-sparse", ["pillars.surface_fraction=0.1",
                                              "load.indentation_um=0.1"])
-    given = run_model("fem-3d", scene, mesh_size=4.0)
+    given = run_model("fem-3d", scene, mesh_size=mesh_size)
     _same_answer(given, run_model("fem-3d", scene.at_force(given.total_force_N),
-                                  mesh_size=4.0))
+                                  mesh_size=mesh_size))
+
+
+def test_fem3d_under_a_force_meshes_the_fine_level_once():
+    """Below mesh_size 2.83 the fine mesh is built for the coarse level's answer under the
+    same force (twice the element size, at most 4): on one pillar, whose meshed pillars
+    never change, one coarse round and one fine mesh, and the round trip holds."""
+    from fem_reference.solid3d.driver import _coarse_size
+
+    assert [_coarse_size(s) for s in (1.41, 2.0, 2.83, 3.0, 4.0)] == [2.82, 4.0, 4.0, None,
+                                                                       None]
+    scene = load_scene("single-pillar")
+    given = run_model("fem-3d", scene, mesh_size=2.83)
+    back = run_model("fem-3d", scene.at_force(given.total_force_N), mesh_size=2.83)
+    assert [r["mesh_size"] for r in back.diagnostics["design_rounds"]] == [4.0, 2.83]
+    assert given.converged and back.converged
+    _same_answer(given, back)
 
 
 @pytest.mark.parametrize("preset", ["paper-fig3-sparse", "single-pillar"])

@@ -11,9 +11,9 @@ After an untimed warm-up of both (imports, caches), the two are timed alternatel
 ..., in this process: medians of the repeats, the ratio of the medians beside the median of
 the pairs' ratios, and the load average before and after (the machine may be shared).  Also
 recorded: the force met, |F - F0| / F0; the round trip, the indentation found against the
-given one; the iterations of both solves and the force-controlled solve's design rounds (a
-mesh or grid built again for the solved indentation).  Targets: at most 1.5x for the BEMs,
-2x for the FEMs.  Prints a table and writes ``bench_force.json`` and ``bench_force.md``.
+given one; the iterations of both solves and the force-controlled solve's design rounds (each
+mesh or grid built for a design indentation, fem-3d's coarse level's included).  Targets: at
+most 1.5x for the BEMs, 2x for the FEMs.  Prints a table and writes ``bench_force.json`` and ``bench_force.md``.
 """
 
 from __future__ import annotations
