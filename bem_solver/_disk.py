@@ -8,11 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-
-def _as_float(a):
-    """``a`` as a float array of its own library (numpy for scalars and lists): the
-    functions here also run on a GPU's arrays, whose ufuncs numpy's calls dispatch to."""
-    return a.astype(float, copy=False) if hasattr(a, "astype") else np.asarray(a, float)
+from pillar_xval.scenes.analytic import float_array
 
 
 def _segment_integral(y, a, b, rad):
@@ -40,8 +36,8 @@ def disk_rectangle_area(x0, x1, y0, y1, rad):
     """
     a = np.clip(x0, -rad, rad)
     b = np.clip(x1, -rad, rad)
-    area = _segment_integral(_as_float(y1), a, b, rad) \
-        - _segment_integral(_as_float(y0), a, b, rad)
+    area = _segment_integral(float_array(y1), a, b, rad) \
+        - _segment_integral(float_array(y0), a, b, rad)
     return np.maximum(area, 0.0)
 
 
@@ -65,8 +61,8 @@ def disk_rectangle_centroid(x0, x1, y0, y1, rad):
     area = disk_rectangle_area(x0, x1, y0, y1, rad)
     a, b = np.clip(x0, -rad, rad), np.clip(x1, -rad, rad)
     c, d = np.clip(y0, -rad, rad), np.clip(y1, -rad, rad)
-    mx = _segment_moment(_as_float(y1), a, b, rad) \
-        - _segment_moment(_as_float(y0), a, b, rad)
-    my = _segment_moment(_as_float(x1), c, d, rad) \
-        - _segment_moment(_as_float(x0), c, d, rad)
+    mx = _segment_moment(float_array(y1), a, b, rad) \
+        - _segment_moment(float_array(y0), a, b, rad)
+    my = _segment_moment(float_array(x1), c, d, rad) \
+        - _segment_moment(float_array(x0), c, d, rad)
     return mx / area, my / area

@@ -140,8 +140,9 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
         Start from the solution at N // 2 cells per diameter (recursively, down to
         ``WARM_START_MIN_CELLS``), interpolated bilinearly (nested iteration).  An integer
         k >= 0 nests at most k levels (the coarsest of them starts cold; 0 is False).  On a
-        GPU, True means ``GPU_WARM_START_LEVELS`` (none): there the coarse levels' set-up
-        outweighs the iterations they save.
+        GPU, an indentation-controlled solve takes True as ``GPU_WARM_START_LEVELS`` (none):
+        there the coarse levels' set-up outweighs the iterations they save.  Under a force
+        the coarse level also designs the grid, so it is kept on either device.
     edge_correction : bool
         True (default): partly covered cells act on an equivalent square at the centroid of
         their covered part and are collocated there (module docstring).  False: the plain grid
@@ -190,7 +191,7 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     """
     start = time.perf_counter()
     check_pillars(pillars, scene)
-    check_warm_start(warm_start)
+    _check_warm_start(warm_start)
     if precision not in PRECISIONS:
         raise InputError(f"precision = {precision!r}: choose one of {', '.join(PRECISIONS)}")
     elastic = uses_elastic_block(scene, pillars)
@@ -320,7 +321,7 @@ def _coarser(scene: Scene, cells_per_diameter: int, opts: _Options, be, workspac
                      _workspace=workspace)
 
 
-def check_warm_start(warm_start) -> None:
+def _check_warm_start(warm_start) -> None:
     """Refuse (InputError) a ``warm_start`` that is neither a bool nor an int >= 0."""
     if isinstance(warm_start, bool):
         return

@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pillar_xval.scenes import Scene, SceneError
+from pillar_xval.scenes.analytic import lens_gap
 from pillar_xval.scenes.floor import floor_reach
 from pillar_xval.scenes.lattice import pillars_within
 
@@ -232,8 +233,7 @@ def build_grid(scene: Scene, cells_per_diameter: int,
             f"{shape[1]} cells (padded FFT {4 * shape[0] * shape[1]} points > "
             f"{max_fft_points}); choose fewer cells per diameter")
     x, y = ax[col], ax[row]
-    r2 = xp.hypot(colloc_x, colloc_y) ** 2  # lens_gap's own steps, on xp's arrays
-    gap0 = r2 / (R + xp.sqrt(R * R - r2)) - zeta
+    gap0 = lens_gap(R, xp.hypot(colloc_x, colloc_y)) - zeta
     if floor is not None:
         gap0[floor] += scene.pillars.height_m
     centre = xp.nonzero((xp.abs(x) < 0.5 * L) & (xp.abs(y) < 0.5 * L))[0]
@@ -354,18 +354,10 @@ def _pillar_cells(scene, ax, L, r_cand, floor=False, xp=np):
     del best_frac
     total_frac, owner = total_frac.ravel(), owner.ravel()
     tops = (total_frac.copy(), moment_x.ravel(), moment_y.ravel()) if floor else None
-    # The tops outside the candidate disk are not candidates: cleared row by row (on the
-    # host; on a device by one mask), so that the kept cells come from one scan of the
-    # square (no distance per cell).
-    reach = _row_reach(ax, r_cand, xp)
-    if xp is np:
-        for iy in range(side):
-            row = total_frac[iy * side:(iy + 1) * side]
-            row[:max(half - reach[iy], 0)] = 0.0
-            row[half + reach[iy] + 1:] = 0.0
-    else:
-        beyond = xp.abs(xp.arange(side)[None, :] - half) > reach[:, None]
-        total_frac[beyond.ravel()] = 0.0
+    # The tops outside the candidate disk are not candidates: cleared by each row's column
+    # bound, so that the kept cells come from one scan of the square (no distance per cell).
+    beyond = xp.abs(xp.arange(side)[None, :] - half) > _row_reach(ax, r_cand, xp)[:, None]
+    total_frac[beyond.ravel()] = 0.0
     # Near close packing a cell may overlap two tops: it goes to the larger share and carries
     # the sum of both (the Hooke term then acts on one pillar only, an O(L^2) effect).
     keep = xp.flatnonzero(total_frac > MIN_COVERED_FRACTION)

@@ -23,11 +23,17 @@ from ._scene import PHI_CLOSE_PACKING, Scene, SceneError
 
 
 # --- geometry --------------------------------------------------------------------------
+def float_array(a):
+    """``a`` as a float array of its own library (numpy for scalars and lists): the geometry
+    here also runs on a GPU's arrays (cupy), whose ufuncs numpy's calls dispatch to."""
+    return a.astype(float, copy=False) if hasattr(a, "astype") else np.asarray(a, float)
+
+
 def lens_gap(radius: float, r):
     """Gap before loading between a sphere of ``radius`` touching at r = 0 and the plane,
     R - sqrt(R^2 - r^2) (m), written r^2 / (R + sqrt(R^2 - r^2)) to avoid cancellation
-    for r << R; arrays allowed."""
-    r2 = np.asarray(r, dtype=float) ** 2
+    for r << R; arrays (numpy's or a GPU's) allowed."""
+    r2 = float_array(r) ** 2
     return r2 / (radius + np.sqrt(radius * radius - r2))
 
 

@@ -104,6 +104,12 @@ def number(lo: float | None = None, hi: float | None = None, *, open_lo: bool = 
     return parse
 
 
+def positive_numbers(text: str) -> list[float]:
+    """A comma-separated list of numbers > 0 (argparse type)."""
+    parse = number(0.0, open_lo=True)
+    return [parse(v.strip()) for v in text.split(",") if v.strip()]
+
+
 def option_type(name: str):
     """The strict argparse type of a model option (its spec in
     :func:`validation.registry.option_vocabulary`)."""

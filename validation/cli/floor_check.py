@@ -6,8 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ._args import (add_engine_arguments, add_output_arguments, check_out, engine_from_args,
-                    print_json, study_status)
-from .lattice import _numbers
+                    positive_numbers, print_json, study_status)
 
 
 def add_parser(sub) -> None:
@@ -24,7 +23,8 @@ def add_parser(sub) -> None:
                     "estimates against the targets (1 %, 2 points, 5 %, 2 %, or both GCI "
                     "bands where wider).  Writes floor_check.md, floor_check.csv and "
                     "floor_check.json; resumes after an interruption (cases in DIR/cases).")
-    p.add_argument("--surface-fractions", type=_numbers, default=None, metavar="PHI,...",
+    p.add_argument("--surface-fractions", type=positive_numbers, default=None,
+                   metavar="PHI,...",
                    help="only the study's scenes with these surface fractions (default all: "
                         + ",".join(f"{q.surface_fraction:g}" for q in POINTS) + ")")
     p.add_argument("--quick", action="store_true",

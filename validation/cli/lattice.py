@@ -7,12 +7,7 @@ import argparse
 from pathlib import Path
 
 from ._args import (add_engine_arguments, add_output_arguments, check_out,
-                    engine_from_args, number, print_json, study_status)
-
-
-def _numbers(text: str) -> list[float]:
-    parse = number(0.0, open_lo=True)
-    return [parse(v.strip()) for v in text.split(",") if v.strip()]
+                    engine_from_args, number, positive_numbers, print_json, study_status)
 
 
 # --paper-scenes grid: every point of the Phi x E_p/E_l grid but E_p = E_l (the same scene).
@@ -61,9 +56,10 @@ def add_parser(sub) -> None:
                     "profile 5 %, or both bands where wider).  Writes lattice.csv, rings.csv, "
                     "profile.csv, lattice.png, profiles.png, summary.md and lattice.json; "
                     "resumes after an interruption (cases in DIR/cases).")
-    p.add_argument("--surface-fractions", type=_numbers, default=list(PHIS), metavar="PHI,...",
+    p.add_argument("--surface-fractions", type=positive_numbers, default=list(PHIS),
+                   metavar="PHI,...",
                    help=f"surface fractions (default {','.join(f'{v:g}' for v in PHIS)})")
-    p.add_argument("--ratios", type=_numbers, default=list(RATIOS), metavar="R,...",
+    p.add_argument("--ratios", type=positive_numbers, default=list(RATIOS), metavar="R,...",
                    help=f"E_p/E_l values (default {','.join(f'{v:g}' for v in RATIOS)})")
     p.add_argument("--paper-scenes", type=_pairs, default=None, metavar="PHI:R,...",
                    help="scenes at the paper's convention E_s = E_p, as Phi:E_p/E_l pairs, "
