@@ -200,6 +200,10 @@ class WedgeGeometry:
         # With a floor the rule is the same at z and -h - z (the floor's faces and their
         # copies on the lens, the pillars' tops and bases get the same curves' nodes).
         mirror = self.floor_radius_m is not None
+        # The floor's candidate disk is a contact face as the tops are: size h_c throughout
+        # (else it grows with the distance from the nearest rim, and the floor's contact
+        # edges, far from the rims on a sparse lattice, were resolved by a few elements).
+        c_f = self.floor_radius_m / self.focus_radius_m if mirror else 0.0
         around = [(dn, dm) for dn in (-1, 0, 1) for dm in (-1, 0, 1)]
         near = {}  # rounded lattice indices -> the meshed centres among their 3 x 3 block
 
@@ -235,6 +239,11 @@ class WedgeGeometry:
             t = h_e + g * hypot(rim, base if base < top else top)
             if t < s:
                 s = t
+            if mirror:  # the floor's disk rho <= c_f at z = -h and its copy at z = 0
+                rf = hypot(x, y) - c_f
+                t = h_c + g * hypot(rf if rf > 0.0 else 0.0, zf)
+                if t < s:
+                    s = t
             if centred:  # the centre pillar's top: the disk r <= 1 at z = 0
                 r0 = hypot(x, y) - 1.0
                 t = h_0 + g * hypot(r0 if r0 > 0.0 else 0.0, zf)
