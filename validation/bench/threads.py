@@ -13,7 +13,9 @@
    pillars, cells collocated at their centres: validation/bench/fft.py's "ours") at N = 32
    and 58 (3.1e5 and 1.0e6 cells) on one thread, its CPU time split into the pocketfft
    transforms, the elementwise work the numpy path runs in chunks on the transforms' threads
-   (``bem_solver._fft_operator.in_chunks``) and the rest, each per iteration over the float64
+   (``bem_solver._xp.in_chunks``: the operator's scatter, spectrum product and gather, the
+   preconditioner's and the CG's vector passes) and the rest (the CG's dot products, the
+   pillar sums, Python), each per iteration over the float64
    FFT pair's CPU time on the same padded grid (kept arrays, one thread); and the 2-thread
    wall time per iteration over the pair on 2 threads they predict, transforms and chunked
    work halved, the rest not (R_fft + R_chunks + 2 R_rest): on a machine others load, CPU
@@ -90,6 +92,7 @@ def _split(spec: dict) -> dict:
     threads: CPU seconds of the transforms, of the chunked work and of the rest, and wall."""
     import bem_solver._fft as fft_model
     import bem_solver._fft_operator as operator
+    import bem_solver._xp as devices
     from bem_solver._fft_grid import build_grid
     from pillar_xval.scenes import load_scene
     from pillar_xval.threads import thread_count
@@ -113,7 +116,10 @@ def _split(spec: dict) -> dict:
     pocket = operator._pocketfft
     operator._pocketfft = type("Timed", (), {
         name: staticmethod(timed(getattr(pocket, name), "fft")) for name in ("r2c", "c2c", "c2r")})
+    # The operator's chunks and the backend's (the CG's and the preconditioner's passes):
+    # each module's own name, so no call is timed twice.
     operator.in_chunks = timed(operator.in_chunks, "chunks")
+    devices.in_chunks = timed(devices.in_chunks, "chunks")
     solve_cg, fine = fft_model.constrained_cg, {}
 
     def cg(*args, **kwargs):
@@ -230,7 +236,8 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=Path("out/bench-threads"))
     ap.add_argument("--threads", default=None,
                     help="comma-separated thread counts (default 1 up to the CPUs)")
-    ap.add_argument("--cases", default="fft,dense", help=f"among {', '.join(CASES)}")
+    ap.add_argument("--cases", default="fft,dense",
+                    help=f"among {', '.join(CASES)} (empty: the FFT iteration's split only)")
     ap.add_argument("--fem3d-mesh", type=float, default=None)
     ap.add_argument("--fem3d-phi", type=float, default=None)
     ap.add_argument("--repeats", type=int, default=3)
@@ -255,7 +262,7 @@ def main(argv=None) -> int:
     load_before = [round(v, 2) for v in os.getloadavg()]
     runs, splits = [], []
     for rep in range(args.repeats):
-        for name in args.cases.split(","):
+        for name in (v for v in args.cases.split(",") if v):
             for t in counts:
                 print(f"bench-threads: {rep + 1}/{args.repeats} {name} on {t} thread(s)",
                       file=sys.stderr, flush=True)
