@@ -147,12 +147,14 @@ bench-fem3d-floor: $(STAMP)
 # Thread scaling: bem-fft at 1e6 cells and the dense BEM on 1 up to the CPUs this process may
 # use (fresh interpreters, medians of 3 interleaved runs, answers compared with 1 thread's),
 # and the FFT iteration's CPU split against the float64 pair at 3e5 and 1e6 cells (a few
-# minutes; THREADS=1,2,4,8,16 and CASES=fft,dense,fem3d for a larger machine).
+# minutes; THREADS=1,2,4,8,16 and CASES=fft,dense,fem3d for a larger machine; CASES= for the
+# split alone; BASELINE=DIR, another checkout, splits its iteration too, interleaved).
 THREADS ?=
 CASES ?= fft,dense
+BASELINE ?=
 bench-threads: $(STAMP)
-	$(PY) -m validation.bench.threads --out $(OUT)/bench-threads --cases $(CASES) \
-		$(if $(THREADS),--threads $(THREADS),)
+	$(PY) -m validation.bench.threads --out $(OUT)/bench-threads --cases "$(CASES)" \
+		$(if $(THREADS),--threads $(THREADS),) $(if $(BASELINE),--baseline $(BASELINE),)
 
 # The planner's predicted over measured seconds of bem-fft and dense bem solves at 1 and all
 # the CPUs (THREADS=1,4,16 to choose), this machine calibrated afresh at each count.

@@ -27,14 +27,14 @@ References
 from __future__ import annotations
 
 import math
-import os
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from pillar_xval.contact._xp import one_piece
+
 from ._limits import PRECISIONS
 from ._love import FAR_FIELD_RATIO, love_far, love_rectangle, love_square_everywhere
-from ._xp import NumpyDevice
+from ._xp import NumpyDevice, in_chunks
 
 try:  # scipy.fft's own transforms, which write into given arrays (scipy.fft has no out=)
     from scipy.fft._pocketfft import pypocketfft as _pocketfft
@@ -64,31 +64,6 @@ SINGLE_PRECISION_ERROR = 2e-6
 # 1/SPARSE_ROWS_FRACTION of all cells (a row slice of the sparse matrix), else its whole
 # product.
 SPARSE_ROWS_FRACTION = 16
-# Elementwise work of the numpy path on fewer elements than this runs in one piece: below it
-# handing chunks to threads costs more than it saves.
-CHUNK_MIN = 1 << 16
-
-_POOLS: dict = {}
-
-
-def in_chunks(work, n: int, workers: int, size: int = 1) -> None:
-    """``work(lo, hi)`` over [0, n) in ``workers`` contiguous chunks at once (numpy releases
-    the GIL in elementwise work, scatters and gathers): each element gets the same operations
-    in any split, so results are bit-identical whatever ``workers`` is.  ``size``: elements
-    per unit of n (a row's length); one piece for one worker or fewer than
-    :data:`CHUNK_MIN` elements."""
-    if workers <= 1 or n * size < CHUNK_MIN:
-        work(0, n)
-        return
-    key = (os.getpid(), workers)  # a pool's threads do not survive a fork
-    pool = _POOLS.get(key)
-    if pool is None:
-        pool = _POOLS[key] = ThreadPoolExecutor(workers, thread_name_prefix="fft-chunks")
-    bounds = [n * k // workers for k in range(workers + 1)]
-    for _ in pool.map(lambda k: work(bounds[k], bounds[k + 1]), range(workers)):
-        pass
-
-
 def kernel_block(shape, cell_size: float, compliance: float, xp=np):
     """K(i L, j L) for 0 <= i < ny, 0 <= j < nx in m/Pa (rows = y offsets), built in the
     array namespace ``xp`` (on the device): the far form everywhere, the exact form in the
@@ -558,10 +533,18 @@ class CompliancePlan:
         if self.correction is not None:
             u += self.correction @ q
         if self.has_spring:
-            u += self.per_cell(self.pillar_spring * self.pillar_sums(q))
+            self._add(u, self.per_cell(self.pillar_spring * self.pillar_sums(q)))
         if self.pillar_term is not None:
             u += self.pillar_term(q)
         return u
+
+    def _add(self, u, v) -> None:
+        """u += v in place, in the backend's chunks (the FFT threads on numpy)."""
+        def part(lo, hi):
+            w = u[lo:hi]
+            w += v[lo:hi]
+
+        getattr(self.backend, "chunks", one_piece)(part, int(u.shape[0]))
 
     @property
     def approximate(self):
@@ -612,7 +595,7 @@ class CompliancePlan:
                 u += self.correction @ whole()
         if self.has_spring:
             forces = be.segment_sum(xp.take(self.pillar, index), values, self.n_pillars)
-            u += self.per_cell(self.pillar_spring * forces)
+            self._add(u, self.per_cell(self.pillar_spring * forces))
         if self.pillar_term is not None:
             pillar_part = self.pillar_term.apply_few(index, values)
             u += self.pillar_term(whole()) if pillar_part is None else pillar_part
@@ -793,12 +776,28 @@ class CirculantPreconditioner:
     def __call__(self, r, free):
         be = self.backend
         xp = be.xp
+        chunks = getattr(be, "chunks", one_piece)
+        n = int(r.shape[0])
         # Restrictions to F as products with its indicator (a third of where(free, x, 0)'s
         # time on numpy; the vectors are finite), S folded into it, in place where the
-        # vector is this call's own (products by 0 or 1 are exact: the same values).
-        mask = xp.astype(free, xp.float64)
-        restrict = mask if self.scale is None else mask * self.scale
-        rf = r * mask
+        # vector is this call's own (products by 0 or 1 are exact: the same values).  The
+        # elementwise passes run in the backend's chunks (the FFT threads on numpy: the same
+        # bits in any split), into arrays kept between calls; the pillar sums run whole.
+        mask, rf = self._kept(r)
+        scale = self.scale
+
+        def restriction(lo, hi):
+            return mask[lo:hi] if scale is None else mask[lo:hi] * scale[lo:hi]
+
+        def restrict_input(lo, hi):
+            m, v = mask[lo:hi], rf[lo:hi]
+            m[...] = xp.astype(free[lo:hi], xp.float64)
+            v[...] = r[lo:hi]
+            v *= m
+            if not self.pillars and scale is not None:
+                v *= restriction(lo, hi)
+
+        chunks(restrict_input, n)
         weight = self.plan.pillar_weight
         if self.pillars:
             count = self.plan.pillar_sums(mask)
@@ -808,10 +807,14 @@ class CirculantPreconditioner:
             sums = self.plan.pillar_sums(rf)
             if weight is not None:
                 sums = sums * weight
-            rf -= self.plan.per_cell(sums * per_cell)
-            rf *= restrict
-        elif self.scale is not None:  # (else rf is already restricted to F)
-            rf *= restrict
+            means = self.plan.per_cell(sums * per_cell)
+
+            def remove_means(lo, hi):
+                v = rf[lo:hi]
+                v -= means[lo:hi]
+                v *= restriction(lo, hi)
+
+            chunks(remove_means, n)
         z = self._inverse(rf, single=self.single)
         if self.pairs is not None:
             top, floor = self.pairs
@@ -819,7 +822,12 @@ class CirculantPreconditioner:
                 / self._self_reference
             for part in self.pairs:
                 z = be.put(z, part, xp.take(z, part) + xp.take(rf, part) * both)
-        z *= restrict
+
+        def restrict_output(lo, hi):
+            v = z[lo:hi]
+            v *= restriction(lo, hi)
+
+        chunks(restrict_output, n)
         if not self.pillars:
             return z
         z_sums = self.plan.pillar_sums(z)
@@ -827,6 +835,21 @@ class CirculantPreconditioner:
             z_sums = z_sums * weight
         mode = self.plan.pillar_mode_compliance(count) + self._disk * count * xp.sqrt(count)
         coarse = sums / xp.where(count > 0.0, mode, 1.0)
-        z += self.plan.per_cell(coarse - z_sums * per_cell)
-        z *= mask
+        modes = self.plan.per_cell(coarse - z_sums * per_cell)
+
+        def add_modes(lo, hi):
+            v = z[lo:hi]
+            v += modes[lo:hi]
+            v *= mask[lo:hi]
+
+        chunks(add_modes, n)
         return z
+
+    def _kept(self, r):
+        """The indicator of F and the restricted residual: arrays of ``r``'s shape kept
+        between calls (only this call reads them; z, returned, is the convolution's own)."""
+        kept = getattr(self, "_arrays", None)
+        if kept is None or kept[0].shape != r.shape:
+            xp = self.backend.xp
+            kept = self._arrays = (xp.empty_like(r), xp.empty_like(r))
+        return kept

@@ -9,9 +9,12 @@ runs on: numpy and scipy.fft on the CPU (the default), cupy and cuFFT on a CUDA 
 from __future__ import annotations
 
 import functools
+import os
+from concurrent.futures import ThreadPoolExecutor
 
+import numpy as np
 
-from pillar_xval.contact._xp import CupyArrays, NumpyArrays
+from pillar_xval.contact._xp import CupyArrays, NumpyArrays, run_starts
 from pillar_xval.scenes import InputError
 from pillar_xval.threads import thread_count
 
@@ -23,6 +26,31 @@ GPU_INSTALL = "pip install -e '.[gpu]' (cupy-cuda12x; with CUDA 13, pip install 
 # spectrum 4, complex column transforms 16 + 8, cuFFT work area ~16, vectors) with a margin;
 # the limit is the free device memory over this.
 GPU_BYTES_PER_FFT_POINT = 64
+
+
+# Elementwise work of the numpy path on fewer elements than this runs in one piece: below it
+# handing chunks to threads costs more than it saves.
+CHUNK_MIN = 1 << 16
+
+_POOLS: dict = {}
+
+
+def in_chunks(work, n: int, workers: int, size: int = 1) -> None:
+    """``work(lo, hi)`` over [0, n) in ``workers`` contiguous chunks at once (numpy releases
+    the GIL in elementwise work, scatters, gathers and reductions): each element gets the
+    same operations in any split, so results are bit-identical whatever ``workers`` is (a
+    chunk may be empty).  ``size``: elements per unit of n (a row's length); one piece for
+    one worker or fewer than :data:`CHUNK_MIN` elements."""
+    if workers <= 1 or n * size < CHUNK_MIN:
+        work(0, n)
+        return
+    key = (os.getpid(), workers)  # a pool's threads do not survive a fork
+    pool = _POOLS.get(key)
+    if pool is None:
+        pool = _POOLS[key] = ThreadPoolExecutor(workers, thread_name_prefix="fft-chunks")
+    bounds = [n * k // workers for k in range(workers + 1)]
+    for _ in pool.map(lambda k: work(bounds[k], bounds[k + 1]), range(workers)):
+        pass
 
 
 class NumpyDevice(NumpyArrays):
@@ -57,6 +85,35 @@ class NumpyDevice(NumpyArrays):
         import scipy.fft as sfft
 
         return sfft.irfft(a, n=n, axis=axis, workers=self.workers)
+
+    def chunks(self, work, n: int) -> None:
+        """``work(lo, hi)`` over [0, n) in chunks on the FFT threads (:func:`in_chunks`)."""
+        in_chunks(work, n, self.workers)
+
+    def segments(self, index, n: int):
+        """:meth:`NumpyArrays.segments` with the runs' sums in chunks of runs on the FFT
+        threads: each run's ``np.add.reduceat`` over the same elements, so the same bits in
+        any split."""
+        index = np.asarray(index)
+        starts = run_starts(index)
+        if starts is None:
+            return super().segments(index, n)
+        labels, ends = index[starts], np.append(starts[1:], index.size)
+        per_run = max(index.size // starts.size, 1)
+
+        def sums(weights):
+            runs = np.empty(starts.size)
+
+            def part(r0, r1):
+                if r1 > r0:
+                    lo = starts[r0]
+                    np.add.reduceat(weights[lo:ends[r1 - 1]], starts[r0:r1] - lo,
+                                    out=runs[r0:r1])
+
+            in_chunks(part, starts.size, self.workers, per_run)
+            return np.bincount(labels, weights=runs, minlength=n)
+
+        return sums
 
     def next_fast_len(self, n: int) -> int:
         import scipy.fft as sfft

@@ -180,14 +180,17 @@ def test_numpy_convolution_into_kept_arrays_is_the_generic_path():
 
 def test_the_numpy_paths_threads_change_no_bit(monkeypatch):
     """The numpy path's elementwise work (scatter, zero fill, spectrum product, gather, the
-    kernel table's sums) runs in chunks on the FFT threads: on 1, 2 or 3 threads the
-    operator, the preconditioner, a few cells' convolution and the table's update give the
-    same bits (every element gets the same operations in any split)."""
-    import bem_solver._fft_operator as operator
+    kernel table's sums, the Hooke term's update, the preconditioner's passes and pillar
+    sums, the CG's passes) runs in chunks on the FFT threads: on 1, 2 or 3 threads the
+    operator, the preconditioner, a few cells' convolution and update, the table's update
+    and a whole constrained CG give the same bits (every element gets the same operations in
+    any split)."""
+    import bem_solver._xp as devices
     from bem_solver._fft_operator import CirculantPreconditioner
+    from pillar_xval.contact import constrained_cg
 
-    monkeypatch.setattr(operator, "CHUNK_MIN", 1)  # chunks on this small grid too
-    _, grid, plan = _small_plan("paper-fig3-dense", ["load.indentation_um=0.02"], 6)
+    monkeypatch.setattr(devices, "CHUNK_MIN", 1)  # chunks on this small grid too
+    scene, grid, plan = _small_plan("paper-fig3-dense", ["load.indentation_um=0.02"], 6)
     pre = CirculantPreconditioner(plan)
     rng = np.random.default_rng(7)
     q = rng.random(grid.n_cells)
@@ -195,10 +198,16 @@ def test_the_numpy_paths_threads_change_no_bit(monkeypatch):
     index = np.sort(rng.choice(grid.n_cells, 40, replace=False))
     few = index[:min(5, plan.few_max)]
 
+    assert plan.has_spring  # the Hooke term and the pillar modes in the comparison
+
     def answers():
+        cg = constrained_cg(plan, grid.gap0, np.zeros(grid.n_cells), tol=1e-10,
+                            scale=scene.indentation_m, precondition=pre, backend=plan.backend)
+        assert cg.converged and cg.iterations > 3
         return [plan._convolution(q, single).copy() for single in (False, True)] + [
-            pre(q, free).copy(), plan._convolution.few(index, q[index], True).copy(),
-            plan._table_sum(few, q[few]).copy()]
+            plan(q), pre(q, free).copy(), plan._convolution.few(index, q[index], True).copy(),
+            plan.apply_few(index, q[index]), plan._table_sum(few, q[few]).copy(),
+            cg.pressure, cg.gap, np.array(cg.history)]
 
     plan.backend.workers = 1
     one = answers()

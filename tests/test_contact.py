@@ -201,3 +201,69 @@ def test_segments_sum_like_bincount(kind):
     got = NUMPY.segments(index, n)(weights)
     assert got.shape == (n,)
     np.testing.assert_allclose(got, expect, rtol=1e-12, atol=1e-12 * np.abs(weights).sum())
+
+
+@pytest.mark.parametrize("kind", ["runs", "scattered", "empty"])
+def test_threaded_segments_give_the_one_piece_bits(kind, monkeypatch):
+    """The FFT model's numpy backend sums the runs in chunks of runs on its threads: on 2,
+    3 and 7 threads the same bits as the whole reduceat of :class:`NumpyArrays` (each run's
+    sum over the same elements), and bincount's sums to round-off."""
+    import bem_solver._xp as devices
+    from pillar_xval.contact._xp import NUMPY
+
+    monkeypatch.setattr(devices, "CHUNK_MIN", 1)  # chunks on these few labels too
+    rng = np.random.default_rng(9)
+    n = 40
+    index = _labels(kind, n, rng)
+    weights = rng.standard_normal(index.size)
+    expect = NUMPY.segments(index, n)(weights)
+    for workers in (2, 3, 7):
+        assert np.array_equal(devices.NumpyDevice(workers).segments(index, n)(weights), expect)
+
+
+def test_chunked_steps_are_the_plain_steps():
+    """The CG's fused passes (in chunks, in kept arrays) against the plain expressions they
+    replace, bit for bit, in one piece and in uneven pieces: the residual and the free set,
+    the conjugate direction, the step and its minimum, the clipping, the gap's update with
+    its rounding scale, and the new contact set with its entries."""
+    from pillar_xval.contact import _cg
+
+    rng = np.random.default_rng(11)
+    n = 1001
+    gap, t, z, w, clip = (rng.standard_normal(n) for _ in range(5))
+    q = np.maximum(rng.standard_normal(n), 0.0)
+    active = q > 0.0
+    weights = rng.random(n) + 0.5
+    tau, beta = 0.37, 0.81
+
+    def uneven(work, size):
+        for lo, hi in ((0, 0), (0, 17), (17, 17), (17, 600), (600, size)):
+            work(lo, hi)
+
+    for chunks in (_cg.one_piece, uneven):
+        for weight in (None, weights):
+            free = np.zeros(n, dtype=bool)
+            g = gap if weight is None else gap / weight
+            plain = max(-float(g.min()), float((g * active).max()), 0.0)
+            assert _cg._residual(np, gap, active, weight, n, chunks, free) == plain
+            assert np.array_equal(free, active | (gap < 0.0))
+        got = t.copy()
+        chunks(_cg._conjugate(np, got, beta, z, free), n)
+        assert np.array_equal(got, (t * beta + z) * free)
+        step = np.empty(n)
+        low = _cg._step(np, chunks, step, q, tau, t, n)
+        assert np.array_equal(step, q - tau * t) and low == float((q - tau * t).min())
+        clipped = step.copy()
+        chunks(_cg._clip(np, clipped), n)
+        assert np.array_equal(clipped, np.maximum(step, 0.0))
+        for extra in (None, clip):
+            g, ww = gap.copy(), w.copy()
+            scale = _cg._update_gap(np, chunks, g, ww, tau, extra, n)
+            expect = gap - w * tau + (0.0 if extra is None else extra)
+            assert np.array_equal(g, expect) and np.array_equal(ww, w * tau)
+            assert scale == _cg._max_abs(np, w * tau) + (
+                0.0 if extra is None else _cg._max_abs(np, extra))
+        new = np.zeros(n, dtype=bool)
+        entered = _cg._new_set(np, chunks, new, clipped, active, n)
+        assert np.array_equal(new, clipped > 0.0)
+        assert entered == bool(np.any(new & ~active))

@@ -83,7 +83,7 @@ from collections.abc import Callable
 from typing import Any, Protocol, runtime_checkable
 
 from ._solution import ContactSolution
-from ._xp import NUMPY
+from ._xp import NUMPY, one_piece
 
 
 class Operator(Protocol):
@@ -205,6 +205,7 @@ def constrained_cg(apply: Operator, b, q0, *, scale, tol=1e-8, max_iterations=10
     be = NUMPY if backend is None else backend
     xp = be.xp
     dot = be.dot
+    chunks = getattr(be, "chunks", one_piece)
     if precondition is None:
         scaling = 1.0 if inverse_diagonal is None else inverse_diagonal
         precondition = lambda r, free: xp.where(free, r * scaling, 0.0)  # noqa: E731
@@ -247,18 +248,24 @@ def constrained_cg(apply: Operator, b, q0, *, scale, tol=1e-8, max_iterations=10
     err = float("inf")
     # Vectors outside the free set are kept exactly zero, so plain dot products over all
     # cells equal the sums over the free set (boolean gathers are slow on 1e6 cells).
-    # Updates are in place where the vector is the iteration's own (t, w, gap): the same
-    # floating-point operations, without fresh arrays (page faults on large grids).
+    # Updates are in place where the vector is the iteration's own (t, w, gap, and the
+    # kept arrays of q's and the sets' next values): the same floating-point operations,
+    # without fresh arrays (page faults on large grids).  The elementwise passes run in the
+    # backend's ``chunks`` (threads on the FFT model's numpy path): each element gets the
+    # same operations, and the reductions in them are exact (max, min, any), so the bits do
+    # not depend on the split; the dot products run whole.
     active = q > 0.0
+    free = xp.zeros_like(active)
+    spare_q, spare_active = xp.empty_like(q), xp.zeros_like(active)
     for it in range(1, max_iterations + 1):
         if fc is not None:
             gap = fc.recentre(gap, active)
             scale = fc.scale
-        err = _residual(xp, gap, active, weights, n) / scale
+        err = _residual(xp, gap, active, weights, n, chunks, free) / scale
         if drift > 0.0 and (err <= tol or drift > DRIFT_SHARE * err * scale):
             gap = exact_gap(q)
             drift, since_refresh = 0.0, 0
-            err = _residual(xp, gap, active, weights, n) / scale
+            err = _residual(xp, gap, active, weights, n, chunks, free) / scale
         history.append(err)
         best, since_best = (err, 0) if err < best else (best, since_best + 1)
         if not monotone and since_best >= STALL_ITERATIONS:
@@ -266,17 +273,14 @@ def constrained_cg(apply: Operator, b, q0, *, scale, tol=1e-8, max_iterations=10
         if err <= tol:
             return ContactSolution(q, gap, True, it - 1, err, METHOD, "converged", history,
                                    entries, halved, None if fc is None else fc.zeta)
-        free = active | (gap < 0.0)
-        z = precondition(gap, free)
+        z = precondition(gap, free)  # free: the contact set and gap < 0 (_residual)
         if fc is not None:
             z = fc.project(z, free)
         g_new = dot(gap, z)
         slope = None
         if conj and g_old > 0:
             beta = max((g_new - dot(z_old, gap)) / g_old, 0.0)
-            t *= beta  # t may be z_old's array: z_old is not read again
-            t += z
-            t *= xp.astype(free, xp.float64)  # where(free, ., 0), faster
+            chunks(_conjugate(xp, t, beta, z, free), n)  # t may be z_old's: not read again
             if fc is not None:
                 t = fc.reproject(t)
             slope = dot(gap, t)
@@ -292,8 +296,8 @@ def constrained_cg(apply: Operator, b, q0, *, scale, tol=1e-8, max_iterations=10
                                    f"non-positive curvature {denom:g}: operator not SPD",
                                    history, entries, halved, None if fc is None else fc.zeta)
         tau = slope / denom
-        q_new = q - tau * t
-        any_clipped = n > 0 and bool(xp.min(q_new) < 0.0)
+        q_new, spare_q = spare_q, q  # q's array is free once q_new replaces it
+        any_clipped = n > 0 and _step(xp, chunks, q_new, q, tau, t, n) < 0.0
         clip_gap = None
         if any_clipped:
             if apply_few is not None:  # A of the clipping, q_new's change on few cells
@@ -301,21 +305,17 @@ def constrained_cg(apply: Operator, b, q0, *, scale, tol=1e-8, max_iterations=10
                 values = -xp.take(q_new, clipped)
                 clip_gap = apply_few(clipped, values, single=True) if approximate \
                     else apply_few(clipped, values)
-            q_new = xp.maximum(q_new, 0.0)
+            chunks(_clip(xp, q_new), n)
         conj = True
         since_refresh += 1
         if (any_clipped and clip_gap is None) or since_refresh >= REFRESH_EVERY:
             gap = exact_gap(q_new)
             since_refresh = 0
             drift = 0.0
-        else:
-            w *= tau
-            gap -= w  # the step was taken whole along t (exact up to A's rounding)
-            if clip_gap is not None:
-                gap += clip_gap
+        else:  # the step was taken whole along t (exact up to A's rounding)
+            largest = _update_gap(xp, chunks, gap, w, tau, clip_gap, n)
             if approximate:
-                drift += rel_error * (_max_abs(xp, w) + (
-                    0.0 if clip_gap is None else _max_abs(xp, clip_gap)))
+                drift += rel_error * largest
         if fc is not None and any_clipped:
             q_new, gap, ratio = fc.rescale(q_new, gap)
             drift *= ratio
@@ -339,8 +339,8 @@ def constrained_cg(apply: Operator, b, q0, *, scale, tol=1e-8, max_iterations=10
             energy = new_energy
         elif monotone:
             energy -= 0.5 * tau * slope  # exact line search along t
-        new_active = q_new > 0.0
-        entries += bool(xp.any(new_active & ~active))
+        new_active, spare_active = spare_active, active
+        entries += _new_set(xp, chunks, new_active, q_new, active, n)
         q, active = q_new, new_active
         if callback is not None:
             callback(it, err)
@@ -458,16 +458,97 @@ def _max_abs(xp, v) -> float:
     return max(float(xp.max(v)), -float(xp.min(v)), 0.0) if v.shape[0] else 0.0
 
 
-def _residual(xp, gap, active, weights, n) -> float:
+def _residual(xp, gap, active, weights, n, chunks=one_piece, free=None) -> float:
     """Max-norm min-map residual (m): |gap| on the contact set, interpenetration elsewhere
-    (:func:`pillar_xval.contact.min_map_residual`, in one reduction: this runs every iteration)."""
+    (:func:`pillar_xval.contact.min_map_residual`, in one pass: this runs every iteration),
+    in ``chunks``; ``free`` (a kept boolean array, optional) set to the free set, the
+    contact set and the cells with gap < 0, in the same pass."""
     if n == 0:
         return 0.0
-    if weights is not None:
-        gap = gap / weights
     # On the contact set |gap| >= -gap, so this is max(|gap| on the set, -gap anywhere):
     # the largest of -min(gap), gap on the set and 0 (gap times the set's indicator is gap
     # there and zero elsewhere, which the floor at 0 covers): the same value, in two
     # reductions and one product.
-    on_set = float(xp.max(gap * xp.astype(active, xp.float64)))
-    return max(-float(xp.min(gap)), on_set, 0.0)
+    extremes = []
+
+    def part(lo, hi):
+        if hi > lo:
+            g = gap[lo:hi] if weights is None else gap[lo:hi] / weights[lo:hi]
+            on = active[lo:hi]
+            extremes.append((float(xp.max(g * xp.astype(on, xp.float64))),
+                             float(xp.min(g))))
+            if free is not None:
+                free[lo:hi] = on | (gap[lo:hi] < 0.0)
+
+    chunks(part, n)
+    return max(-min(low for _, low in extremes), *(high for high, _ in extremes), 0.0)
+
+
+def _conjugate(xp, t, beta, z, free):
+    """``work(lo, hi)``: t = (beta t + z) restricted to the free set, in place (the product
+    by the set's indicator, faster than where(free, ., 0))."""
+    def part(lo, hi):
+        tt = t[lo:hi]
+        tt *= beta
+        tt += z[lo:hi]
+        tt *= xp.astype(free[lo:hi], xp.float64)
+    return part
+
+
+def _step(xp, chunks, q_new, q, tau, t, n) -> float:
+    """q_new = q - tau t into the kept array ``q_new`` (as -(tau t) + q: the same bits), in
+    ``chunks``; returns min(q_new)."""
+    lows = []
+
+    def part(lo, hi):
+        if hi > lo:
+            out = q_new[lo:hi]
+            out[...] = t[lo:hi]
+            out *= -tau
+            out += q[lo:hi]
+            lows.append(float(xp.min(out)))
+
+    chunks(part, n)
+    return min(lows)
+
+
+def _clip(xp, q):
+    """``work(lo, hi)``: q = max(q, 0), in place."""
+    def part(lo, hi):
+        q[lo:hi] = xp.maximum(q[lo:hi], 0.0)
+    return part
+
+
+def _update_gap(xp, chunks, gap, w, tau, clip_gap, n) -> float:
+    """gap -= tau w (w scaled in place), then gap += ``clip_gap`` (or None), in ``chunks``;
+    returns max|tau w| + max|clip_gap|, the scale of the update's rounding."""
+    largest = []
+
+    def part(lo, hi):
+        if hi > lo:
+            ww, g = w[lo:hi], gap[lo:hi]
+            ww *= tau
+            g -= ww
+            if clip_gap is None:
+                largest.append((_max_abs(xp, ww), 0.0))
+            else:
+                c = clip_gap[lo:hi]
+                g += c
+                largest.append((_max_abs(xp, ww), _max_abs(xp, c)))
+
+    chunks(part, n)
+    return max((a for a, _ in largest), default=0.0) + max((b for _, b in largest), default=0.0)
+
+
+def _new_set(xp, chunks, new_active, q, active, n) -> bool:
+    """new_active = q > 0 into the kept array ``new_active``, in ``chunks``; whether a cell
+    entered (is in it and not in ``active``)."""
+    entered = []
+
+    def part(lo, hi):
+        on = new_active[lo:hi]
+        on[...] = q[lo:hi] > 0.0
+        entered.append(bool(xp.any(on & ~active[lo:hi])))
+
+    chunks(part, n)
+    return any(entered)

@@ -10,6 +10,9 @@ handful of operations the solvers need; a backend supplies them:
   used again and again (set up once: numpy sums runs of equal consecutive labels);
 - ``spreader(index)``: ``values -> values[index]`` (one value per label out to every entry of
   that label) for an ``index`` used again and again (numpy repeats each run's value);
+- ``chunks(work, n)``: ``work(lo, hi)`` over contiguous pieces of [0, n) that cover it, at
+  once where the backend has threads for it (elementwise work and exact reductions, the
+  same bits in any split); in one piece here;
 - ``put(target, index, values)``: ``target[index] = values`` on a 1-D array (the standard
   has integer-array gathers, ``xp.take``, but no scatters); returns the updated array;
 - ``asarray`` / ``to_numpy``: to and from host numpy arrays.
@@ -26,6 +29,11 @@ References
 from __future__ import annotations
 
 import numpy as np
+
+
+def one_piece(work, n: int) -> None:
+    """``chunks`` of a backend without threads for it: ``work(0, n)``."""
+    work(0, n)
 
 
 class NumpyArrays:
@@ -57,8 +65,8 @@ class NumpyArrays:
         over contiguous memory instead of a scattered add per cell (0.3 against 3.1 ms on
         1.1e6 cells in 25e3 runs).  The sums differ from a bincount's by round-off only."""
         index = np.asarray(index)
-        starts = _run_starts(index)
-        if index.size == 0 or starts.size * RUNS_PAY > index.size:
+        starts = run_starts(index)
+        if starts is None:
             return lambda weights: np.bincount(index, weights=weights, minlength=n)
         labels = index[starts]
         return lambda weights: np.bincount(labels, weights=np.add.reduceat(weights, starts),
@@ -69,8 +77,8 @@ class NumpyArrays:
         each run's value repeated (``np.repeat``, a sequential write: 0.3 against 0.7 ms for a
         gather of 6.8e5 cells in 1.5e4 runs); the same values as the gather."""
         index = np.asarray(index)
-        starts = _run_starts(index)
-        if index.size == 0 or starts.size * RUNS_PAY > index.size:
+        starts = run_starts(index)
+        if starts is None:
             return lambda values: np.take(values, index)
         labels = index[starts]
         lengths = np.diff(np.append(starts, index.size))
@@ -80,12 +88,17 @@ class NumpyArrays:
         target[index] = values
         return target
 
+    chunks = staticmethod(one_piece)
 
-def _run_starts(index):
-    """Positions where a run of equal consecutive labels begins."""
+
+def run_starts(index):
+    """Positions where a run of equal consecutive labels of ``index`` begins, or None where
+    the runs are too short to pay (fewer than ``RUNS_PAY`` labels on average) or there are
+    none."""
     if index.size == 0:
-        return np.zeros(0, dtype=np.int64)
-    return np.flatnonzero(np.concatenate(([True], index[1:] != index[:-1])))
+        return None
+    starts = np.flatnonzero(np.concatenate(([True], index[1:] != index[:-1])))
+    return None if starts.size * RUNS_PAY > index.size else starts
 
 
 # NumpyArrays.segments sums runs when they average at least this many labels.
@@ -135,6 +148,8 @@ class CupyArrays:
     def put(self, target, index, values):
         target[index] = values
         return target
+
+    chunks = staticmethod(one_piece)
 
 
 NUMPY = NumpyArrays()

@@ -239,12 +239,13 @@ def run_case(solver, scene, overrides, n, tol=TOL, timeout=3600, pillars=None) -
 STDERR_KEPT = 3000
 
 
-def run_worker(module: str, spec: dict, timeout: float) -> dict:
-    """``python -m module --worker SPEC`` in a fresh interpreter: the JSON it prints last, or
-    ``{**spec, 'error': ...}`` (also used by validation.bench.gpu)."""
+def run_worker(module: str, spec: dict, timeout: float, cwd=None) -> dict:
+    """``python -m module --worker SPEC`` in a fresh interpreter (in ``cwd``: another
+    checkout's module), the JSON it prints last, or ``{**spec, 'error': ...}`` (also used by
+    validation.bench.gpu and .threads)."""
     try:
         proc = subprocess.run([sys.executable, "-m", module, "--worker", json.dumps(spec)],
-                              capture_output=True, text=True, timeout=timeout)
+                              capture_output=True, text=True, timeout=timeout, cwd=cwd)
     except subprocess.TimeoutExpired:
         return {**spec, "error": f"timed out after {timeout} s"}
     if proc.returncode != 0:

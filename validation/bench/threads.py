@@ -13,12 +13,17 @@
    pillars, cells collocated at their centres: validation/bench/fft.py's "ours") at N = 32
    and 58 (3.1e5 and 1.0e6 cells) on one thread, its CPU time split into the pocketfft
    transforms, the elementwise work the numpy path runs in chunks on the transforms' threads
-   (``bem_solver._fft_operator.in_chunks``) and the rest, each per iteration over the float64
-   FFT pair's CPU time on the same padded grid (kept arrays, one thread); and the 2-thread
-   wall time per iteration over the pair on 2 threads they predict, transforms and chunked
-   work halved, the rest not (R_fft + R_chunks + 2 R_rest): on a machine others load, CPU
-   times stay where wall times do not.  With ``--wall``, the same iteration's measured wall
-   time over the pair's, on the threads given.
+   (``bem_solver._xp.in_chunks``: the operator's scatter, spectrum product and gather, the
+   preconditioner's and the CG's vector passes, the pillar sums) and the rest (the CG's dot
+   products, the pillar values spread to their cells, Python), each per iteration over the
+   float64 FFT pair's CPU time on the same padded grid (kept arrays, one thread); and the
+   2-thread wall time per iteration over the pair on 2 threads they predict, transforms and
+   chunked work halved, the rest not (R_fft + R_chunks + 2 R_rest): on a machine others
+   load, CPU times stay where wall times do not.  With ``--split-threads 1,2``, the same
+   iteration's measured wall time over the pair's, on the threads given.  With ``--baseline DIR`` (another checkout,
+   e.g. ``git archive main | tar -x -C DIR``) the same split of that checkout's iteration,
+   each of its runs right after this one's (its own chunks' definition); ``--cases ''``
+   measures the split alone.
 
 Prints the tables and writes them with the runs and the load averages to ``bench_threads.md``
 and ``bench_threads.json``.
@@ -90,6 +95,7 @@ def _split(spec: dict) -> dict:
     threads: CPU seconds of the transforms, of the chunked work and of the rest, and wall."""
     import bem_solver._fft as fft_model
     import bem_solver._fft_operator as operator
+    import bem_solver._xp as devices
     from bem_solver._fft_grid import build_grid
     from pillar_xval.scenes import load_scene
     from pillar_xval.threads import thread_count
@@ -113,7 +119,10 @@ def _split(spec: dict) -> dict:
     pocket = operator._pocketfft
     operator._pocketfft = type("Timed", (), {
         name: staticmethod(timed(getattr(pocket, name), "fft")) for name in ("r2c", "c2c", "c2r")})
+    # The operator's chunks and the backend's (the CG's and the preconditioner's passes):
+    # each module's own name, so no call is timed twice.
     operator.in_chunks = timed(operator.in_chunks, "chunks")
+    devices.in_chunks = timed(devices.in_chunks, "chunks")
     solve_cg, fine = fft_model.constrained_cg, {}
 
     def cg(*args, **kwargs):
@@ -142,10 +151,12 @@ def _split(spec: dict) -> dict:
             "pair_wall_s": _pair(shape, workers, time.perf_counter)}
 
 
-def _run(kind: str, spec: dict, threads: int) -> dict:
+def _run(kind: str, spec: dict, threads: int, root=None) -> dict:
+    """One worker on ``threads`` threads, in this checkout or in ``root`` (a baseline)."""
     os.environ["PILLAR_XVAL_THREADS"] = str(threads)
     try:
-        return run_worker("validation.bench.threads", {**spec, "kind": kind}, 3600)
+        out = run_worker("validation.bench.threads", {**spec, "kind": kind}, 3600, root)
+        return {**out, "side": "this" if root is None else "baseline"}
     finally:
         os.environ.pop("PILLAR_XVAL_THREADS", None)
 
@@ -170,9 +181,10 @@ def scaling_rows(runs: list) -> list:
 
 def split_rows(splits: list) -> list:
     rows = []
-    for n, pillars in dict.fromkeys((s["n"], s["pillars"]) for s in splits):
-        mine = [s for s in splits
-                if s["n"] == n and s["pillars"] == pillars and "error" not in s]
+    for side, n, pillars in dict.fromkeys((s.get("side", "this"), s["n"], s["pillars"])
+                                          for s in splits):
+        mine = [s for s in splits if s.get("side", "this") == side and s["n"] == n
+                and s["pillars"] == pillars and "error" not in s]
         for t in sorted({s["threads"] for s in mine}):
             at = [s for s in mine if s["threads"] == t]
 
@@ -181,7 +193,7 @@ def split_rows(splits: list) -> list:
 
             rest = statistics.median((s["cpu_per_iteration_s"] - s["fft_cpu_s"]
                                       - s["chunks_cpu_s"]) / s["pair_cpu_s"] for s in at)
-            row = {"n": n, "pillars": pillars, "threads": t, "runs": len(at),
+            row = {"side": side, "n": n, "pillars": pillars, "threads": t, "runs": len(at),
                    "grid_cells": at[0]["grid_cells"],
                    "R_fft": med("fft_cpu_s"), "R_chunks": med("chunks_cpu_s"), "R_rest": rest,
                    "wall_over_pair": med("wall_per_iteration_s", "pair_wall_s")}
@@ -206,11 +218,11 @@ def format_tables(scaling: list, split: list, meta: dict) -> str:
                      f"{r['cpu_per_wall']:.2f} | {f(r['speedup'], '.2f')} | "
                      f"{f(r['answers_rel_diff'], '.1e')} |")
     lines += ["", "FFT iteration (bem-fft, fine level) over the float64 FFT pair in kept "
-              "arrays:", "", "| cells | pillars | threads | R_fft | R_chunks | R_rest | R (CPU) "
-              "| predicted on 2 threads | measured wall / wall |",
-              "|---|---|---|---|---|---|---|---|---|"]
+              "arrays:", "", "| side | cells | pillars | threads | R_fft | R_chunks | R_rest | "
+              "R (CPU) | predicted on 2 threads | measured wall / wall |",
+              "|---|---|---|---|---|---|---|---|---|---|"]
     for r in split:
-        lines.append(f"| {r['grid_cells']:.2g} | {r['pillars']} | {r['threads']} | "
+        lines.append(f"| {r['side']} | {r['grid_cells']:.2g} | {r['pillars']} | {r['threads']} | "
                      f"{r['R_fft']:.3f} | {r['R_chunks']:.3f} | {r['R_rest']:.3f} | "
                      f"{r['R_cpu']:.3f} | {f(r['R2_predicted'], '.3f')} | "
                      f"{r['wall_over_pair']:.3f} |")
@@ -230,13 +242,17 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=Path("out/bench-threads"))
     ap.add_argument("--threads", default=None,
                     help="comma-separated thread counts (default 1 up to the CPUs)")
-    ap.add_argument("--cases", default="fft,dense", help=f"among {', '.join(CASES)}")
+    ap.add_argument("--cases", default="fft,dense",
+                    help=f"among {', '.join(CASES)} (empty: the FFT iteration's split only)")
     ap.add_argument("--fem3d-mesh", type=float, default=None)
     ap.add_argument("--fem3d-phi", type=float, default=None)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--split-threads", default="1",
                     help="thread counts of the FFT iteration split (default 1; add 2 for "
                          "the measured wall ratio; empty: no split)")
+    ap.add_argument("--baseline", type=Path, default=None,
+                    help="another checkout (e.g. git archive main | tar -x -C DIR): its split "
+                         "too, interleaved with this one's (its own chunks' definition)")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.worker:
@@ -255,7 +271,7 @@ def main(argv=None) -> int:
     load_before = [round(v, 2) for v in os.getloadavg()]
     runs, splits = [], []
     for rep in range(args.repeats):
-        for name in args.cases.split(","):
+        for name in (v for v in args.cases.split(",") if v):
             for t in counts:
                 print(f"bench-threads: {rep + 1}/{args.repeats} {name} on {t} thread(s)",
                       file=sys.stderr, flush=True)
@@ -263,8 +279,10 @@ def main(argv=None) -> int:
         for n in SPLIT_LEVELS:
             for pillars in ("rigid", "elastic"):
                 for t in (int(v) for v in args.split_threads.split(",") if v):
-                    splits.append(_run("split", {"n": n, "pillars": pillars}, t))
+                    for root in (None, args.baseline) if args.baseline else (None,):
+                        splits.append(_run("split", {"n": n, "pillars": pillars}, t, root))
     meta = {"cpus": cpu_count(), "repeats": args.repeats, "load_before": load_before,
+            "baseline": None if args.baseline is None else str(args.baseline),
             "load_after": [round(v, 2) for v in os.getloadavg()], "threads": counts}
     scaling, split = scaling_rows(runs), split_rows(splits)
     table = format_tables(scaling, split, meta)
