@@ -100,9 +100,13 @@ class FloorPoint:
 
 
 # Floor shares (BEM, N = 8): 55 % (one pillar), 28, 15, 15 and 6 % (Phi = 0.4, where the
-# pillars hold the lens up: deeper costs fem-3d minutes a level).
-POINTS = (FloorPoint(2.3e-3, 1.0, 1.6), FloorPoint(0.03, 1e6, 2.0), FloorPoint(0.1, 1.0, 4.0),
-          FloorPoint(0.2, 0.1, 3.5), FloorPoint(0.4, 0.1, 7.0))
+# pillars hold the lens up: deeper costs fem-3d minutes a level).  One pillar also soft and
+# rigid, pressed until the floor's contact comes within 0.5-0.7 um of the rim (98 and 94 %
+# of the load on the floor, 2.3 and 7.2 uN on the pillar): the elastic BEM's coupling of
+# the floor to a pillar through the substrate (a column) against the exact axisymmetric one.
+POINTS = (FloorPoint(2.3e-3, 1.0, 1.6), FloorPoint(2.3e-3, 0.1, 4.0), FloorPoint(2.3e-3, 1e6, 4.0),
+          FloorPoint(0.03, 1e6, 2.0), FloorPoint(0.1, 1.0, 4.0), FloorPoint(0.2, 0.1, 3.5),
+          FloorPoint(0.4, 0.1, 7.0))
 
 
 def judge_points(value, band, reference, reference_band, target: float) -> dict:
