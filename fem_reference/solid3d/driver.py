@@ -53,7 +53,7 @@ MODEL = "fem-3d"
 BLOCK_FACTOR = 1e4
 MAX_CG_ITERATIONS = 2000
 # Most steps of iterative refinement of the solution reported (float32 factor: each gains
-# four digits or more, see system.SINGLE_MAX_ERROR), stopping at a residual of 1e-12.
+# three digits or more, see system.SINGLE_MAX_ERROR), stopping at a residual of 1e-12.
 EXACT_REFINE = 4
 # Under a force: the tolerance of the first solve on a mesh built for a guess (it decides
 # whether the mesh is the solved indentation's: a zeta to ~1e-5, where the pillars' reach
