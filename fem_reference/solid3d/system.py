@@ -173,12 +173,14 @@ class SectorSystem(ReducedSystem):
             for _ in range(refine):
                 y += self.factor.solve(b - self._Ks @ y)
             return (self.scale[:, None] * y).reshape(rhs.shape), float("nan")
-        rel = relative_residual(b - self._Ks @ y, b)
+        r = b - self._Ks @ y  # the residual judged is the one the next step corrects
+        rel = relative_residual(r, b)
         for _ in range(refine):
             if rel < 1e-12:
                 break
-            y += self.factor.solve(b - self._Ks @ y)
-            rel = relative_residual(b - self._Ks @ y, b)
+            y += self.factor.solve(r)
+            r = b - self._Ks @ y
+            rel = relative_residual(r, b)
         return (self.scale[:, None] * y).reshape(rhs.shape), rel
 
 
