@@ -1,9 +1,11 @@
-"""MKL PARDISO on a symmetric indefinite matrix, through pypardiso's library handle.
+"""MKL PARDISO on a symmetric indefinite matrix, called through ctypes on MKL's runtime.
 
 Why PARDISO: measured ~10x faster than SuperLU on these P2/P1 tetrahedral saddle-point
 systems (3 s against 30 s at 54k unknowns; SuperLU > 600 s at 190k; ``python -m
 validation.bench.fem3d --compare-solvers 2.83`` measures it again), and it
-installs as a wheel (pypardiso + mkl).  The symmetric indefinite mode (mtype -2, upper
+installs as a wheel (pypardiso + mkl).  The runtime is loaded from the environment's library
+folder where the ``mkl`` wheel puts it (pypardiso's own search, its fallback, scans the whole
+environment: ~0.4-0.9 s a process).  The symmetric indefinite mode (mtype -2, upper
 triangle, Bunch-Kaufman pivots) stores half the factor of pypardiso's default unsymmetric
 mode.  Solves call the library directly with the factors (phase 33): pypardiso's ``solve``
 would rebuild the 1-based index arrays and compare the whole matrix with the factorised one
@@ -35,6 +37,9 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import glob
+import os
+import sys
 
 import numpy as np
 import scipy.sparse as sp
@@ -134,25 +139,63 @@ class Pardiso:
 
 class _Handle:
     """One factorisation's PARDISO handle (``pt``) and parameters (``iparm``), with MKL's
-    ``pardiso`` found once per process (pypardiso's search of the file system takes ~1 s)."""
+    ``pardiso`` found once per process (:func:`_library`)."""
 
     def __init__(self):
-        library = _library()
-        self._mkl_pardiso, self._pt_type = library._mkl_pardiso, library._pt_type
+        self._mkl_pardiso, self._pt_type = _library()
         self.pt = np.zeros(64, dtype=self._pt_type[1])
         self.iparm = np.zeros(64, dtype=np.int32)
         self.msglvl = 0
 
 
+# Where an environment's MKL runtime lies below its prefix (Linux and macOS; Windows).
+_MKL_GLOBS = ("lib/libmkl_rt.so*", "lib/libmkl_rt*.dylib", "Library/bin/mkl_rt*.dll")
+
+
+def mkl_runtime_path() -> str | None:
+    """The MKL runtime this process loads PARDISO from: ``PYPARDISO_MKL_RT`` where set (the
+    override pypardiso honours), else the shortest-named ``mkl_rt`` library directly in the
+    environment's library folder (where the ``mkl`` wheel puts it), else None (pypardiso's
+    own search then runs: ``find_library`` and a recursive scan of ``sys.prefix``, ~1 s)."""
+    override = os.environ.get("PYPARDISO_MKL_RT")
+    if override:
+        return override
+    for pattern in _MKL_GLOBS:
+        found = sorted(glob.glob(os.path.join(sys.prefix, pattern)), key=len)
+        if found:
+            return found[0]
+    return None
+
+
 @functools.lru_cache(maxsize=1)
 def _library():
-    """pypardiso's solver object, for its handle on MKL's pardiso (found once)."""
-    try:
-        from pypardiso import PyPardisoSolver
-    except ImportError as exc:
-        raise SolveError(f"pypardiso is not installed ({exc}); it is a dependency of the "
-                         "3D FEM") from None
-    return PyPardisoSolver(mtype=-2)
+    """MKL's ``pardiso`` function and the handle's integer type (ctypes, numpy), found once:
+    loaded from :func:`mkl_runtime_path`, or through pypardiso's search where that finds
+    nothing loadable."""
+    path = mkl_runtime_path()
+    function = None
+    if path is not None:
+        try:
+            function = ctypes.CDLL(path).pardiso
+        except (OSError, AttributeError):
+            function = None
+    if function is None:
+        try:
+            from pypardiso import PyPardisoSolver
+        except ImportError as exc:
+            raise SolveError(f"pypardiso is not installed ({exc}); it is a dependency of "
+                             "the 3D FEM") from None
+        return PyPardisoSolver(mtype=-2)._mkl_pardiso, _PT_TYPE
+    function.argtypes = [ctypes.POINTER(_PT_TYPE[0])] + [ctypes.POINTER(ctypes.c_int32)] * 5 \
+        + [ctypes.c_void_p] + [ctypes.POINTER(ctypes.c_int32)] * 6 \
+        + [ctypes.c_void_p] * 2 + [ctypes.POINTER(ctypes.c_int32)]
+    function.restype = None
+    return function, _PT_TYPE
+
+
+# The handle's entries are pointers: 64-bit integers on a 64-bit process.
+_PT_TYPE = (ctypes.c_int64, np.int64) if ctypes.sizeof(ctypes.c_void_p) == 8 else \
+    (ctypes.c_int32, np.int32)
 
 
 def node_ordering(solver, upper: sp.csr_matrix, nodes: np.ndarray) -> np.ndarray:

@@ -32,6 +32,11 @@ RTOL_HERTZ_RADIUS = 1e-2     # measured -2.3e-3
 RTOL_AXISYM_COARSE = 2e-2    # single pillar at mesh_size 2 (measured 6.2e-3 and 5.4e-3)
 RTOL_SYMMETRY = 1.5e-2       # two independent meshes at mesh_size 2 (measured <= 8.2e-3)
 RTOL_EQUIVALENT = 6e-3       # D6-equivalent pillars in one sector (measured 2.8e-3)
+# A float32 factor refined against the float64 one (E_p = 100 E_l): the contact CG stops at
+# another point within its tolerance (min-map 1e-8 zeta); F_T measured 1.8e-9, the pointwise
+# sigma0 9.4e-7 (as between two CG paths in validation/bench/measured/fem3d_ab.md: 8.6e-7).
+RTOL_REFINED_FORCE = 1e-8
+RTOL_REFINED_CENTRE = 5e-6
 
 
 def assert_verified(result):
@@ -158,6 +163,28 @@ def test_stiffness_extremes_and_monotone_force():
             assert res.total_force_N == pytest.approx(ax.total_force_N, rel=RTOL_AXISYM_COARSE)
     assert forces[1e-3] < forces[1.0] < forces[1e6]
 
+
+
+def test_a_float32_factor_within_its_bound_refines_to_the_float64_answer(monkeypatch):
+    """Single pillar with E_p = 100 E_l at mesh_size 2: the float32 solve's error (measured
+    2.4e-4) lies within SINGLE_MAX_ERROR, so the factor stays float32, and its refined
+    solution gives the float64 factor's answers (forced by a zero bound) within the CG's
+    tolerance (RTOL_REFINED_FORCE, RTOL_REFINED_CENTRE)."""
+    from fem_reference.solid3d import system
+
+    scene = load_scene("single-pillar", [f"pillars.E_Pa={100 * 1.6e6}"])
+    single = solid3d.solve(scene, 2.0)
+    factor = single.diagnostics["factor"]
+    assert factor["precision"] == "single"
+    assert 1e-4 < factor["single_solve_error"] <= system.SINGLE_MAX_ERROR
+    assert_verified(single)
+    assert single.diagnostics["linear_residual"] < 1e-12
+    monkeypatch.setattr(system, "SINGLE_MAX_ERROR", 0.0)
+    double = solid3d.solve(scene, 2.0)
+    assert double.diagnostics["factor"]["precision"] == "double"
+    assert single.total_force_N == pytest.approx(double.total_force_N, rel=RTOL_REFINED_FORCE)
+    assert single.centre_pressure_Pa == pytest.approx(double.centre_pressure_Pa,
+                                                      rel=RTOL_REFINED_CENTRE)
 
 # --- result, files, refusals --------------------------------------------------------------
 def test_result_schema_and_vtu(tmp_path):
