@@ -67,14 +67,14 @@ class Pardiso:
 
     def __init__(self, A: sp.csr_matrix, solver=None, nodes: np.ndarray | None = None,
                  single: bool = False):
-        """``solver``: a ``PyPardisoSolver(mtype=-2)`` to reuse; it then holds one
+        """``solver``: a :class:`PardisoHandle` to reuse; it then holds one
         factorisation at a time (default: a handle of its own, MKL found once per process).
         ``nodes``: the mesh node of each unknown (any integer labels; unknowns of one node
         are eliminated together, in their order in ``A``), for the node ordering of the
         module docstring; None: METIS after a weighted matching.  ``single``: factorise and
         solve in float32 (MKL's iparm[27]; half the factor's memory, its solves ~1e-6 of
         the exact ones: the caller refines them against ``A``)."""
-        self._solver = _Handle() if solver is None else solver
+        self._solver = PardisoHandle() if solver is None else solver
         self._threads = limiter()  # MKL is loaded by now
         self._solver.msglvl = 0
         upper = sp.triu(A, format="csr")
@@ -137,7 +137,7 @@ class Pardiso:
             pass
 
 
-class _Handle:
+class PardisoHandle:
     """One factorisation's PARDISO handle (``pt``) and parameters (``iparm``), with MKL's
     ``pardiso`` found once per process (:func:`_library`)."""
 

@@ -86,13 +86,12 @@ def _laplacian(side: int):
 
 def _factorisation(threads: int):
     import numpy as np
-    from pypardiso import PyPardisoSolver
 
-    from fem_reference._pardiso import Pardiso
+    from fem_reference._pardiso import Pardiso, PardisoHandle
 
     K = _laplacian(LAPLACIAN_SIDE)
     b = np.ones(K.shape[0])
-    solver = PyPardisoSolver(mtype=-2)  # made once: its construction searches for MKL
+    solver = PardisoHandle()  # made once: MKL is found then
     return lambda: Pardiso(K, solver).solve(b)
 
 
