@@ -89,3 +89,15 @@ def test_one_pillar_meets_every_target_and_resumes(cli, tmp_path):
     assert code == 0 and json.loads((tmp_path / "floor_check.json").read_text()) == report
     assert cases and cases == {p: p.stat().st_mtime_ns
                                for p in (tmp_path / "cases").rglob("*") if p.is_file()}
+
+
+def test_a_lattice_floor_map_is_drawn(tmp_path):
+    from validation.studies.floor_check import FloorPoint
+    from validation.studies.floor_maps import floor_map, map_name
+
+    point = FloorPoint(0.03, 1e6, 2.0)
+    name = map_name(point.label)
+    assert name == "floor_map_Phi-0.03-Ep-El-1e-06-zeta-2um.png" and "/" not in name
+    path = floor_map(point, 8, 4.0, tmp_path / "maps" / name)
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert [p.name for p in tmp_path.rglob("*") if p.is_file()] == [name]  # no temporary left

@@ -29,6 +29,9 @@ def add_parser(sub) -> None:
                         + ",".join(f"{q.surface_fraction:g}" for q in POINTS) + ")")
     p.add_argument("--quick", action="store_true",
                    help="two coarse levels per model (a smoke run, minutes)")
+    p.add_argument("--maps", action="store_true",
+                   help="also draw each lattice's floor contact, bem-fft's cells over fem-3d's "
+                        "vertices at the finest levels (DIR/maps/*.png; both solved again)")
     add_output_arguments(p, "report folder (default out/floor-check)")
     add_engine_arguments(p)
     p.set_defaults(func=run)
@@ -54,6 +57,8 @@ def run(args) -> int:
     with engine_from_args(args, "floor-check") as engine:
         report = study.floor_check_study(out, engine=engine, points=points, quick=args.quick)
     names = study.write_report(report, out)
+    if args.maps:
+        names += _maps(study, points, report, out, args.quick)
     if args.json:
         print_json(report)
     else:
@@ -63,3 +68,24 @@ def run(args) -> int:
               if "exit" in r]
     unconverged = [r["label"] for r in report["rows"] if r["status"] == "not converged"]
     return study_status("floor-check", failed, unconverged)
+
+
+def _maps(study, points, report, out: Path, quick: bool) -> list[str]:
+    """The floor-contact overlay of every lattice whose row solved (:mod:`..studies.floor_maps`),
+    progress on stderr; the written files' names relative to ``out``."""
+    import sys
+
+    from ..studies.floor_maps import floor_map, map_name
+
+    ok = {r["label"] for r in report["rows"] if "exit" not in r}
+    written = []
+    for point in points:
+        if point.single or point.label not in ok:
+            continue
+        bem, fem = (study.levels_of(kind, point, quick)[-1] for kind in ("bem", "fem"))
+        print(f"floor-check: the contact map of {point.label} (bem-fft N = {bem}, fem-3d "
+              f"{fem:g})", file=sys.stderr, flush=True)
+        name = Path("maps") / map_name(point.label)
+        floor_map(point, bem, fem, out / name)
+        written.append(str(name))
+    return written

@@ -46,7 +46,7 @@ from .onset import onset_study
 from .targets import judge
 
 __all__ = ["FLOOR_TARGETS", "OUTPUTS", "POINTS", "FloorPoint", "floor_check_study",
-           "judge_points", "summary_markdown", "write_report"]
+           "judge_points", "levels_of", "summary_markdown", "write_report"]
 
 FLOOR_TARGETS = {"F_T": 0.01, "floor_share": 0.02, "floor_area": 0.05, "onset": 0.02}
 TARGET_RULE = ("|BEM - FEM| / |FEM| (the floor's share: BEM - FEM in points) within the target, "
@@ -128,6 +128,11 @@ def _levels(kind: str, point: FloorPoint, quick: bool, onset: bool) -> tuple:
     return {"bem": BEM_LEVELS, "bem_onset": BEM_ONSET_LEVELS,
             "fem-axisym": AXISYM_LEVELS, "fem-axisym_onset": AXISYM_ONSET_LEVELS,
             "fem-3d": FEM3D_LEVELS, "fem-3d_onset": FEM3D_ONSET_LEVELS}[key]
+
+
+def levels_of(kind: str, point: FloorPoint, quick: bool = False) -> tuple:
+    """The ladder of ``kind`` ("bem" or "fem") at ``point``, coarse to fine."""
+    return _levels(BEM_MODEL if kind == "bem" else point.fem, point, quick, onset=False)
 
 
 def _options(model: str, level) -> dict:
