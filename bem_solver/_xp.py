@@ -12,9 +12,8 @@ import functools
 import os
 from concurrent.futures import ThreadPoolExecutor
 
-import numpy as np
 
-from pillar_xval.contact._xp import CupyArrays, NumpyArrays, run_starts
+from pillar_xval.contact._xp import CupyArrays, NumpyArrays
 from pillar_xval.scenes import InputError
 from pillar_xval.threads import thread_count
 
@@ -86,34 +85,10 @@ class NumpyDevice(NumpyArrays):
 
         return sfft.irfft(a, n=n, axis=axis, workers=self.workers)
 
-    def chunks(self, work, n: int) -> None:
-        """``work(lo, hi)`` over [0, n) in chunks on the FFT threads (:func:`in_chunks`)."""
-        in_chunks(work, n, self.workers)
-
-    def segments(self, index, n: int):
-        """:meth:`NumpyArrays.segments` with the runs' sums in chunks of runs on the FFT
-        threads: each run's ``np.add.reduceat`` over the same elements, so the same bits in
-        any split."""
-        index = np.asarray(index)
-        starts = run_starts(index)
-        if starts is None:
-            return super().segments(index, n)
-        labels, ends = index[starts], np.append(starts[1:], index.size)
-        per_run = max(index.size // starts.size, 1)
-
-        def sums(weights):
-            runs = np.empty(starts.size)
-
-            def part(r0, r1):
-                if r1 > r0:
-                    lo = starts[r0]
-                    np.add.reduceat(weights[lo:ends[r1 - 1]], starts[r0:r1] - lo,
-                                    out=runs[r0:r1])
-
-            in_chunks(part, starts.size, self.workers, per_run)
-            return np.bincount(labels, weights=runs, minlength=n)
-
-        return sums
+    def chunks(self, work, n: int, size: int = 1) -> None:
+        """``work(lo, hi)`` over [0, n) in chunks on the FFT threads (:func:`in_chunks`); the
+        runs' sums of :meth:`NumpyArrays.segments` go through it too."""
+        in_chunks(work, n, self.workers, size)
 
     def next_fast_len(self, n: int) -> int:
         import scipy.fft as sfft

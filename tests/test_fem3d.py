@@ -164,7 +164,6 @@ def test_stiffness_extremes_and_monotone_force():
     assert forces[1e-3] < forces[1.0] < forces[1e6]
 
 
-
 def test_a_float32_factor_within_its_bound_refines_to_the_float64_answer(monkeypatch):
     """Single pillar with E_p = 100 E_l at mesh_size 2: the float32 solve's error (measured
     2.4e-4) lies within SINGLE_MAX_ERROR, so the factor stays float32, and its refined
@@ -185,6 +184,7 @@ def test_a_float32_factor_within_its_bound_refines_to_the_float64_answer(monkeyp
     assert single.total_force_N == pytest.approx(double.total_force_N, rel=RTOL_REFINED_FORCE)
     assert single.centre_pressure_Pa == pytest.approx(double.centre_pressure_Pa,
                                                       rel=RTOL_REFINED_CENTRE)
+
 
 # --- result, files, refusals --------------------------------------------------------------
 def test_result_schema_and_vtu(tmp_path):
