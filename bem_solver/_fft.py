@@ -99,11 +99,13 @@ WARM_START_TOL = 1e-2
 # H200 at 1e6 cells (paper-fig3-dense) a cold start took 0.63 s against 0.80 s with one level
 # and 1.05 s with all (39 iterations against 31); at 2e7 cells 3.6 against 5.5 and 6.2 s.
 GPU_WARM_START_LEVELS = 0
-# A GPU builds the grid itself (cupy) from this many points of the candidate square: its
-# construction is ~10 launches per pillar, about 0.7-1.2 s at any size on an H200, where the
-# host takes ~0.1 s per 1e6 points (1e6 cells: 0.15 s on the host, 0.65-1.2 s on the device;
-# 2e7 cells: 1.4-2.7 s on the host, 0.8-1.4 s on the device).
-GPU_GRID_MIN_POINTS = 10_000_000
+# A GPU builds the grid itself (cupy) from this many points of the candidate square: there
+# the tops' fractions come from every cell's four nearest lattice sites in a fixed number of
+# whole-array passes (bem_solver._fft_grid._fractions_dense), where the pillar-by-pillar
+# construction took ~10 launches per pillar (0.65-1.2 s at 1e6 cells on an H200, against
+# the host's 0.15 s).  Below it the host's ~0.1 s per 1e6 points is cheaper than the
+# device's fixed cost of some 150 launches.
+GPU_GRID_MIN_POINTS = 250_000
 # Fewest cells across the Hertz-like contact 2 sqrt(R zeta) on the centre pillar top for an
 # answer: the flat (Hertz) scene is the same problem, and there 5 cells across is the
 # coarsest grid whose contact stays clear of the candidate disk (F_T within 2 %).  At
@@ -563,13 +565,15 @@ def _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, mess
     total = float(cell_force.sum())
     n_p = len(grid.pillar_nm)
     pillar_force = np.bincount(grid.pillar, weights=cell_force, minlength=n_p)[:n_p]
-    on_floor = grid.floor & contact
-    floor_force = float(cell_force[grid.floor].sum())
-    floor_area = float(grid.covered[on_floor].sum() * L2)
-    # Outer radius of the floor contact: as the tops' (collocation radius plus half the
-    # side of the equivalent square).  Radii of the cells in contact only (1e7 cells: a
-    # pass over all of them cost a second of a 2e7-cell GPU solve).
-    floor_radius = float(_reach(grid, np.flatnonzero(on_floor), L).max(initial=0.0))
+    # The cells in contact, and their outer radii (collocation radius plus half the side of
+    # the equivalent square), once: the tops' and the floor's contact radii come from them
+    # (1e7 cells: a pass over all of them cost a second of a 2e7-cell GPU solve).
+    touching = np.flatnonzero(contact)
+    far = _reach(grid, touching, L)
+    floor_force = float(cell_force[grid.n_top:].sum())  # the floor's unknowns come last
+    on_floor = touching >= grid.n_top
+    floor_area = float(grid.covered[touching[on_floor]].sum() * L2)
+    floor_radius = float(far[on_floor].max(initial=0.0))
     if grid.flat:
         # Same definition as the dense model: where p^2 (linear in r^2 at a square-root edge)
         # extrapolates to zero; area pi a^2.
@@ -581,11 +585,10 @@ def _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, mess
     else:
         # Outermost point of contact: collocation radius plus half the side of the
         # (equivalent) loaded square, as in the dense model, capped at the pillar's rim.
-        touching = np.flatnonzero(contact)
-        far = _reach(grid, touching, L)
         rho = np.hypot(grid.pillar_xy[:, 0], grid.pillar_xy[:, 1])
-        top = ~grid.floor[touching]
-        far[top] = np.minimum(far[top], rho[grid.pillar[touching][top]]
+        top = ~on_floor
+        far = far.copy()
+        far[top] = np.minimum(far[top], rho[grid.pillar[touching[top]]]
                               + 0.5 * scene.pillars.diameter_m)
         contact_radius = float(far.max()) if touching.size else 0.0
         area = float((grid.covered[contact]).sum() * L2)
@@ -628,7 +631,7 @@ def _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, mess
     }
     if grid.has_floor:
         diagnostics["floor_cells"] = int(grid.floor.sum())
-        diagnostics["floor_contact_cells"] = int(on_floor.sum())
+        diagnostics["floor_contact_cells"] = int(np.count_nonzero(on_floor))
         diagnostics["floor_reach_m"] = grid.floor_radius
     disc = {"cells_per_diameter": int(cells_per_diameter), "cell_size_m": L,
             "cells": grid.n_cells, "tolerance": tol,
@@ -664,11 +667,16 @@ def _reach(grid: CellGrid, cells, L: float):
 def _centre_profile(scene, grid, pressure) -> dict:
     """Pressure along the +x axis across the central pillar top (flat: across the contact)."""
     centre_pillar = grid.pillar[grid.centre_cell]
-    row = (np.abs(grid.y) < 0.5 * grid.cell_size) & (grid.x >= 0) \
-        & (grid.pillar == centre_pillar)
+    # The centre's row of the top unknowns: they are in row-major grid order (the floor's
+    # come after them), so the row is one slice, found by bisection, not a pass over all.
+    nx = grid.shape[1]
+    first = grid.flat_index[grid.centre_cell] // nx * nx
+    lo, hi = np.searchsorted(grid.flat_index[:grid.n_top], [first, first + nx])
+    idx = np.arange(lo, hi)
+    row = (grid.x[idx] >= 0) & (grid.pillar[idx] == centre_pillar)
     if not grid.flat:
-        row &= grid.x <= 0.5 * scene.pillars.diameter_m
-    idx = np.nonzero(row)[0]
+        row &= grid.x[idx] <= 0.5 * scene.pillars.diameter_m
+    idx = idx[row]
     idx = idx[np.argsort(grid.x[idx])]
     return {"r_m": [float(v) for v in grid.x[idx]],
             "pressure_Pa": [float(v) for v in pressure[idx]]}

@@ -187,11 +187,13 @@ def check_grid_side(n_side: int, cells_per_diameter: int, max_fft_points: int) -
 
 
 def build_grid(scene: Scene, cells_per_diameter: int,
-               max_fft_points: int = MAX_FFT_POINTS, xp=np) -> CellGrid:
+               max_fft_points: int = MAX_FFT_POINTS, xp=np, dense=None) -> CellGrid:
     """Candidate cells of ``scene`` with ``cells_per_diameter`` cells across a pillar (or
     across the Hertz contact diameter for a flat scene); a grid whose padded FFT would exceed
     ``max_fft_points`` points is refused (SceneError).  ``xp``: the array library that builds
-    it (numpy, or cupy on a GPU: the same steps, and the grid comes back to the host)."""
+    it (numpy, or cupy on a GPU: the same steps, and the grid comes back to the host).
+    ``dense``: the tops' fractions by whole-array passes (default on a device; see
+    :func:`_pillar_cells`)."""
     R, zeta = scene.lens.radius_m, scene.indentation_m
     flat = scene.pillars is None
     L, r_cand, half = _candidate(scene, cells_per_diameter)
@@ -209,7 +211,7 @@ def build_grid(scene: Scene, cells_per_diameter: int,
     r_floor = 0.0 if flat else floor_reach(scene)
     if not flat:
         keep, covered, pillar, pillar_nm, pillar_xy, tops = _pillar_cells(
-            scene, ax, L, r_cand, floor=r_floor > 0.0, xp=xp)
+            scene, ax, L, r_cand, floor=r_floor > 0.0, xp=xp, dense=dense)
     row, col = xp.divmod(keep, n_side)
     colloc_x, colloc_y = ax[col], ax[row]
     if not flat:
@@ -298,60 +300,24 @@ def _crop(iy, ix):
     return (iy - y0) * shape[1] + (ix - x0), shape
 
 
-def _pillar_cells(scene, ax, L, r_cand, floor=False, xp=np):
+def _pillar_cells(scene, ax, L, r_cand, floor=False, xp=np, dense=None):
     """Cells on pillar tops within the candidate disk: indices into the (n, n) square of
     centres ``ax`` x ``ax``, covered fractions, owning pillar, the pillar table, and with
     ``floor`` the tops' covered fraction of every cell of the square and the moments of the
-    covered parts about the origin (m^3; else None)."""
+    covered parts about the origin (m^3; else None).  ``dense``: the fractions from every
+    cell's nearest lattice sites at once (:func:`_fractions_dense`, a device's way: a fixed
+    number of whole-array passes) rather than pillar by pillar (:func:`_fractions_windows`,
+    the host's: only the cells near each pillar); default: dense on a device, where it
+    applies.  Both evaluate the same expressions per (cell, pillar) pair."""
     p = scene.pillars
     rad = 0.5 * p.diameter_m
     table = pillars_within(r_cand + rad, p.pitch_m)
     side = ax.size
     half = side // 2
-    best_frac = xp.zeros((side, side))
-    total_frac = xp.zeros((side, side))
-    owner = xp.full((side, side), -1, dtype=xp.int64)
-    m = int(math.ceil(rad / L)) + 1
-    rims = []  # the square's indices of the cells each rim crosses
-    if floor:
-        moment_x, moment_y = xp.zeros((side, side)), xp.zeros((side, side))
-    for k, (_, _, px, py) in enumerate(table):
-        # The small window around this pillar only: views of the square, no gathers.
-        ix0 = int(round(px / L)) + half
-        iy0 = int(round(py / L)) + half
-        cols = slice(max(ix0 - m, 0), min(ix0 + m + 1, side))
-        rows = slice(max(iy0 - m, 0), min(iy0 + m + 1, side))
-        cx, cy = ax[cols] - px, ax[rows] - py
-        # Cells whose farthest corner is inside the top are covered (1 exactly), those whose
-        # nearest point is outside it are not (0); the closed-form area only for the ~4 d / L
-        # cells the rim crosses, not all (d / L)^2 of the window (9x fewer at N = 32, 47x
-        # at N = 180).
-        fx, fy = (xp.abs(cx) + 0.5 * L) ** 2, (xp.abs(cy) + 0.5 * L) ** 2
-        nx_, ny_ = (xp.maximum(xp.abs(cx) - 0.5 * L, 0.0) ** 2,
-                    xp.maximum(xp.abs(cy) - 0.5 * L, 0.0) ** 2)
-        far2 = fx[None, :] + fy[:, None]
-        near2 = nx_[None, :] + ny_[:, None]
-        frac = (far2 <= rad * rad).astype(float)
-        ri, ci = xp.nonzero((near2 < rad * rad) & (far2 > rad * rad))
-        rx, ry = cx[ci], cy[ri]
-        frac[ri, ci] = disk_rectangle_area(rx - 0.5 * L, rx + 0.5 * L, ry - 0.5 * L,
-                                           ry + 0.5 * L, rad) / (L * L)
-        rims.append((ri + rows.start) * side + ci + cols.start)
-        total_frac[rows, cols] += frac
-        if floor:  # the covered parts' moments, full cells' at their centres
-            area = frac * (L * L)
-            mx_, my_ = xp.broadcast_to(cx[None, :], area.shape).copy(), \
-                xp.broadcast_to(cy[:, None], area.shape).copy()
-            if ri.size:
-                mx_[ri, ci], my_[ri, ci] = disk_rectangle_centroid(
-                    rx - 0.5 * L, rx + 0.5 * L, ry - 0.5 * L, ry + 0.5 * L, rad)
-            moment_x[rows, cols] += area * (mx_ + px)
-            moment_y[rows, cols] += area * (my_ + py)
-        # Views of the square, updated in place: the pillar of the larger share owns a cell.
-        best = best_frac[rows, cols]
-        xp.copyto(owner[rows, cols], k, where=frac > best)
-        xp.maximum(best, frac, out=best)
-    del best_frac
+    if dense is None:
+        dense = xp is not np
+    fractions = _fractions_dense if dense else _fractions_windows
+    total_frac, owner, moment_x, moment_y = fractions(table, ax, L, rad, p.pitch_m, floor, xp)
     total_frac, owner = total_frac.ravel(), owner.ravel()
     tops = (total_frac.copy(), moment_x.ravel(), moment_y.ravel()) if floor else None
     # The tops outside the candidate disk are not candidates: cleared by each row's column
@@ -365,9 +331,9 @@ def _pillar_cells(scene, ax, L, r_cand, floor=False, xp=np):
     xp.minimum(covered, 1.0, out=covered)
     owners = owner[keep]
     # The dropped slivers' area goes to the other partly covered cells of the same pillar, so
-    # every top keeps its exact area.  Slivers are rim cells.
-    rim = xp.concatenate(rims) if rims else xp.zeros(0, dtype=xp.int64)
-    sliver = xp.unique(rim[(total_frac[rim] > 0.0) & (total_frac[rim] <= MIN_COVERED_FRACTION)])
+    # every top keeps its exact area.  (Whole cells carry a fraction 0 or >= 1: the cells in
+    # (0, MIN_COVERED_FRACTION] are rim cells.)
+    sliver = xp.flatnonzero((total_frac > 0.0) & (total_frac <= MIN_COVERED_FRACTION))
     n_table = len(table)
     lost = xp.bincount(owner[sliver], weights=xp.minimum(total_frac[sliver], 1.0),
                        minlength=n_table)
@@ -383,6 +349,127 @@ def _pillar_cells(scene, ax, L, r_cand, floor=False, xp=np):
     nm = table[used, :2].astype(int)
     xy = table[used, 2:4].astype(float)
     return keep, covered, pillar, nm, xy, tops
+
+
+def _cover(cx, cy, L, rad, xp):
+    """Covered fraction of the cells at offsets ``cx`` x ``cy`` (broadcast) from a top's
+    centre: 1 where the farthest corner is inside the top, 0 where the nearest point is
+    outside it, and the closed-form area only on the cells the rim crosses; with the rim
+    cells' (row, column) indices into the broadcast shape."""
+    far2 = (xp.abs(cx) + 0.5 * L) ** 2 + (xp.abs(cy) + 0.5 * L) ** 2
+    near2 = xp.maximum(xp.abs(cx) - 0.5 * L, 0.0) ** 2 + xp.maximum(xp.abs(cy) - 0.5 * L,
+                                                                     0.0) ** 2
+    frac = (far2 <= rad * rad).astype(float)
+    rim = xp.nonzero((near2 < rad * rad) & (far2 > rad * rad))
+    return frac, rim
+
+
+def _rim_parts(rx, ry, L, rad, floor):
+    """Closed-form covered area over L^2 of the rim cells at offsets (rx, ry) from a top's
+    centre, and with ``floor`` the centroids of the covered parts (else None)."""
+    box = (rx - 0.5 * L, rx + 0.5 * L, ry - 0.5 * L, ry + 0.5 * L, rad)
+    area = disk_rectangle_area(*box) / (L * L)
+    return area, (disk_rectangle_centroid(*box) if floor else None)
+
+
+def _fractions_windows(table, ax, L, rad, pitch, floor, xp):
+    """Tops' covered fraction summed over the pillars of ``table`` on the square ``ax`` x
+    ``ax``, the owner of each cell (the pillar of the larger share, the first in table order
+    on a tie; -1 for none) and with ``floor`` the covered parts' moments about the origin,
+    pillar by pillar in the small window around each (views of the square, no gathers)."""
+    side = ax.size
+    half = side // 2
+    best_frac = xp.zeros((side, side))
+    total_frac = xp.zeros((side, side))
+    owner = xp.full((side, side), -1, dtype=xp.int64)
+    moment_x = moment_y = None
+    if floor:
+        moment_x, moment_y = xp.zeros((side, side)), xp.zeros((side, side))
+    m = int(math.ceil(rad / L)) + 1
+    for k, (_, _, px, py) in enumerate(table):
+        ix0 = int(round(px / L)) + half
+        iy0 = int(round(py / L)) + half
+        cols = slice(max(ix0 - m, 0), min(ix0 + m + 1, side))
+        rows = slice(max(iy0 - m, 0), min(iy0 + m + 1, side))
+        cx, cy = ax[cols] - px, ax[rows] - py
+        frac, (ri, ci) = _cover(cx[None, :], cy[:, None], L, rad, xp)
+        rx, ry = cx[ci], cy[ri]
+        frac[ri, ci], centroid = _rim_parts(rx, ry, L, rad, floor)
+        total_frac[rows, cols] += frac
+        if floor:  # the covered parts' moments, full cells' at their centres
+            area = frac * (L * L)
+            mx_, my_ = xp.broadcast_to(cx[None, :], area.shape).copy(), \
+                xp.broadcast_to(cy[:, None], area.shape).copy()
+            if ri.size:
+                mx_[ri, ci], my_[ri, ci] = centroid
+            moment_x[rows, cols] += area * (mx_ + px)
+            moment_y[rows, cols] += area * (my_ + py)
+        # Views of the square, updated in place: the pillar of the larger share owns a cell.
+        best = best_frac[rows, cols]
+        xp.copyto(owner[rows, cols], k, where=frac > best)
+        xp.maximum(best, frac, out=best)
+    return total_frac, owner, moment_x, moment_y
+
+
+def _fractions_dense(table, ax, L, rad, pitch, floor, xp):
+    """What :func:`_fractions_windows` gives, from every cell at once: each cell's four
+    nearest lattice sites (the corners of the lattice parallelogram that holds its centre)
+    are the only tops it can overlap, so the square takes four passes of whole-array work
+    whatever the number of pillars, instead of a few launches per pillar.
+
+    Why four suffice: a cell overlaps a top whose centre lies within rad + L / sqrt(2) of its
+    centre; every other site is at least sqrt(3) / 2 pitch (a height of the parallelogram's
+    two equilateral triangles) from any point of it; and rad <= pitch / 2 (tops do not
+    overlap), L <= d / 2 (at least two cells across), so rad + L / sqrt(2) <= (1 + 1 /
+    sqrt(2)) pitch / 2 = 0.854 pitch < 0.866 pitch."""
+    side = ax.size
+    # Table index of each lattice site (n, m) in the table's range, -1 for none.
+    n_lo, m_lo = int(table[:, 0].min()), int(table[:, 1].min())
+    n_hi, m_hi = int(table[:, 0].max()), int(table[:, 1].max())
+    index = np.full((n_hi - n_lo + 2, m_hi - m_lo + 2), -1, dtype=np.int64)
+    index[table[:, 0].astype(int) - n_lo, table[:, 1].astype(int) - m_lo] = \
+        np.arange(len(table))
+    index = xp.asarray(index)
+    sites = xp.asarray(table[:, 2:4].astype(float))
+    x, y = ax[None, :], ax[:, None]
+    # Lattice coordinates: pillar (n, m) at ((2n - m) pitch / 2, sqrt(3) m pitch / 2).
+    mf = xp.floor(2.0 * y / (math.sqrt(3.0) * pitch))
+    nf = xp.floor((2.0 * x / pitch + 2.0 * y / (math.sqrt(3.0) * pitch)) / 2.0)
+    total_frac = xp.zeros((side, side))
+    best = xp.zeros((side, side))
+    owner = xp.full((side, side), -1, dtype=xp.int64)
+    moment_x = moment_y = None
+    if floor:
+        moment_x, moment_y = xp.zeros((side, side)), xp.zeros((side, side))
+    for dn, dm in ((0, 0), (1, 0), (0, 1), (1, 1)):
+        n_ = (nf + dn).astype(xp.int64) - n_lo
+        m_ = (mf + dm).astype(xp.int64) - m_lo
+        inside = (n_ >= 0) & (n_ < index.shape[0]) & (m_ >= 0) & (m_ < index.shape[1])
+        k = xp.where(inside, index[xp.clip(n_, 0, index.shape[0] - 1),
+                                   xp.clip(m_, 0, index.shape[1] - 1)], -1)
+        px = xp.where(k >= 0, sites[xp.maximum(k, 0), 0], 0.0)
+        py = xp.where(k >= 0, sites[xp.maximum(k, 0), 1], 0.0)
+        cx, cy = x - px, y - py
+        frac, rim = _cover(cx, cy, L, rad, xp)
+        frac[k < 0] = 0.0
+        ri, ci = rim
+        keep = k[ri, ci] >= 0
+        ri, ci = ri[keep], ci[keep]
+        rx, ry = cx[ri, ci], cy[ri, ci]
+        frac[ri, ci], centroid = _rim_parts(rx, ry, L, rad, floor)
+        total_frac += frac
+        if floor:
+            area = frac * (L * L)
+            mx_, my_ = cx.copy(), cy.copy()
+            if ri.size:
+                mx_[ri, ci], my_[ri, ci] = centroid
+            moment_x += area * (mx_ + px)
+            moment_y += area * (my_ + py)
+        # The larger share owns a cell, the first pillar in table order on a tie.
+        take = (frac > best) | ((frac == best) & (frac > 0.0) & (k < owner))
+        owner = xp.where(take, k, owner)
+        best = xp.maximum(best, frac)
+    return total_frac, owner, moment_x, moment_y
 
 
 def _row_reach(ax, radius: float, xp=np):

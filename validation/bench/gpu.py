@@ -60,6 +60,10 @@ def _solve(spec: dict) -> dict:
 
     scene = load_scene(SCENE, list(PILLARS[spec["pillars"]]))
     warm = spec.get("warm_start", True)
+    if spec.get("host_grid"):  # the variant that builds the grid on the host at any size
+        import bem_solver._fft as fft_module
+
+        fft_module.GPU_GRID_MIN_POINTS = float("inf")
     if spec["device"] == "cpu":
         backend = NumpyDevice(spec["workers"], max_fft_points=spec["cpu_max_fft_points"])
     else:
@@ -127,6 +131,10 @@ def main(argv=None) -> int:
     ap.add_argument("--gpu-warm", type=int, nargs="*", default=[],
                     help="GPU variants with at most this many nested warm-start levels "
                          "(0: a cold start), beside the default (all levels)")
+    ap.add_argument("--gpu-host-grid", action="store_true",
+                    help="a GPU variant that builds the grid on the host at every size "
+                         "('gpu-host'), beside the default (on the device from "
+                         "bem_solver._fft.GPU_GRID_MIN_POINTS points of the candidate square)")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.repeats < 1:
@@ -140,7 +148,8 @@ def main(argv=None) -> int:
 
     gpu_reason = available_devices()["gpu"]
     levels = args.levels or list(LEVELS if not gpu_reason else CPU_ONLY_LEVELS)
-    devices = ["cpu"] + ([] if gpu_reason else ["gpu"] + [f"gpu-w{k}" for k in args.gpu_warm])
+    devices = ["cpu"] + ([] if gpu_reason else ["gpu"] + [f"gpu-w{k}" for k in args.gpu_warm]
+                         + (["gpu-host"] if args.gpu_host_grid else []))
     base = {"workers": thread_count(), "cpu_max_fft_points": _cpu_max_fft_points()}
     meta = {"scene": SCENE, "tolerance": TOL, "edge_correction": True,
             "python": platform.python_version(), "machine": platform.machine(),
@@ -163,6 +172,8 @@ def main(argv=None) -> int:
                 spec = {**base, "device": device.split("-")[0], "pillars": pillars, "n": n}
                 if device.startswith("gpu-w"):
                     spec["warm_start"] = int(device[len("gpu-w"):])
+                if device == "gpu-host":
+                    spec["host_grid"] = True
                 elapsed = time.monotonic() - start
                 if device == "cpu" and _too_big(rows, pillars, n, args.cpu_max_cells):
                     row[device] = {"error": f"skipped: over --cpu-max-cells "
@@ -221,19 +232,21 @@ def write_report(out: Path, rows: list, meta: dict) -> str:
                      + (_cell(gpu) if gpu is not None else f"{'pending':>27}") + " "
                      + _ratio(cpu, gpu))
         r["force_rel_diff"] = _force_diff(cpu, gpu)
-    for r in rows:  # the GPU's warm-start variants, against the CPU and the default GPU
-        for path in sorted(k for k in r if k.startswith("gpu-w")):
+    for r in rows:  # the GPU's variants, against the CPU and the default GPU
+        for path in sorted(k for k in r if k.startswith("gpu-")):
             v, cpu, gpu = r[path], r.get("cpu", {}), r.get("gpu", {})
+            what = "the grid on the host" if path == "gpu-host" else \
+                f"at most {path[5:]} nested levels"
             if "wall_time_s" in v:
                 lines.append(
-                    f"{r['pillars']} N = {r['n']} {path} (at most {path[5:]} nested levels): "
+                    f"{r['pillars']} N = {r['n']} {path} ({what}; grid {v['grid_s']:.3f} s): "
                     f"{v['wall_time_s']:.2f} s, again {v['again_wall_time_s']:.2f} s, "
                     f"{v['iterations']} + {v['warm_start_iterations']} iterations; default GPU "
                     f"{gpu.get('wall_time_s', float('nan')):.2f} s; CPU over this "
                     f"{cpu.get('wall_time_s', float('nan')) / v['wall_time_s']:.1f}x; dF_T rel "
                     f"{_force_diff(cpu, v) if 'total_force_N' in cpu else float('nan'):.1e}")
     for r in rows:
-        for path in [k for k in r if k in ("cpu", "gpu") or k.startswith("gpu-w")]:
+        for path in [k for k in r if k in ("cpu", "gpu") or k.startswith("gpu-")]:
             if "error" in r.get(path, {}):
                 lines.append(f"{r['pillars']} N = {r['n']} {path}: {r[path]['error']}")
     if meta["gpu_pending"]:
