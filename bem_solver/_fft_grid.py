@@ -372,6 +372,14 @@ def _rim_parts(rx, ry, L, rad, floor):
     return area, (disk_rectangle_centroid(*box) if floor else None)
 
 
+def _square_arrays(side: int, floor: bool, xp):
+    """Zeroed accumulators over the square: summed fraction, largest share, owner (-1), and
+    with ``floor`` the two moments (else None)."""
+    moments = (xp.zeros((side, side)), xp.zeros((side, side))) if floor else (None, None)
+    return (xp.zeros((side, side)), xp.zeros((side, side)),
+            xp.full((side, side), -1, dtype=xp.int64), *moments)
+
+
 def _fractions_windows(table, ax, L, rad, pitch, floor, xp):
     """Tops' covered fraction summed over the pillars of ``table`` on the square ``ax`` x
     ``ax``, the owner of each cell (the pillar of the larger share, the first in table order
@@ -379,12 +387,7 @@ def _fractions_windows(table, ax, L, rad, pitch, floor, xp):
     pillar by pillar in the small window around each (views of the square, no gathers)."""
     side = ax.size
     half = side // 2
-    best_frac = xp.zeros((side, side))
-    total_frac = xp.zeros((side, side))
-    owner = xp.full((side, side), -1, dtype=xp.int64)
-    moment_x = moment_y = None
-    if floor:
-        moment_x, moment_y = xp.zeros((side, side)), xp.zeros((side, side))
+    total_frac, best_frac, owner, moment_x, moment_y = _square_arrays(side, floor, xp)
     m = int(math.ceil(rad / L)) + 1
     for k, (_, _, px, py) in enumerate(table):
         ix0 = int(round(px / L)) + half
@@ -435,12 +438,7 @@ def _fractions_dense(table, ax, L, rad, pitch, floor, xp):
     # Lattice coordinates: pillar (n, m) at ((2n - m) pitch / 2, sqrt(3) m pitch / 2).
     mf = xp.floor(2.0 * y / (math.sqrt(3.0) * pitch))
     nf = xp.floor((2.0 * x / pitch + 2.0 * y / (math.sqrt(3.0) * pitch)) / 2.0)
-    total_frac = xp.zeros((side, side))
-    best = xp.zeros((side, side))
-    owner = xp.full((side, side), -1, dtype=xp.int64)
-    moment_x = moment_y = None
-    if floor:
-        moment_x, moment_y = xp.zeros((side, side)), xp.zeros((side, side))
+    total_frac, best, owner, moment_x, moment_y = _square_arrays(side, floor, xp)
     for dn, dm in ((0, 0), (1, 0), (0, 1), (1, 1)):
         n_ = (nf + dn).astype(xp.int64) - n_lo
         m_ = (mf + dm).astype(xp.int64) - m_lo
