@@ -42,6 +42,9 @@ PILLARS = {"rigid": ("pillars.rigid=true",), "elastic": ()}
 LEVELS = (32, 58, 100, 180, 256)
 CPU_ONLY_LEVELS = (32, 58)  # without a GPU: the CPU column on a small subset
 TOL = 1e-8
+# The GPU's variants of the grid's construction (--gpu-grids).
+GRID_VARIANTS = {"host": "the grid on the host at every size",
+                 "windows": "the grid on the device, pillar window by pillar window"}
 # Cells per diameter of the untimed GPU run that compiles cupy's kernels first (with warm-start
 # levels, so that their kernels are compiled too).
 WARM_UP_N = 32
@@ -60,10 +63,17 @@ def _solve(spec: dict) -> dict:
 
     scene = load_scene(SCENE, list(PILLARS[spec["pillars"]]))
     warm = spec.get("warm_start", True)
-    if spec.get("host_grid"):  # the variant that builds the grid on the host at any size
+    if spec.get("grid") == "host":  # the variant that builds the grid on the host
         import bem_solver._fft as fft_module
 
         fft_module.GPU_GRID_MIN_POINTS = float("inf")
+    elif spec.get("grid") == "windows":  # on the device, pillar window by pillar window
+        import bem_solver._fft as fft_module
+        import bem_solver._fft_grid as grid_module
+
+        fft_module.GPU_GRID_MIN_POINTS = 0
+        tops = grid_module._pillar_cells
+        grid_module._pillar_cells = lambda *a, **k: tops(*a, **{**k, "dense": False})
     if spec["device"] == "cpu":
         backend = NumpyDevice(spec["workers"], max_fft_points=spec["cpu_max_fft_points"])
     else:
@@ -131,10 +141,11 @@ def main(argv=None) -> int:
     ap.add_argument("--gpu-warm", type=int, nargs="*", default=[],
                     help="GPU variants with at most this many nested warm-start levels "
                          "(0: a cold start), beside the default (all levels)")
-    ap.add_argument("--gpu-host-grid", action="store_true",
-                    help="a GPU variant that builds the grid on the host at every size "
-                         "('gpu-host'), beside the default (on the device from "
-                         "bem_solver._fft.GPU_GRID_MIN_POINTS points of the candidate square)")
+    ap.add_argument("--gpu-grids", nargs="*", default=[], choices=list(GRID_VARIANTS),
+                    help="GPU variants of the grid's construction, beside the default (on "
+                         "the device from bem_solver._fft.GPU_GRID_MIN_POINTS points of the "
+                         "candidate square, all tops at once): " + "; ".join(
+                             f"'gpu-{k}' {v}" for k, v in GRID_VARIANTS.items()))
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.repeats < 1:
@@ -149,7 +160,7 @@ def main(argv=None) -> int:
     gpu_reason = available_devices()["gpu"]
     levels = args.levels or list(LEVELS if not gpu_reason else CPU_ONLY_LEVELS)
     devices = ["cpu"] + ([] if gpu_reason else ["gpu"] + [f"gpu-w{k}" for k in args.gpu_warm]
-                         + (["gpu-host"] if args.gpu_host_grid else []))
+                         + [f"gpu-{k}" for k in args.gpu_grids])
     base = {"workers": thread_count(), "cpu_max_fft_points": _cpu_max_fft_points()}
     meta = {"scene": SCENE, "tolerance": TOL, "edge_correction": True,
             "python": platform.python_version(), "machine": platform.machine(),
@@ -170,10 +181,11 @@ def main(argv=None) -> int:
             rows.append(row)
             for device in devices:
                 spec = {**base, "device": device.split("-")[0], "pillars": pillars, "n": n}
-                if device.startswith("gpu-w"):
-                    spec["warm_start"] = int(device[len("gpu-w"):])
-                if device == "gpu-host":
-                    spec["host_grid"] = True
+                variant = device[len("gpu-"):] if device.startswith("gpu-") else ""
+                if variant in GRID_VARIANTS:
+                    spec["grid"] = variant
+                elif variant:  # w<k>: at most k nested warm-start levels
+                    spec["warm_start"] = int(variant[1:])
                 elapsed = time.monotonic() - start
                 if device == "cpu" and _too_big(rows, pillars, n, args.cpu_max_cells):
                     row[device] = {"error": f"skipped: over --cpu-max-cells "
@@ -235,14 +247,14 @@ def write_report(out: Path, rows: list, meta: dict) -> str:
     for r in rows:  # the GPU's variants, against the CPU and the default GPU
         for path in sorted(k for k in r if k.startswith("gpu-")):
             v, cpu, gpu = r[path], r.get("cpu", {}), r.get("gpu", {})
-            what = "the grid on the host" if path == "gpu-host" else \
-                f"at most {path[5:]} nested levels"
+            what = GRID_VARIANTS.get(path[4:], f"at most {path[5:]} nested levels")
             if "wall_time_s" in v:
                 lines.append(
                     f"{r['pillars']} N = {r['n']} {path} ({what}; grid {v['grid_s']:.3f} s): "
                     f"{v['wall_time_s']:.2f} s, again {v['again_wall_time_s']:.2f} s, "
                     f"{v['iterations']} + {v['warm_start_iterations']} iterations; default GPU "
-                    f"{gpu.get('wall_time_s', float('nan')):.2f} s; CPU over this "
+                    f"{gpu.get('wall_time_s', float('nan')):.2f} s (grid "
+                    f"{gpu.get('grid_s', float('nan')):.3f} s); CPU over this "
                     f"{cpu.get('wall_time_s', float('nan')) / v['wall_time_s']:.1f}x; dF_T rel "
                     f"{_force_diff(cpu, v) if 'total_force_N' in cpu else float('nan'):.1e}")
     for r in rows:

@@ -3,11 +3,14 @@
 # its own time limit so that the call always ends with what it measured:
 #   1. the GPU benchmark (validation/bench/gpu.py): with BASE=DIR (a checkout of the code
 #      before a change) first that code, then this one, at 1e6 and 2e7 cells, with the
-#      warm-start variants of the GPU path (--gpu-warm);
+#      warm-start variants of the GPU path (--gpu-warm) and of the grid's construction
+#      (--gpu-grids: GRIDS_1E6="host", GRIDS_2E7="windows");
+#   1b. an iteration's parts on the GPU at 1e6 cells (validation/bench/gpu_parts.py);
 #   2. thread scaling of bem-fft at 1e6 cells on 1 to 16 threads (validation/bench/threads.py);
 #   3. the planner's predicted over measured seconds at 1, 4 and 16 threads
 #      (validation/bench/planner_threads.py).
-# Usage: OUT=DIR [BASE=DIR] [PY=python3] [PARTS="gpu threads planner"] [GPU_WARM="1 0"]
+# Usage: OUT=DIR [BASE=DIR] [PY=python3] [PARTS="gpu parts threads planner"] [GPU_WARM="1 0"]
+#        [GRIDS_1E6="host"] [GRIDS_2E7="windows"]
 #        [REPEATS_1E6=2] [REPEATS_2E7=1] validation/bench/lent_machine.sh
 # The files land in $OUT (at most two folders down, eight files: what a lent machine returns).
 set -u
@@ -16,7 +19,7 @@ PY=${PY:-python3}
 HERE=$(pwd)
 mkdir -p "$OUT"
 export PYTHONUNBUFFERED=1 PILLAR_XVAL_CACHE=/tmp/pillar-xval-cache
-PARTS=${PARTS:-gpu threads planner}
+PARTS=${PARTS:-gpu parts threads planner}
 GPU_WARM=${GPU_WARM-1 0}
 start=$(date +%s)
 has() { case " $PARTS " in *" $1 "*) return 0;; esac; return 1; }
@@ -37,12 +40,18 @@ if has gpu; then
   stamp "gpu, after: 1e6"
   # shellcheck disable=SC2086  # GPU_WARM: a list of variants
   PYTHONPATH="$HERE" timeout "${T_AFTER1:-120}" $PY -m validation.bench.gpu \
-    --out "$OUT/gpu-1e6" --levels 58 --repeats "${REPEATS_1E6:-2}" --gpu-warm $GPU_WARM
+    --out "$OUT/gpu-1e6" --levels 58 --repeats "${REPEATS_1E6:-2}" --gpu-warm $GPU_WARM \
+    --gpu-grids ${GRIDS_1E6-}
   stamp "gpu, after: 2e7"
   # shellcheck disable=SC2086
   PYTHONPATH="$HERE" timeout "${T_AFTER2:-80}" $PY -m validation.bench.gpu \
     --out "$OUT/gpu-2e7" --levels 256 --repeats "${REPEATS_2E7:-1}" --cpu-max-cells 2e6 \
-    --gpu-warm $GPU_WARM
+    --gpu-warm $GPU_WARM --gpu-grids ${GRIDS_2E7-}
+fi
+if has parts; then
+  stamp "parts"
+  PYTHONPATH="$HERE" timeout "${T_PARTS:-60}" $PY -m validation.bench.gpu_parts \
+    --out "$OUT/parts" --device gpu --n 58 --repeats 20
 fi
 if has threads; then
   stamp "threads"
