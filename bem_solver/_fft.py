@@ -35,7 +35,7 @@ Devices.  The model is written once against an array namespace (:mod:`bem_solver
 ``device="cpu"`` (default) runs it with numpy and scipy.fft, ``device="gpu"`` with cupy and
 cuFFT on a CUDA GPU (optional extra ``[gpu]``), ``device="auto"`` takes the GPU when cupy
 finds one.  The grid geometry is built on the host (on the GPU itself from
-``GPU_GRID_MIN_POINTS`` points of the candidate square on); the kernel table, its spectrum, the
+``GPU_GRID_MIN_POINTS`` points of the candidate square on, all tops at once); the kernel table, its spectrum, the
 near-field correction, the preconditioner and the constrained CG run on the device, in
 float64; results come back to the host once.  On the GPU the default start is cold
 (``GPU_WARM_START_LEVELS``): the coarse levels' host work costs more there than the fine
@@ -101,10 +101,11 @@ WARM_START_TOL = 1e-2
 GPU_WARM_START_LEVELS = 0
 # A GPU builds the grid itself (cupy) from this many points of the candidate square: there
 # the tops' fractions come from every cell's four nearest lattice sites in a fixed number of
-# whole-array passes (bem_solver._fft_grid._fractions_dense), where the pillar-by-pillar
-# construction took ~10 launches per pillar (0.65-1.2 s at 1e6 cells on an H200, against
-# the host's 0.15 s).  Below it the host's ~0.1 s per 1e6 points is cheaper than the
-# device's fixed cost of some 150 launches.
+# whole-array passes (bem_solver._fft_grid._fractions_dense).  Measured on an H200
+# (paper-fig3-dense, repeated solves): ~0.035 s plus 0.018 s per 1e6 points on the device
+# (1e6 cells 0.05 s, 2e7 cells 0.31-0.43 s), ~0.18 s per 1e6 points on the host: equal
+# near 2.2e5 points.  (Pillar by pillar, ~10 launches each, the device took 0.65-1.2 s at
+# 1e6 cells.)
 GPU_GRID_MIN_POINTS = 250_000
 # Fewest cells across the Hertz-like contact 2 sqrt(R zeta) on the centre pillar top for an
 # answer: the flat (Hertz) scene is the same problem, and there 5 cells across is the
