@@ -36,8 +36,8 @@ Devices.  The model is written once against an array namespace (:mod:`bem_solver
 cuFFT on a CUDA GPU (optional extra ``[gpu]``), ``device="auto"`` takes the GPU when cupy
 finds one.  The grid geometry is built on the host (on the GPU itself from
 ``GPU_GRID_MIN_POINTS`` points of the candidate square on, all tops at once); the kernel
-table, its spectrum, the near-field correction, the preconditioner and the constrained CG run on the device, in
-float64; results come back to the host once.  On the GPU the default start is cold
+table, its spectrum, the near-field correction, the preconditioner and the constrained CG
+run on the device, in float64; results come back to the host once.  On the GPU the default start is cold
 (``GPU_WARM_START_LEVELS``): the coarse levels' host work costs more there than the fine
 iterations it saves.
 
