@@ -37,9 +37,9 @@ cuFFT on a CUDA GPU (optional extra ``[gpu]``), ``device="auto"`` takes the GPU 
 finds one.  The grid geometry is built on the host (on the GPU itself from
 ``GPU_GRID_MIN_POINTS`` points of the candidate square on, all tops at once); the kernel
 table, its spectrum, the near-field correction, the preconditioner and the constrained CG
-run on the device, in float64; results come back to the host once.  On the GPU the default start is cold
-(``GPU_WARM_START_LEVELS``): the coarse levels' host work costs more there than the fine
-iterations it saves.
+run on the device, in float64; results come back to the host once.  On the GPU the default
+start is cold (``GPU_WARM_START_LEVELS``): the coarse levels' host work costs more there
+than the fine iterations it saves.
 
 Units: SI (m, Pa, N) in and out.
 
