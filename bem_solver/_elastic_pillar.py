@@ -581,7 +581,8 @@ def tops_grid(grid):
     return replace(grid, flat_index=grid.flat_index[:n], x=grid.x[:n], y=grid.y[:n],
                    covered=grid.covered[:n], gap0=grid.gap0[:n], pillar=grid.pillar[:n],
                    colloc_x=grid.colloc_x[:n], colloc_y=grid.colloc_y[:n], floor=None,
-                   n_unique=None, floor_radius=0.0)
+                   n_unique=None, floor_radius=0.0,
+                   reach=None if grid.reach is None else grid.reach[:n])
 
 
 class TopsOnlyTerm:

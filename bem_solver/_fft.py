@@ -421,7 +421,7 @@ def _plain_grid(grid: CellGrid, scene: Scene) -> CellGrid:
     gap0 = lens_gap(scene.lens.radius_m, np.hypot(grid.x, grid.y)) - scene.indentation_m
     if grid.has_floor:
         gap0[grid.floor] += scene.pillars.height_m
-    return replace(grid, colloc_x=grid.x, colloc_y=grid.y, gap0=gap0)
+    return replace(grid, colloc_x=grid.x, colloc_y=grid.y, gap0=gap0, reach=None)
 
 
 def _interpolate(rough: ContactResult, grid: CellGrid, be, slivers: bool = True):
@@ -569,12 +569,16 @@ def _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, mess
     # The cells in contact, and their outer radii (collocation radius plus half the side of
     # the equivalent square), once: the tops' and the floor's contact radii come from them
     # (1e7 cells: a pass over all of them cost a second of a 2e7-cell GPU solve).
-    touching = np.flatnonzero(contact)
-    far = _reach(grid, touching, L)
-    floor_force = float(cell_force[grid.n_top:].sum())  # the floor's unknowns come last
-    on_floor = touching >= grid.n_top
-    floor_area = float(grid.covered[touching[on_floor]].sum() * L2)
-    floor_radius = float(far[on_floor].max(initial=0.0))
+    n_top = grid.n_top
+    floor_force = float(cell_force[n_top:].sum())  # the floor's unknowns come last
+    floor_area = float(grid.covered[n_top:][contact[n_top:]].sum() * L2)
+    if grid.reach is not None:  # built with the grid (on a device), the tops' capped
+        floor_radius = float(np.max(grid.reach[n_top:], where=contact[n_top:], initial=0.0))
+    else:
+        touching = np.flatnonzero(contact)
+        far = _reach(grid, touching, L)
+        on_floor = touching >= n_top
+        floor_radius = float(far[on_floor].max(initial=0.0))
     if grid.flat:
         # Same definition as the dense model: where p^2 (linear in r^2 at a square-root edge)
         # extrapolates to zero; area pi a^2.
@@ -586,12 +590,14 @@ def _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, mess
     else:
         # Outermost point of contact: collocation radius plus half the side of the
         # (equivalent) loaded square, as in the dense model, capped at the pillar's rim.
-        rho = np.hypot(grid.pillar_xy[:, 0], grid.pillar_xy[:, 1])
-        top = ~on_floor
-        far = far.copy()
-        far[top] = np.minimum(far[top], rho[grid.pillar[touching[top]]]
-                              + 0.5 * scene.pillars.diameter_m)
-        contact_radius = float(far.max()) if touching.size else 0.0
+        if grid.reach is not None:
+            contact_radius = float(np.max(grid.reach, where=contact, initial=0.0))
+        else:
+            rho = np.hypot(grid.pillar_xy[:, 0], grid.pillar_xy[:, 1])
+            top = ~on_floor
+            far[top] = np.minimum(far[top], rho[grid.pillar[touching[top]]]
+                                  + 0.5 * scene.pillars.diameter_m)
+            contact_radius = float(far.max()) if touching.size else 0.0
         area = float((grid.covered[contact]).sum() * L2)
     forces = []
     if not grid.flat:
@@ -604,7 +610,7 @@ def _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, mess
     if len(history) > HISTORY_MAX:
         step = math.ceil(len(history) / HISTORY_MAX)
         history = history[::step] + [history[-1]]
-    interpenetration = float(np.maximum(-gap, 0.0).max(initial=0.0))
+    interpenetration = max(-float(gap.min()), 0.0) if gap.size else 0.0
     diagnostics = {
         "tolerance": tol,
         "stopping_criterion": "max |min-map residual| / zeta: |gap| on contact cells, "
@@ -632,7 +638,7 @@ def _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, mess
     }
     if grid.has_floor:
         diagnostics["floor_cells"] = int(grid.floor.sum())
-        diagnostics["floor_contact_cells"] = int(np.count_nonzero(on_floor))
+        diagnostics["floor_contact_cells"] = int(np.count_nonzero(contact[n_top:]))
         diagnostics["floor_reach_m"] = grid.floor_radius
     disc = {"cells_per_diameter": int(cells_per_diameter), "cell_size_m": L,
             "cells": grid.n_cells, "tolerance": tol,

@@ -93,6 +93,12 @@ class CellGrid:
         parts of rim cells, each at the position of a top unknown before them.
     floor_radius : float
         The floor's reach (m): floor cells have their centres within it; 0 without floor.
+    reach : ndarray, optional
+        Outer radius of each cell (m; collocation radius plus half the side of its
+        equivalent square), a top's capped at its pillar's rim: what a contact radius is the
+        largest of.  Built with the grid where a device builds it (one pass there, where the
+        host took a second of a 2e7-cell result); None otherwise (the result computes it
+        for the cells in contact only).
     """
 
     cell_size: float
@@ -113,6 +119,7 @@ class CellGrid:
     floor: np.ndarray = None
     n_unique: int = None
     floor_radius: float = 0.0
+    reach: np.ndarray = None
 
     def __post_init__(self):
         if self.colloc_x is None:
@@ -243,11 +250,18 @@ def build_grid(scene: Scene, cells_per_diameter: int,
         centre = centre[~floor[centre]]
     if centre.size != 1:
         raise RuntimeError("grid construction lost the centre cell")  # a bug, not user input
+    reach = None
+    if xp is not np and not flat:
+        reach = xp.hypot(colloc_x, colloc_y) + 0.5 * xp.sqrt(covered) * L
+        rim = xp.asarray(np.hypot(pillar_xy[:, 0], pillar_xy[:, 1])
+                         + 0.5 * scene.pillars.diameter_m)
+        top = pillar < len(pillar_nm)  # the floor's index is len(pillar_nm)
+        reach[top] = xp.minimum(reach[top], rim[pillar[top]])
     host = getattr(xp, "asnumpy", np.asarray)  # cupy's arrays come back once
     return CellGrid(L, shape, host(keep), host(x), host(y), host(covered), host(gap0),
                     host(pillar), pillar_nm, pillar_xy, int(centre[0]), r_cand, flat,
                     host(colloc_x), host(colloc_y), None if floor is None else host(floor),
-                    n_unique, r_floor)
+                    n_unique, r_floor, None if reach is None else host(reach))
 
 
 def _floor_cells(ax, L, r_floor, keep, tops, xp=np):

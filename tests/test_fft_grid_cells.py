@@ -149,3 +149,34 @@ def test_the_device_path_builds_the_same_grid(name, overrides, n):
         np.testing.assert_array_equal(b, a, err_msg=field)
     assert (device.shape, device.centre_cell, device.n_unique) == \
         (host.shape, host.centre_cell, host.n_unique)
+
+
+class _OtherLibrary:
+    """numpy under another name: what build_grid sees when a device library builds it."""
+
+    def __getattr__(self, name):
+        return getattr(np, name)
+
+
+@pytest.mark.parametrize(("name", "overrides", "n"), [
+    ("paper-fig3-dense", [], 12),
+    ("paper-fig3-sparse", FLOOR + ["pillars.surface_fraction=0.2", "pillars.E_Pa=160000",
+                                   "load.indentation_um=3.5"], 8),
+])
+def test_a_device_built_grid_carries_the_contact_radii_the_result_computes(name, overrides, n):
+    """The outer radii a device builds with the grid (one pass over all cells) give the
+    result's contact radius and floor contact radius exactly as the host's computation over
+    the cells in contact (the same expressions, here in the same library)."""
+    from bem_solver._fft import solve_fft
+
+    scene = load_scene(name, overrides)
+    on_device = build_grid(scene, n, xp=_OtherLibrary())
+    assert on_device.reach is not None and build_grid(scene, n).reach is None
+    res = solve_fft(scene, n)
+    contact = res.fields["pressure_Pa"] > 0.0
+    top = ~on_device.floor
+    assert res.contact_radius_m == np.max(on_device.reach, where=contact, initial=0.0)
+    assert res.floor_contact_radius_m == np.max(on_device.reach, where=contact & ~top,
+                                                initial=0.0)
+    if on_device.has_floor:
+        assert res.floor_contact_radius_m > 0.0
