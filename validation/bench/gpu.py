@@ -42,9 +42,10 @@ PILLARS = {"rigid": ("pillars.rigid=true",), "elastic": ()}
 LEVELS = (32, 58, 100, 180, 256)
 CPU_ONLY_LEVELS = (32, 58)  # without a GPU: the CPU column on a small subset
 TOL = 1e-8
-# The GPU's variants of the grid's construction (--gpu-grids).
-GRID_VARIANTS = {"host": "the grid on the host at every size",
-                 "windows": "the grid on the device, pillar window by pillar window"}
+# The GPU's variants (--gpu-variants): the grid's construction, the precision.
+VARIANTS = {"host": "the grid on the host at every size",
+                 "windows": "the grid on the device, pillar window by pillar window",
+                 "double": "float64 throughout (precision='double')"}
 # Cells per diameter of the untimed GPU run that compiles cupy's kernels first (with warm-start
 # levels, so that their kernels are compiled too).
 WARM_UP_N = 32
@@ -63,11 +64,11 @@ def _solve(spec: dict) -> dict:
 
     scene = load_scene(SCENE, list(PILLARS[spec["pillars"]]))
     warm = spec.get("warm_start", True)
-    if spec.get("grid") == "host":  # the variant that builds the grid on the host
+    if spec.get("variant") == "host":  # the variant that builds the grid on the host
         import bem_solver._fft as fft_module
 
         fft_module.GPU_GRID_MIN_POINTS = float("inf")
-    elif spec.get("grid") == "windows":  # on the device, pillar window by pillar window
+    elif spec.get("variant") == "windows":  # on the device, pillar window by pillar window
         import bem_solver._fft as fft_module
         import bem_solver._fft_grid as grid_module
 
@@ -82,7 +83,8 @@ def _solve(spec: dict) -> dict:
     for _ in range(2):
         start = time.perf_counter()
         res = solve_fft(scene, spec["n"], tol=TOL, workers=spec["workers"], backend=backend,
-                        warm_start=warm)
+                        warm_start=warm, precision="double" if spec.get("variant") == "double"
+                        else "mixed")
         runs.append((time.perf_counter() - start, res))
     (wall, res), (again, res2) = runs
     d = res.diagnostics
@@ -141,11 +143,11 @@ def main(argv=None) -> int:
     ap.add_argument("--gpu-warm", type=int, nargs="*", default=[],
                     help="GPU variants with at most this many nested warm-start levels "
                          "(0: a cold start), beside the default (all levels)")
-    ap.add_argument("--gpu-grids", nargs="*", default=[], choices=list(GRID_VARIANTS),
-                    help="GPU variants of the grid's construction, beside the default (on "
-                         "the device from bem_solver._fft.GPU_GRID_MIN_POINTS points of the "
-                         "candidate square, all tops at once): " + "; ".join(
-                             f"'gpu-{k}' {v}" for k, v in GRID_VARIANTS.items()))
+    ap.add_argument("--gpu-variants", nargs="*", default=[], choices=list(VARIANTS),
+                    help="GPU variants beside the default (the grid on the device from "
+                         "bem_solver._fft.GPU_GRID_MIN_POINTS points of the candidate "
+                         "square, all tops at once; mixed precision): " + "; ".join(
+                             f"'gpu-{k}' {v}" for k, v in VARIANTS.items()))
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.repeats < 1:
@@ -160,7 +162,7 @@ def main(argv=None) -> int:
     gpu_reason = available_devices()["gpu"]
     levels = args.levels or list(LEVELS if not gpu_reason else CPU_ONLY_LEVELS)
     devices = ["cpu"] + ([] if gpu_reason else ["gpu"] + [f"gpu-w{k}" for k in args.gpu_warm]
-                         + [f"gpu-{k}" for k in args.gpu_grids])
+                         + [f"gpu-{k}" for k in args.gpu_variants])
     base = {"workers": thread_count(), "cpu_max_fft_points": _cpu_max_fft_points()}
     meta = {"scene": SCENE, "tolerance": TOL, "edge_correction": True,
             "python": platform.python_version(), "machine": platform.machine(),
@@ -182,8 +184,8 @@ def main(argv=None) -> int:
             for device in devices:
                 spec = {**base, "device": device.split("-")[0], "pillars": pillars, "n": n}
                 variant = device[len("gpu-"):] if device.startswith("gpu-") else ""
-                if variant in GRID_VARIANTS:
-                    spec["grid"] = variant
+                if variant in VARIANTS:
+                    spec["variant"] = variant
                 elif variant:  # w<k>: at most k nested warm-start levels
                     spec["warm_start"] = int(variant[1:])
                 elapsed = time.monotonic() - start
@@ -247,7 +249,7 @@ def write_report(out: Path, rows: list, meta: dict) -> str:
     for r in rows:  # the GPU's variants, against the CPU and the default GPU
         for path in sorted(k for k in r if k.startswith("gpu-")):
             v, cpu, gpu = r[path], r.get("cpu", {}), r.get("gpu", {})
-            what = GRID_VARIANTS.get(path[4:], f"at most {path[5:]} nested levels")
+            what = VARIANTS.get(path[4:], f"at most {path[5:]} nested levels")
             if "wall_time_s" in v:
                 lines.append(
                     f"{r['pillars']} N = {r['n']} {path} ({what}; grid {v['grid_s']:.3f} s): "

@@ -3,14 +3,15 @@
 # its own time limit so that the call always ends with what it measured:
 #   1. the GPU benchmark (validation/bench/gpu.py): with BASE=DIR (a checkout of the code
 #      before a change) first that code, then this one, at 1e6 and 2e7 cells, with the
-#      warm-start variants of the GPU path (--gpu-warm) and of the grid's construction
-#      (--gpu-grids: GRIDS_1E6="host", GRIDS_2E7="windows");
+#      warm-start variants of the GPU path (--gpu-warm) and others: the grid's construction,
+#      the precision
+#      (--gpu-variants: VARIANTS_1E6="host double", VARIANTS_2E7="windows double");
 #   1b. an iteration's parts on the GPU at 1e6 cells (validation/bench/gpu_parts.py);
 #   2. thread scaling of bem-fft at 1e6 cells on 1 to 16 threads (validation/bench/threads.py);
 #   3. the planner's predicted over measured seconds at 1, 4 and 16 threads
 #      (validation/bench/planner_threads.py).
 # Usage: OUT=DIR [BASE=DIR] [PY=python3] [PARTS="gpu parts threads planner"] [GPU_WARM="1 0"]
-#        [GRIDS_1E6="host"] [GRIDS_2E7="windows"]
+#        [VARIANTS_1E6="host"] [VARIANTS_2E7="windows"]
 #        [REPEATS_1E6=2] [REPEATS_2E7=1] validation/bench/lent_machine.sh
 # The files land in $OUT (at most two folders down, eight files: what a lent machine returns).
 set -u
@@ -41,12 +42,12 @@ if has gpu; then
   # shellcheck disable=SC2086  # GPU_WARM: a list of variants
   PYTHONPATH="$HERE" timeout "${T_AFTER1:-120}" $PY -m validation.bench.gpu \
     --out "$OUT/gpu-1e6" --levels 58 --repeats "${REPEATS_1E6:-2}" --gpu-warm $GPU_WARM \
-    --gpu-grids ${GRIDS_1E6-}
+    --gpu-variants ${VARIANTS_1E6-}
   stamp "gpu, after: 2e7"
   # shellcheck disable=SC2086
   PYTHONPATH="$HERE" timeout "${T_AFTER2:-80}" $PY -m validation.bench.gpu \
     --out "$OUT/gpu-2e7" --levels 256 --repeats "${REPEATS_2E7:-1}" --cpu-max-cells 2e6 \
-    --gpu-warm $GPU_WARM --gpu-grids ${GRIDS_2E7-}
+    --gpu-warm $GPU_WARM --gpu-variants ${VARIANTS_2E7-}
 fi
 if has parts; then
   stamp "parts"
