@@ -45,7 +45,6 @@ import scipy.fft as sfft
 import scipy.sparse as sp
 
 from pillar_xval.scenes import InputError, Scene
-from pillar_xval.threads import thread_count
 
 from ._limits import PILLAR_MODELS
 from ._love import unit_force_influence
@@ -349,15 +348,19 @@ class FFTPillarTerm:
       partly covered cells restricted to pairs on the same pillar.
 
     Collocation points: the grid's (centroids of partly covered cells), relative to their
-    pillar's centre.  CPU only (numpy and scipy); the boxes' transforms on ``workers`` threads
-    (default :func:`pillar_xval.threads.thread_count`).
+    pillar's centre.  Set up on the host (numpy and scipy); applied on the device of
+    ``backend`` (:mod:`bem_solver._xp`, default numpy on the CPU): ``term(q)`` takes and
+    returns that device's vectors, and ``diagonal`` lives there.  On numpy the projections
+    run in chunks of whole pillars (cache-sized) and the boxes' transforms on the backend's
+    threads; on another device each projection is one sparse product over every pillar.
     """
 
-    def __init__(self, scene: Scene, grid, compliance, correction_builder,
-                 workers: int | None = None):
-        import scipy.sparse as sps
+    def __init__(self, scene: Scene, grid, compliance, correction_builder, backend=None):
+        from ._xp import NumpyDevice
 
-        self.workers = thread_count() if workers is None else int(workers)
+        be = NumpyDevice() if backend is None else backend
+        self.backend = be
+        self.on_host = isinstance(be, NumpyDevice)
         self.modal = compliance
         self.half_space = scene.half_space_compliance
         a = 0.5 * scene.pillars.diameter_m
@@ -380,28 +383,16 @@ class FFTPillarTerm:
         self.n_top = len(compliance.r_top)
         # Projection of cell forces onto the P2 points of their pillar's top: a sparse
         # matrix (pillar, point) x cells with the three hats of each cell's edge.  The cells
-        # are taken by pillar (the permutation ``order``), in chunks of whole pillars of
-        # about CHUNK_CELLS cells: each chunk's product reads its cells x modes block in
-        # cache and writes only its pillars' rows; the projection back is the transpose.
+        # are taken by pillar (the permutation ``order``); the projection back is the
+        # transpose.
         order = np.argsort(grid.pillar, kind="stable")
-        self.order = order
+        position = np.argsort(order)  # of each cell in ``order``
         rows = np.concatenate([grid.pillar * self.n_top + 2 * e + l for l in range(3)])
-        cols = np.tile(np.argsort(order), 3)  # the position of each cell in ``order``
-        project = sps.csr_matrix((np.concatenate(values), (rows, cols)),
-                                 shape=(self.n_pillars * self.n_top, self.n))
-        first = np.searchsorted(grid.pillar[order], np.arange(self.n_pillars + 1))
-        self.chunks, p0 = [], 0
-        while p0 < self.n_pillars:
-            p1 = p0 + 1
-            while p1 < self.n_pillars and first[p1 + 1] - first[p0] <= CHUNK_CELLS:
-                p1 += 1
-            r0, r1 = p0 * self.n_top, p1 * self.n_top
-            block = project[r0:r1, first[p0]:first[p1]]
-            self.chunks.append((first[p0], first[p1], r0, r1, block, block.T.tocsr()))
-            p0 = p1
-        self.position = np.argsort(order)  # of each cell in ``order``
-        self.chunk_of = np.repeat(np.arange(len(self.chunks)),
-                                  [c1 - c0 for c0, c1, *_ in self.chunks])
+        cols = np.tile(position, 3)
+        hats = np.concatenate(values)
+        self.chunks = self._chunks(grid.pillar[order], rows, cols, hats)
+        self.order = be.asarray(order)
+        self.position = position if self.on_host else be.asarray(position)
         trig, modes = [], []
         w = compliance.mode_weights()
         for m in range(compliance.modes + 1):
@@ -409,30 +400,66 @@ class FFTPillarTerm:
                 trig.append(f(m * theta))
                 modes.append(m)
         trig = np.column_stack(trig)                               # (cells, K)
-        self.trig = trig[order]                                    # (cells by pillar, K)
+        self.trig = be.asarray(trig[order])                        # (cells by pillar, K)
         S = compliance.excess
-        self.S = np.stack([w[m] * S[m] for m in modes]) * fem_scale  # (K, n_top, n_top)
+        S = np.stack([w[m] * S[m] for m in modes]) * fem_scale     # (K, n_top, n_top)
+        self.S = be.asarray(S)
         # Local Love part: each pillar's box of the grid.
         self.local = None
         if local != 0.0:
             self.local = self._local_plan(grid, local, correction_builder)
-        self.diagonal = self._diagonal(values, e, trig)
+        self.diagonal = be.asarray(self._diagonal(S, values, e, trig))
         # Mean excess of the mode part under a uniform load on the whole top (m/N).
         rr = np.linspace(0.0, 1.0, 4001)
         mid, dr = 0.5 * (rr[1:] + rr[:-1]), np.diff(rr)
         moments = (compliance.trace_basis(mid) * (mid * dr)[:, None]).sum(axis=0)
-        self.mean_mode = float(2.0 * moments @ (self.S[0] / w[0]) @ moments / math.pi)
+        self.mean_mode = float(2.0 * moments @ (S[0] / w[0]) @ moments / math.pi)
         # Pillar-to-pillar coupling correction (module docstring): per cell its excess base
-        # moments, per pillar pair the kernel h.
+        # moments (3, cells), per pillar pair the kernel h.
         self.coupling = None
         if uses_coupling(scene, compliance):
-            self.coupling = {"m": coupling_moments(scene, compliance, dx, dy),
-                             "h": coupling_kernel(scene, grid.pillar_xy),
-                             "pillar": np.asarray(grid.pillar)}
+            moments = np.ascontiguousarray(coupling_moments(scene, compliance, dx, dy).T)
+            self.coupling = {"m": be.asarray(moments),
+                             "h": be.asarray(coupling_kernel(scene, grid.pillar_xy)),
+                             "pillar": be.asarray(np.asarray(grid.pillar))}
+
+    @property
+    def applies_few(self) -> bool:
+        """Whether :meth:`apply_few` can apply the term on a few cells' pillars alone."""
+        return self.local is None and self.on_host
+
+    def _chunks(self, pillar_sorted, rows, cols, hats):
+        """(c0, c1, r0, r1, P, P^T) per chunk: cells [c0, c1) in ``order``, rows [r0, r1) of
+        the projection.  On numpy, chunks of whole pillars of about CHUNK_CELLS cells: each
+        chunk's product reads its cells x modes block in cache and writes only its pillars'
+        rows.  On another device one chunk: its products are whole-array launches."""
+        be = self.backend
+        n_rows = self.n_pillars * self.n_top
+        if not self.on_host:
+            rows, cols, hats = be.asarray(rows), be.asarray(cols), be.asarray(hats)
+            return [(0, self.n, 0, n_rows, be.sparse(rows, cols, hats, n_rows, self.n),
+                     be.sparse(cols, rows, hats, self.n, n_rows))]
+        project = be.sparse(rows, cols, hats, n_rows, self.n)
+        first = np.searchsorted(pillar_sorted, np.arange(self.n_pillars + 1))
+        chunks, p0 = [], 0
+        while p0 < self.n_pillars:
+            p1 = p0 + 1
+            while p1 < self.n_pillars and first[p1 + 1] - first[p0] <= CHUNK_CELLS:
+                p1 += 1
+            r0, r1 = p0 * self.n_top, p1 * self.n_top
+            block = project[r0:r1, first[p0]:first[p1]]
+            chunks.append((first[p0], first[p1], r0, r1, block, block.T.tocsr()))
+            p0 = p1
+        self.chunk_of = np.repeat(np.arange(len(chunks)), [c1 - c0 for c0, c1, *_ in chunks])
+        return chunks
 
     def _local_plan(self, grid, local, correction_builder):
+        """The boxes' layout and kernel spectrum, and the near-field correction's pairs on
+        one pillar (``correction_builder(gamma)``: a host scipy matrix or None), built on
+        the host and kept on the device."""
         from ._fft_operator import kernel_block
 
+        be = self.backend
         ny, nx = grid.shape
         iy, ix = grid.flat_index // nx, grid.flat_index % nx
         y0 = np.full(self.n_pillars, np.iinfo(np.int64).max)
@@ -449,20 +476,21 @@ class FFTPillarTerm:
         padded[:, M - B + 1:] = padded[:, 1:B][:, ::-1]
         spectrum = np.real(sfft.rfft2(padded))
         index = (grid.pillar * M + ly) * M + lx
-        correction = correction_builder(local)
+        correction, diagonal = correction_builder(local), None
         if correction is not None:  # keep the pairs on one pillar
             c = correction.tocoo()
             same = grid.pillar[c.row] == grid.pillar[c.col]
-            import scipy.sparse as sps
-            correction = sps.csr_matrix((c.data[same], (c.row[same], c.col[same])),
-                                        shape=c.shape)
-        return {"M": M, "index": index, "spectrum": spectrum, "correction": correction,
+            kept = [c.row[same], c.col[same], c.data[same]]
+            diagonal = sp.csr_matrix((kept[2], (kept[0], kept[1])), shape=c.shape).diagonal()
+            correction = be.sparse(*(be.asarray(v) for v in kept), self.n)
+        return {"M": M, "index": be.asarray(index), "spectrum": be.asarray(spectrum),
+                "correction": correction, "correction_diagonal": diagonal,
                 "self": float(block[0, 0])}
 
-    def _diagonal(self, values, e, trig):
-        """X[b, b] (m/Pa per unit q: times L^2): sum_k trig_k^2 v^T S_k[edge] v over the three
-        hats v of each cell's edge, by edge: (cells x K) (K x 6) products with the unique
-        entries of the 3 x 3 blocks of S_k on that edge."""
+    def _diagonal(self, S, values, e, trig):
+        """X[b, b] (m/Pa per unit q: times L^2), on the host: sum_k trig_k^2 v^T S_k[edge] v
+        over the three hats v of each cell's edge, by edge: (cells x K) (K x 6) products with
+        the unique entries of the 3 x 3 blocks of S_k on that edge."""
         n = self.n
         d = np.zeros(n)
         v = np.stack(values, axis=1)                                   # (cells, 3)
@@ -474,13 +502,13 @@ class FFTPillarTerm:
             if cells.size == 0:
                 continue
             nodes = 2 * edge + np.arange(3)
-            blocks = self.S[:, nodes[iu], nodes[ju]]                   # (K, 6)
+            blocks = S[:, nodes[iu], nodes[ju]]                        # (K, 6)
             d[cells] = np.einsum("bm,bm->b", t2[cells] @ blocks, vv[cells])
         d *= self.L2
         if self.local is not None:
             d += self.local["self"]
-            if self.local["correction"] is not None:
-                d += self.local["correction"].diagonal()
+            if self.local["correction_diagonal"] is not None:
+                d += self.local["correction_diagonal"]
         return d
 
     def __call__(self, q):
@@ -494,23 +522,27 @@ class FFTPillarTerm:
     def _coupling_apply(self, q):
         """sum_b ΔK[a, b] q_b L^2 over the cells b of the other pillars: per pillar the force
         and the moment-weighted forces, three pillar-by-pillar products (O(cells + pillars^2))."""
+        be = self.backend
+        xp = be.xp
         c = self.coupling
         f = q * self.L2
         pillar, m, h = c["pillar"], c["m"], c["h"]
-        force = np.bincount(pillar, f, minlength=self.n_pillars)
-        u = np.zeros(self.n)
-        per_pillar = np.zeros(self.n_pillars)
+        force = be.segment_sum(pillar, f, self.n_pillars)
+        u = xp.zeros(self.n, dtype=xp.float64)
+        per_pillar = xp.zeros(self.n_pillars, dtype=xp.float64)
         for k in range(3):
-            u += m[:, k] * (h[k] @ force)[pillar]
-            per_pillar += h[k] @ np.bincount(pillar, f * m[:, k], minlength=self.n_pillars)
-        return u + per_pillar[pillar]
+            hk, mk = h[k, :, :], m[k, :]
+            u += mk * xp.take(hk @ force, pillar)
+            per_pillar += hk @ be.segment_sum(pillar, f * mk, self.n_pillars)
+        return u + xp.take(per_pillar, pillar)
 
     def apply_few(self, index, values):
         """The term of d = ``values`` on the cells ``index`` and zero elsewhere, on the chunks
         of their pillars only (zero on the other pillars, but for the coupling correction,
-        which reaches every pillar); None with a local part (a box
-        convolution of every pillar)."""
-        if self.local is not None:
+        which reaches every pillar); None where that does not pay (:attr:`applies_few`: a
+        local part, a box convolution of every pillar; a device, whose one chunk is every
+        pillar)."""
+        if not self.applies_few:
             return None
         q = np.zeros(self.n)
         q[index] = values
@@ -521,33 +553,34 @@ class FFTPillarTerm:
 
     def _modes(self, q, chunks):
         """The mode part of the term of q, computed on the given chunks (zero elsewhere)."""
-        F = (q * self.L2)[self.order]
+        be = self.backend
+        xp = be.xp
+        F = xp.take(q, self.order) * self.L2
         trig = self.trig
         K = trig.shape[1]
-        M = np.zeros((self.n_pillars * self.n_top, K))
+        M = xp.zeros((self.n_pillars * self.n_top, K), dtype=xp.float64)
         for c in chunks:
             c0, c1, r0, r1, P, _ = self.chunks[c]
-            M[r0:r1] = P @ (F[c0:c1, None] * trig[c0:c1])
+            M[r0:r1, :] = P @ (xp.reshape(F[c0:c1], (-1, 1)) * trig[c0:c1, :])
         # Per mode column k: U_k = M_k S_k (S_k symmetric), one batched matrix product.
-        M = M.reshape(self.n_pillars, self.n_top, K)
-        U = np.matmul(M.transpose(2, 0, 1), self.S).transpose(1, 2, 0)  # (pillars, n_top, K)
-        U = np.ascontiguousarray(U).reshape(-1, K)
-        u_sorted = np.zeros(self.n)
+        M = xp.reshape(M, (self.n_pillars, self.n_top, K))
+        U = xp.permute_dims(xp.matmul(xp.permute_dims(M, (2, 0, 1)), self.S), (1, 2, 0))
+        U = xp.reshape(U, (-1, K))                                  # (pillars x n_top, K)
+        u_sorted = xp.zeros(self.n, dtype=xp.float64)
         for c in chunks:
             c0, c1, r0, r1, _, B = self.chunks[c]
-            u_sorted[c0:c1] = np.einsum("ik,ik->i", B @ U[r0:r1], trig[c0:c1])
-        u = np.empty(self.n)
-        u[self.order] = u_sorted
-        return u
+            u_sorted[c0:c1] = _row_dot(be, B @ U[r0:r1, :], trig[c0:c1, :])
+        return xp.take(u_sorted, self.position)
 
     def _local_apply(self, q):
+        be = self.backend
+        xp = be.xp
         loc = self.local
         M = loc["M"]
-        box = np.zeros(self.n_pillars * M * M)
-        box[loc["index"]] = q
-        spec = sfft.rfft2(box.reshape(self.n_pillars, M, M), workers=self.workers)
+        box = be.put(xp.zeros(self.n_pillars * M * M, dtype=xp.float64), loc["index"], q)
+        spec = be.rfft2(xp.reshape(box, (self.n_pillars, M, M)))
         spec *= loc["spectrum"]
-        u = sfft.irfft2(spec, s=(M, M), workers=self.workers).reshape(-1)[loc["index"]]
+        u = xp.take(xp.reshape(be.irfft2(spec, (M, M)), (-1,)), loc["index"])
         if loc["correction"] is not None:
             u += loc["correction"] @ q
         return u
@@ -557,19 +590,30 @@ class FFTPillarTerm:
         as for a uniform load on the whole top: the mode part's mean response (m/N) times the
         force counts L^2, summed over the counts cells, plus the local Love part as the mean
         of a disk of the same area (16 gamma L counts^1.5 / (3 pi^1.5)).  The preconditioner's
-        coarse space uses it."""
+        coarse space uses it (``counts`` on the term's device)."""
+        xp = self.backend.xp
         share = self.mean_mode * self.L2 * counts * counts
         L = math.sqrt(self.L2)
-        disk = 16.0 * L * counts * np.sqrt(counts) / (3.0 * math.pi ** 1.5)
+        disk = 16.0 * L * counts * xp.sqrt(counts) / (3.0 * math.pi ** 1.5)
         share = share + self.local_compliance * disk
         # The whole 1^T A 1 is positive; keep the estimate so: at least half the half-space
         # part's disk value remains.
-        return np.maximum(share, -0.5 * self.half_space * disk)
+        return xp.maximum(share, -0.5 * self.half_space * disk)
 
     def dense_matrix(self) -> np.ndarray:
-        """The term as a dense matrix (m/Pa), column by column (tests on small grids)."""
+        """The term as a dense numpy matrix (m/Pa), column by column (tests on small grids)."""
+        be = self.backend
         eye = np.eye(self.n)
-        return np.column_stack([self(eye[:, j]) for j in range(self.n)])
+        return np.column_stack([be.to_numpy(self(be.asarray(eye[:, j])))
+                                for j in range(self.n)])
+
+
+def _row_dot(be, a, b):
+    """sum_k a[i, k] b[i, k] per row i: numpy's (or cupy's) einsum, else the standard's."""
+    numpy_like = getattr(be, "numpy_like", None)
+    if numpy_like is not None:
+        return numpy_like.einsum("ik,ik->i", a, b)
+    return be.xp.sum(a * b, axis=1)
 
 
 def tops_grid(grid):
@@ -593,29 +637,30 @@ class TopsOnlyTerm:
 
     def __init__(self, term: FFTPillarTerm, n_cells: int):
         self.term = term
+        self.backend = term.backend
         self.n = n_cells
         self.n_top = term.n
         self.local_compliance = term.local_compliance
-        self.diagonal = np.concatenate([term.diagonal, np.zeros(n_cells - term.n)])
+        self.diagonal = self._pad(term.diagonal)
 
     def _pad(self, u):
-        out = np.zeros(self.n)
-        out[:self.n_top] = u
-        return out
+        xp = self.backend.xp
+        return xp.concat([u, xp.zeros(self.n - self.n_top, dtype=xp.float64)])
 
     def __call__(self, q):
         return self._pad(self.term(q[:self.n_top]))
 
     def apply_few(self, index, values):
+        if not self.term.applies_few:
+            return None
         on_top = index < self.n_top
-        u = self.term.apply_few(index[on_top], values[on_top])
-        return None if u is None else self._pad(u)
+        return self._pad(self.term.apply_few(index[on_top], values[on_top]))
 
     def mode_compliance(self, counts):
         """The term's for the pillars; 0 for the floor's index (the last)."""
-        share = np.zeros(len(counts))
-        share[:-1] = self.term.mode_compliance(counts[:-1])
-        return share
+        xp = self.backend.xp
+        return xp.concat([self.term.mode_compliance(counts[:-1]),
+                          xp.zeros(1, dtype=xp.float64)])
 
     def dense_matrix(self) -> np.ndarray:
         mat = np.zeros((self.n, self.n))

@@ -37,7 +37,8 @@ cuFFT on a CUDA GPU (optional extra ``[gpu]``), ``device="auto"`` takes the GPU 
 finds one.  The grid geometry is built on the host (on the GPU itself from
 ``GPU_GRID_MIN_POINTS`` points of the candidate square on, all tops at once); the kernel
 table, its spectrum, the near-field correction, the preconditioner and the constrained CG
-run on the device, in float64; results come back to the host once.  On the GPU the default
+run on the device, in float64 (the elastic pillar's term is set up on the host, applied
+on the device); results come back to the host once.  On the GPU the default
 start is cold (``GPU_WARM_START_LEVELS``): the coarse levels' host work costs more there
 than the fine iterations it saves.
 
@@ -157,7 +158,7 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     device : {"cpu", "gpu", "auto"}
         Where to solve: numpy on the CPU (default), cupy on a CUDA GPU (``InputError`` saying
         what to install when none is usable), or the GPU when cupy finds one ("auto"; the
-        CPU for the elastic pillar, which runs there only).
+        CPU for the elastic pillar, whose GPU path is not yet measured).
     backend : optional
         An array backend object (:mod:`bem_solver._xp`) used instead of ``device``: another
         array library, or a strict one in the tests.
@@ -169,7 +170,7 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
         The paper's uniformly shortening pillar (default), or the elastic pillar: a
         per-pillar excess compliance from the pillar's finite-element compliance
         (:class:`bem_solver._elastic_pillar.FFTPillarTerm`, in the operator and in the
-        preconditioner's pillar modes and kernel); CPU only.
+        preconditioner's pillar modes and kernel); set up on the host, applied on the device.
     compliance : fem_reference.ModalCompliance, optional
         With ``pillars="elastic"``: the pillar's mode matrices (default: the cached ones of
         the scene's pillar kind).
@@ -198,13 +199,10 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     if precision not in PRECISIONS:
         raise InputError(f"precision = {precision!r}: choose one of {', '.join(PRECISIONS)}")
     elastic = uses_elastic_block(scene, pillars)
-    # The elastic pillar runs on the CPU only: 'auto' takes the CPU for it, 'gpu' is refused.
+    # 'auto' takes the CPU for the elastic pillar until its GPU path has been measured.
     be = select_backend("cpu" if elastic and device == "auto" else device, workers) \
         if backend is None else backend
     if elastic:
-        if not isinstance(be, NumpyDevice):
-            raise InputError(f"pillars = 'elastic' runs on the CPU only (device = {device!r}); "
-                             "pillars = 'hooke' runs on the GPU")
         if scene.force_N is None:  # a refused grid never waits for a compliance build
             _refuse_grid(scene, cells_per_diameter, be)
         compliance = scene_compliance(scene, compliance, progress=progress)
@@ -285,8 +283,9 @@ def _prepare(scene: Scene, cells_per_diameter: int, opts: _Options, be, workspac
     term: FFTPillarTerm | TopsOnlyTerm | None = None
     if opts.elastic:
         tops = tops_grid(grid) if grid.has_floor else grid
+        # The term is set up on the host (its correction too) and applied on the device.
         term = FFTPillarTerm(scene, tops, opts.compliance, lambda gamma: near_field_correction(
-            tops, gamma, backend=be) if opts.edge_correction else None, workers=be.workers)
+            tops, gamma) if opts.edge_correction else None, backend=be)
         if grid.has_floor:
             term = TopsOnlyTerm(term, grid.n_cells)
     floor = grid.has_floor

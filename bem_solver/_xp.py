@@ -65,6 +65,13 @@ class NumpyDevice(NumpyArrays):
 
         return sfft.rfft2(a, workers=self.workers)
 
+    def irfft2(self, a, s):
+        """The inverse of :meth:`rfft2` over the last two axes (a stack of boxes, or one),
+        to real boxes of shape ``s``."""
+        import scipy.fft as sfft
+
+        return sfft.irfft2(a, s=s, workers=self.workers)
+
     def rfft(self, a, axis):
         import scipy.fft as sfft
 
@@ -95,10 +102,12 @@ class NumpyDevice(NumpyArrays):
 
         return sfft.next_fast_len(n, real=True)
 
-    def sparse(self, rows, cols, values, n: int):
+    def sparse(self, rows, cols, values, n: int, columns: int | None = None):
+        """The CSR matrix of (row, column, value) triples, ``n`` rows and ``columns`` (default
+        ``n``) columns; duplicates are summed."""
         import scipy.sparse as sp
 
-        return sp.csr_matrix((values, (rows, cols)), shape=(n, n))
+        return sp.csr_matrix((values, (rows, cols)), shape=(n, n if columns is None else columns))
 
     def synchronize(self) -> None:
         pass
@@ -119,6 +128,9 @@ class CupyDevice(CupyArrays):
     def rfft2(self, a):
         return self._fft.rfft2(a)
 
+    def irfft2(self, a, s):
+        return self._fft.irfft2(a, s=s)
+
     def rfft(self, a, axis):
         return self._fft.rfft(a, axis=axis)
 
@@ -134,9 +146,11 @@ class CupyDevice(CupyArrays):
     def next_fast_len(self, n: int) -> int:
         return self._fft.next_fast_len(n)
 
-    def sparse(self, rows, cols, values, n: int):
-        # COO with the entries in any order, then CSR for the products (no duplicates here).
-        return self._sparse.coo_matrix((values, (rows, cols)), shape=(n, n)).tocsr()
+    def sparse(self, rows, cols, values, n: int, columns: int | None = None):
+        # COO with the entries in any order, then CSR for the products (the callers' entries
+        # are distinct).
+        shape = (n, n if columns is None else columns)
+        return self._sparse.coo_matrix((values, (rows, cols)), shape=shape).tocsr()
 
     def synchronize(self) -> None:
         self._cp.cuda.Device().synchronize()

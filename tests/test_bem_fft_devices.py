@@ -37,17 +37,20 @@ xps = pytest.importorskip("array_api_strict")
 
 
 class StrictSparse:
-    """COO matrix whose product is a segment sum (no numpy), or scipy's CSR product."""
+    """COO matrix whose product (by a vector or the columns of a 2-D array) is a segment sum
+    (no numpy), or scipy's CSR product."""
 
-    def __init__(self, backend, rows, cols, values, n, scipy_product=False):
+    def __init__(self, backend, rows, cols, values, n, scipy_product=False, columns=None):
         self.be, self.rows, self.cols, self.values, self.n = backend, rows, cols, values, n
         self.nnz = int(rows.shape[0])
         self.csr = NumpyDevice().sparse(*(backend.to_numpy(a) for a in (rows, cols, values)),
-                                        n) if scipy_product else None
+                                        n, columns) if scipy_product else None
 
     def __matmul__(self, q):
         if self.csr is not None:
             return xps.asarray(self.csr @ self.be.to_numpy(q))
+        if q.ndim == 2:
+            return xps.stack([self @ q[:, k] for k in range(q.shape[1])], axis=1)
         return self.be.segment_sum(self.rows, self.values * xps.take(q, self.cols), self.n)
 
     def diagonal(self):
@@ -77,7 +80,7 @@ class StrictDevice:
         self.numpy_primitives = numpy_primitives
         if numpy_primitives:
             cpu = NumpyDevice()
-            for name in ("rfft2", "rfft", "fft", "ifft", "irfft"):
+            for name in ("rfft2", "irfft2", "rfft", "fft", "ifft", "irfft"):
                 setattr(self, name, self._through(getattr(cpu, name)))
             self.dot = lambda a, b: cpu.dot(self.to_numpy(a), self.to_numpy(b))
 
@@ -110,8 +113,11 @@ class StrictDevice:
         out[self.to_numpy(index)] = self.to_numpy(values)
         return xps.asarray(out)
 
-    def rfft2(self, a):
-        return xps.fft.fft(xps.fft.rfft(a, axis=1), axis=0)
+    def rfft2(self, a):  # over the last two axes, as scipy's (a stack of boxes, or one)
+        return xps.fft.fft(xps.fft.rfft(a, axis=-1), axis=-2)
+
+    def irfft2(self, a, s):
+        return xps.fft.irfft(xps.fft.ifft(a, axis=-2), n=s[-1], axis=-1)
 
     def rfft(self, a, axis):
         return xps.fft.rfft(a, axis=axis)
@@ -128,8 +134,8 @@ class StrictDevice:
     def next_fast_len(self, n):
         return NumpyDevice().next_fast_len(n)
 
-    def sparse(self, rows, cols, values, n):
-        return StrictSparse(self, rows, cols, values, n, self.numpy_primitives)
+    def sparse(self, rows, cols, values, n, columns=None):
+        return StrictSparse(self, rows, cols, values, n, self.numpy_primitives, columns)
 
     def synchronize(self):
         pass
@@ -306,11 +312,10 @@ class _NumpyStandIn(types.ModuleType):
         return getattr(np, name)
 
 
-def test_cupy_backend_glue_on_a_numpy_stand_in(monkeypatch):
-    """The cupy backend's own code (device selection, cuFFT and cusparse calls, transfers)
-    run with numpy, scipy.fft and scipy.sparse standing in for cupy and cupyx: the same
-    answer as the CPU path.  It cannot show that cupy computes correctly (the gpu tests do,
-    where there is a GPU), only that the backend calls it as the CPU path calls numpy."""
+@pytest.fixture
+def cupy_stand_in(monkeypatch):
+    """numpy, scipy.fft and scipy.sparse installed as cupy and cupyx: the cupy backend's own
+    code runs on the host."""
     import scipy.fft
     import scipy.sparse
 
@@ -322,26 +327,88 @@ def test_cupy_backend_glue_on_a_numpy_stand_in(monkeypatch):
                          "array_api_compat": None, "array_api_compat.cupy": None}.items():
         monkeypatch.setitem(sys.modules, name, module)
     bx._gpu_reason.cache_clear()
-    try:
-        assert available_devices()["gpu"] == ""
-        scene = load_scene("paper-fig3-sparse", ["pillars.E_Pa=1.6e5"])
-        stand_in = solve_fft(scene, 16, device="auto", precision="double")
-        assert stand_in.diagnostics["device"] == "gpu"
-        # the GPU's default warm start nests GPU_WARM_START_LEVELS levels (none)
-        assert len(stand_in.diagnostics["warm_start_levels"]) == GPU_WARM_START_LEVELS
-        _agree(solve_fft(scene, 16, precision="double", warm_start=GPU_WARM_START_LEVELS),
-               stand_in, RTOL_ROUNDOFF, scene.indentation_m)
-        # the grid built by the device's library (large grids): the same answer
-        monkeypatch.setattr(fft_module, "GPU_GRID_MIN_POINTS", 0)
-        _agree(stand_in, solve_fft(scene, 16, device="auto", precision="double"),
-               RTOL_ROUNDOFF, scene.indentation_m)
-        # Mixed precision: a round-off difference in a float64 part (the sparse product's
-        # summation order) can flip a float32 rounding, and the CG then reaches the same
-        # tolerance by another path.
-        mixed = solve_fft(scene, 16, device="auto")
-        assert mixed.converged and mixed.diagnostics["single_precision_applications"] > 0
-        for field in ("total_force_N", "centre_pressure_Pa", "contact_radius_m"):
-            assert getattr(mixed, field) == pytest.approx(getattr(stand_in, field),
-                                                          rel=RTOL_SOLVER), field
-    finally:
-        bx._gpu_reason.cache_clear()
+    yield
+    bx._gpu_reason.cache_clear()
+
+
+def test_cupy_backend_glue_on_a_numpy_stand_in(cupy_stand_in, monkeypatch):
+    """The cupy backend's own code (device selection, cuFFT and cusparse calls, transfers)
+    run with numpy, scipy.fft and scipy.sparse standing in for cupy and cupyx: the same
+    answer as the CPU path.  It cannot show that cupy computes correctly (the gpu tests do,
+    where there is a GPU), only that the backend calls it as the CPU path calls numpy."""
+    assert available_devices()["gpu"] == ""
+    scene = load_scene("paper-fig3-sparse", ["pillars.E_Pa=1.6e5"])
+    stand_in = solve_fft(scene, 16, device="auto", precision="double")
+    assert stand_in.diagnostics["device"] == "gpu"
+    # the GPU's default warm start nests GPU_WARM_START_LEVELS levels (none)
+    assert len(stand_in.diagnostics["warm_start_levels"]) == GPU_WARM_START_LEVELS
+    _agree(solve_fft(scene, 16, precision="double", warm_start=GPU_WARM_START_LEVELS),
+           stand_in, RTOL_ROUNDOFF, scene.indentation_m)
+    # the grid built by the device's library (large grids): the same answer
+    monkeypatch.setattr(fft_module, "GPU_GRID_MIN_POINTS", 0)
+    _agree(stand_in, solve_fft(scene, 16, device="auto", precision="double"),
+           RTOL_ROUNDOFF, scene.indentation_m)
+    # Mixed precision: a round-off difference in a float64 part (the sparse product's
+    # summation order) can flip a float32 rounding, and the CG then reaches the same
+    # tolerance by another path.
+    mixed = solve_fft(scene, 16, device="auto")
+    assert mixed.converged and mixed.diagnostics["single_precision_applications"] > 0
+    for field in ("total_force_N", "centre_pressure_Pa", "contact_radius_m"):
+        assert getattr(mixed, field) == pytest.approx(getattr(stand_in, field),
+                                                      rel=RTOL_SOLVER), field
+
+
+# Elastic-pillar scenes (Phi = 0.2 or 0.1 of paper-fig3-sparse, coarse compliances): the
+# term's local Love part and pillar coupling (E_p = 0.1 E_s); the mode part and coupling
+# alone (E_p = E_s: the CPU updates few clipped cells on their pillars only); the floor
+# reached (the term on the tops alone).
+ELASTIC = [
+    ("soft", ["pillars.surface_fraction=0.2", "load.indentation_um=0.1",
+              "pillars.E_Pa=1.6e5"], 16),
+    ("same-material", ["pillars.surface_fraction=0.2", "load.indentation_um=0.1"], 16),
+    ("floor", ["lens.radius_mm=0.25", "pillars.surface_fraction=0.1", "pillars.E_Pa=1.6e5",
+               "load.indentation_um=6"], 8),
+]
+
+
+def _elastic(overrides):
+    from fem_reference import PillarKind, modal_compliance
+
+    scene = load_scene("paper-fig3-sparse", overrides)
+    return scene, modal_compliance(PillarKind.of_scene(scene), 2, mesh_size=4.0)
+
+
+@pytest.mark.usefixtures("compliance_cache")
+@pytest.mark.parametrize("case", ELASTIC, ids=lambda c: c[0])
+def test_elastic_pillar_on_the_cupy_stand_in_gives_the_cpu_answer(cupy_stand_in, case):
+    """The elastic pillar's term on the cupy backend (one sparse product over all pillars
+    instead of cache-sized chunks, its boxes' transforms by cupyx's FFT, no few-cell updates):
+    the CPU path's answer to round-off (RTOL_ROUNDOFF: the same expressions, the sums of a
+    product's rows in another order)."""
+    _, overrides, n = case
+    scene, modal = _elastic(overrides)
+    gpu = solve_fft(scene, n, device="gpu", pillars="elastic", compliance=modal,
+                    precision="double")
+    assert gpu.converged and gpu.diagnostics["device"] == "gpu"
+    cpu = solve_fft(scene, n, pillars="elastic", compliance=modal, precision="double",
+                    warm_start=GPU_WARM_START_LEVELS)
+    _agree(cpu, gpu, RTOL_ROUNDOFF, scene.indentation_m)
+    # 'auto' keeps the CPU for the elastic pillar (its GPU path not yet measured)
+    auto = solve_fft(scene, n, device="auto", pillars="elastic", compliance=modal)
+    assert auto.diagnostics["device"] == "cpu"
+
+
+@pytest.mark.usefixtures("compliance_cache")
+@pytest.mark.parametrize("case", ELASTIC, ids=lambda c: c[0])
+def test_elastic_pillar_on_the_strict_namespace_gives_the_numpy_answer(case):
+    """The elastic pillar's application through the array API standard alone (its sums
+    by the standard's, not einsum): the numpy path's answer to round-off, in double
+    precision (in mixed, round-off in a float64 part can flip a float32 rounding: 1.1e-12
+    in sigma_0 on 'same-material')."""
+    _, overrides, n = case
+    scene, modal = _elastic(overrides)
+    ref = solve_fft(scene, n, pillars="elastic", compliance=modal, precision="double")
+    strict = solve_fft(scene, n, backend=StrictDevice(numpy_primitives=True),
+                       pillars="elastic", compliance=modal, precision="double")
+    assert ref.converged and strict.converged
+    _agree(ref, strict, RTOL_ROUNDOFF, scene.indentation_m)

@@ -6,6 +6,9 @@
 #      warm-start variants of the GPU path (--gpu-warm) and others: the grid's construction,
 #      the precision
 #      (--gpu-variants: VARIANTS_1E6="host double", VARIANTS_2E7="windows double");
+#   1a. on request (PARTS with "elastic"), the elastic pillar (--pillars elastic-pillar) on
+#      the GPU against the CPU at 1e6 cells; its compliance is read from $PILLAR_XVAL_CACHE
+#      (set it to a carried folder holding the cached one, or it is built there first);
 #   1b. an iteration's parts on the GPU at 1e6 cells (validation/bench/gpu_parts.py);
 #   2. thread scaling of bem-fft at 1e6 cells on 1 to 16 threads (validation/bench/threads.py);
 #   3. the planner's predicted over measured seconds at 1, 4 and 16 threads
@@ -19,7 +22,7 @@ OUT=${OUT:-out/lent-machine}
 PY=${PY:-python3}
 HERE=$(pwd)
 mkdir -p "$OUT"
-export PYTHONUNBUFFERED=1 PILLAR_XVAL_CACHE=/tmp/pillar-xval-cache
+export PYTHONUNBUFFERED=1 PILLAR_XVAL_CACHE=${PILLAR_XVAL_CACHE:-/tmp/pillar-xval-cache}
 PARTS=${PARTS:-gpu parts threads planner}
 GPU_WARM=${GPU_WARM-1 0}
 start=$(date +%s)
@@ -48,6 +51,11 @@ if has gpu; then
   PYTHONPATH="$HERE" timeout "${T_AFTER2:-80}" $PY -m validation.bench.gpu \
     --out "$OUT/gpu-2e7" --levels 256 --repeats "${REPEATS_2E7:-1}" --cpu-max-cells 2e6 \
     --gpu-warm $GPU_WARM --gpu-variants ${VARIANTS_2E7-}
+fi
+if has elastic; then
+  stamp "elastic pillar: 1e6"
+  PYTHONPATH="$HERE" timeout "${T_ELASTIC:-150}" $PY -m validation.bench.gpu \
+    --out "$OUT/gpu-elastic" --levels 58 --pillars elastic-pillar --repeats "${REPEATS_1E6:-2}"
 fi
 if has parts; then
   stamp "parts"
