@@ -32,7 +32,7 @@ has() { case " $PARTS " in *" $1 "*) return 0;; esac; return 1; }
 stamp() { echo "== $1 at $(( $(date +%s) - start )) s"; }
 {
   nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader
-  echo "cpus: $(nproc)"; uname -m
+  echo "cpus: $(nproc)"; uname -m; grep -m1 "model name" /proc/cpuinfo
   $PY -c "import sys, numpy, scipy; print(sys.version.split()[0], 'numpy', numpy.__version__, 'scipy', scipy.__version__)"
   $PY -c "import cupy; print('cupy', cupy.__version__)"
 } > "$OUT/machine.txt" 2>&1
