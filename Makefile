@@ -8,7 +8,7 @@ OUT    ?= out
 .PHONY: demo study-gecit study-lattice study-floor figures test test-slow bench-bem bench-fft bench-gpu bench-fem3d \
 	bench-elastic bench-fem3d-floor bench-engine bench-figures bench-startup bench-force \
 	bench-floor bench-sweep bench-threads bench-planner-threads clean calibrate validate-planner extremes \
-	regimes docs lint reproduce
+	regimes docs lint reproduce lent-kit
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -161,6 +161,11 @@ bench-threads: $(STAMP)
 bench-planner-threads: $(STAMP)
 	$(PY) -m validation.bench.planner_threads --out $(OUT)/bench-planner-threads \
 		$(if $(THREADS),--threads $(THREADS),)
+
+# The kit that lets a lent machine without gmsh or MKL run fem-3d (validation/bench/lent_kit.py,
+# docs/performance.md): two xz archives in .lent/, 40.5 and 53.0 MiB (about 20 minutes).
+lent-kit: $(STAMP)
+	$(PY) -m validation.bench.lent_kit build --venv $(VENV) --out .lent
 
 # CLI start-up: `pillar-xval --version` and `solve --help`, median of 5 fresh processes each.
 bench-startup: $(STAMP)

@@ -4,6 +4,8 @@ iteration's split with its 2-thread prediction."""
 
 from __future__ import annotations
 
+import json
+
 import pytest
 
 from validation.bench import threads as bench
@@ -42,3 +44,22 @@ def test_split_rows_predict_two_threads_from_one():
     table = bench.format_tables([], rows, {"cpus": 2, "repeats": 1, "load_before": [0.0],
                                            "load_after": [0.0]})
     assert "| 1e+06 | rigid | 1 | 0.800 | 0.200 | 0.200 | 1.200 | 1.400 |" in table
+
+
+def test_main_writes_the_runs_so_far_after_each(tmp_path, monkeypatch):
+    """A run cut short (the lent machine's time limit) leaves the runs it finished."""
+    done = []
+
+    def run(kind, spec, threads, root=None):
+        if len(done) == 2:
+            raise KeyboardInterrupt  # stands for the time limit's signal
+        done.append(threads)
+        return _solve("fem3d", threads, 10.0 / threads, 10.0)
+
+    monkeypatch.setattr(bench, "_run", run)
+    with pytest.raises(KeyboardInterrupt):
+        bench.main(["--out", str(tmp_path), "--cases", "fem3d", "--threads", "1,2,4",
+                    "--repeats", "1", "--split-threads", ""])
+    report = json.loads((tmp_path / "bench_threads.json").read_text())
+    assert [r["threads"] for r in report["runs"]] == [1, 2]
+    assert [r["speedup"] for r in report["scaling"]] == [1.0, 2.0]

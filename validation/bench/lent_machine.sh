@@ -12,10 +12,19 @@
 #   1b. an iteration's parts on the GPU at 1e6 cells (validation/bench/gpu_parts.py);
 #   2. thread scaling of bem-fft at 1e6 cells on 1 to 16 threads (validation/bench/threads.py);
 #   3. the planner's predicted over measured seconds at 1, 4 and 16 threads
-#      (validation/bench/planner_threads.py).
+#      (validation/bench/planner_threads.py);
+#   4. kit: the fem-3d kit's archives carried in .lent/ unpacked into /tmp/lent-kit, each once
+#      (validation/bench/lent_kit.py: two calls, one archive each, fill it);
+#   5. fem3d: with the kit (its packages on PYTHONPATH, its MKL and system libraries on
+#      LD_LIBRARY_PATH), first its check (gmsh and MKL from the kit, one PARDISO solve),
+#      then the thread scaling of fem-3d on paper-fig3-sparse at Phi = FEM3D_PHI (0.82) and
+#      mesh_size FEM3D_MESH (2) on FEM3D_THREADS (1,2,4,8,16), its JSON rewritten after
+#      each run.
 # Usage: OUT=DIR [BASE=DIR] [PY=python3] [PARTS="gpu parts threads planner"] [GPU_WARM="1 0"]
 #        [VARIANTS_1E6="host"] [VARIANTS_2E7="windows"]
 #        [REPEATS_1E6=2] [REPEATS_2E7=1] validation/bench/lent_machine.sh
+# The fem-3d kit in two calls: PARTS=kit, carrying .lent/kit-mkl.tar.xz, then
+# PARTS="kit fem3d", carrying .lent/kit-gmsh.tar.xz, while the machine is still warm.
 # The files land in $OUT (at most two folders down, eight files: what a lent machine returns).
 set -u
 OUT=${OUT:-out/lent-machine}
@@ -30,7 +39,7 @@ has() { case " $PARTS " in *" $1 "*) return 0;; esac; return 1; }
 stamp() { echo "== $1 at $(( $(date +%s) - start )) s"; }
 {
   nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader
-  echo "cpus: $(nproc)"; uname -m
+  echo "cpus: $(nproc)"; uname -m; grep -m1 "model name" /proc/cpuinfo
   $PY -c "import sys, numpy, scipy; print(sys.version.split()[0], 'numpy', numpy.__version__, 'scipy', scipy.__version__)"
   $PY -c "import cupy; print('cupy', cupy.__version__)"
 } > "$OUT/machine.txt" 2>&1
@@ -71,5 +80,32 @@ if has planner; then
   stamp "planner"
   PYTHONPATH="$HERE" timeout "${T_PLANNER:-70}" $PY -m validation.bench.planner_threads \
     --out "$OUT/planner" --threads 1,4,16 --repeats 2
+fi
+KIT_DIR=${KIT_DIR:-/tmp/lent-kit}
+if has kit; then
+  stamp "kit"
+  PYTHONPATH="$HERE" timeout "${T_KIT:-60}" $PY -m validation.bench.lent_kit unpack \
+    --kit .lent --to "$KIT_DIR"
+fi
+if has fem3d && ! { [ -f "$KIT_DIR/.kit-mkl.tar.xz.done" ] \
+    && [ -f "$KIT_DIR/.kit-gmsh.tar.xz.done" ]; }; then
+  echo "fem3d: the kit in $KIT_DIR is incomplete (a machine given back between the two"
+  echo "calls starts bare): carry .lent/kit-mkl.tar.xz and .lent/kit-gmsh.tar.xz again"
+elif has fem3d; then
+  stamp "fem3d: check"
+  # MKL's GNU threading layer: the one its runtime picks once gmsh has loaded libgomp.  At
+  # most AVX-512: a newer CPU would ask for a kernel library the kit does not carry.
+  export PYTHONPATH="$HERE:$KIT_DIR/py" MKL_THREADING_LAYER=GNU \
+    MKL_ENABLE_INSTRUCTIONS=AVX512 PYPARDISO_MKL_RT="$KIT_DIR/mkl/libmkl_rt.so.3" \
+    LD_LIBRARY_PATH="$KIT_DIR/mkl:$KIT_DIR/sys${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
+  if timeout "${T_CHECK:-30}" $PY -m validation.bench.lent_kit check --to "$KIT_DIR" \
+      > "$OUT/kit_check.json"; then
+    stamp "fem3d: threads ${FEM3D_THREADS:-1,2,4,8,16}"
+    timeout "${T_FEM3D:-270}" $PY -m validation.bench.threads --out "$OUT/fem3d" \
+      --cases fem3d --fem3d-phi "${FEM3D_PHI:-0.82}" --fem3d-mesh "${FEM3D_MESH:-2}" \
+      --threads "${FEM3D_THREADS:-1,2,4,8,16}" --repeats "${FEM3D_REPEATS:-1}" \
+      --split-threads ""
+  fi
+  cat "$OUT/kit_check.json"
 fi
 stamp "done"

@@ -26,7 +26,8 @@
    measures the split alone.
 
 Prints the tables and writes them with the runs and the load averages to ``bench_threads.md``
-and ``bench_threads.json``.
+and ``bench_threads.json``, both rewritten after every run (a run stopped by a time limit
+keeps the runs it finished).
 """
 
 from __future__ import annotations
@@ -235,6 +236,7 @@ def format_tables(scaling: list, split: list, meta: dict) -> str:
 
 
 def main(argv=None) -> int:
+    from pillar_xval.outcome import write_atomic
     from pillar_xval.threads import cpu_count
 
     ap = argparse.ArgumentParser(prog="python -m validation.bench.threads", description=__doc__,
@@ -270,29 +272,34 @@ def main(argv=None) -> int:
     cases["fem3d"] = (model, scene, overrides, options)
     load_before = [round(v, 2) for v in os.getloadavg()]
     runs, splits = [], []
+
+    def write() -> str:
+        """The files as they stand (after every run: a run cut short keeps what it had)."""
+        meta = {"cpus": cpu_count(), "repeats": args.repeats, "load_before": load_before,
+                "baseline": None if args.baseline is None else str(args.baseline),
+                "load_after": [round(v, 2) for v in os.getloadavg()], "threads": counts}
+        scaling, split = scaling_rows(runs), split_rows(splits)
+        table = format_tables(scaling, split, meta)
+        write_atomic(args.out / "bench_threads.json", json.dumps(
+            {"meta": meta, "scaling": scaling, "split": split, "runs": runs,
+             "splits": splits, "table": table}, indent=1))
+        write_atomic(args.out / "bench_threads.md", table + "\n")
+        return table
+
     for rep in range(args.repeats):
         for name in (v for v in args.cases.split(",") if v):
             for t in counts:
                 print(f"bench-threads: {rep + 1}/{args.repeats} {name} on {t} thread(s)",
                       file=sys.stderr, flush=True)
                 runs.append({"name": name, **_run("solve", {"case": cases[name]}, t)})
+                write()
         for n in SPLIT_LEVELS:
             for pillars in ("rigid", "elastic"):
                 for t in (int(v) for v in args.split_threads.split(",") if v):
                     for root in (None, args.baseline) if args.baseline else (None,):
                         splits.append(_run("split", {"n": n, "pillars": pillars}, t, root))
-    meta = {"cpus": cpu_count(), "repeats": args.repeats, "load_before": load_before,
-            "baseline": None if args.baseline is None else str(args.baseline),
-            "load_after": [round(v, 2) for v in os.getloadavg()], "threads": counts}
-    scaling, split = scaling_rows(runs), split_rows(splits)
-    table = format_tables(scaling, split, meta)
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "bench_threads.json").write_text(json.dumps(
-        {"meta": meta, "scaling": scaling, "split": split, "runs": runs, "splits": splits,
-         "table": table},
-        indent=1))
-    (args.out / "bench_threads.md").write_text(table + "\n")
-    print(table)
+                        write()
+    print(write())
     return 0
 
 
