@@ -6,9 +6,10 @@
 #      warm-start variants of the GPU path (--gpu-warm) and others: the grid's construction,
 #      the precision
 #      (--gpu-variants: VARIANTS_1E6="host double", VARIANTS_2E7="windows double");
-#   1a. on request (PARTS with "elastic"), the elastic pillar (--pillars elastic-pillar) on
-#      the GPU against the CPU at 1e6 cells; its compliance is read from $PILLAR_XVAL_CACHE
-#      (set it to a carried folder holding the cached one, or it is built there first);
+#   1a. on request (PARTS with "elastic", run last, with the kit's packages where it is
+#      unpacked), the elastic pillar (--pillars elastic-pillar) on the GPU against the CPU at
+#      1e6 cells; its compliance is read from $PILLAR_XVAL_CACHE (set it to a carried folder
+#      holding the cached one, or it is built there first);
 #   1b. an iteration's parts on the GPU at 1e6 cells (validation/bench/gpu_parts.py);
 #   2. thread scaling of bem-fft at 1e6 cells on 1 to 16 threads (validation/bench/threads.py);
 #   3. the planner's predicted over measured seconds at 1, 4 and 16 threads
@@ -61,11 +62,6 @@ if has gpu; then
     --out "$OUT/gpu-2e7" --levels 256 --repeats "${REPEATS_2E7:-1}" --cpu-max-cells 2e6 \
     --gpu-warm $GPU_WARM --gpu-variants ${VARIANTS_2E7-}
 fi
-if has elastic; then
-  stamp "elastic pillar: 1e6"
-  PYTHONPATH="$HERE" timeout "${T_ELASTIC:-150}" $PY -m validation.bench.gpu \
-    --out "$OUT/gpu-elastic" --levels 58 --pillars elastic-pillar --repeats "${REPEATS_1E6:-2}"
-fi
 if has parts; then
   stamp "parts"
   PYTHONPATH="$HERE" timeout "${T_PARTS:-60}" $PY -m validation.bench.gpu_parts \
@@ -82,6 +78,13 @@ if has planner; then
     --out "$OUT/planner" --threads 1,4,16 --repeats 2
 fi
 KIT_DIR=${KIT_DIR:-/tmp/lent-kit}
+kit_env() {
+  # MKL's GNU threading layer: the one its runtime picks once gmsh has loaded libgomp.  At
+  # most AVX-512: a newer CPU would ask for a kernel library the kit does not carry.
+  export PYTHONPATH="$HERE:$KIT_DIR/py" MKL_THREADING_LAYER=GNU \
+    MKL_ENABLE_INSTRUCTIONS=AVX512 PYPARDISO_MKL_RT="$KIT_DIR/mkl/libmkl_rt.so.3" \
+    LD_LIBRARY_PATH="$KIT_DIR/mkl:$KIT_DIR/sys${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
+}
 if has kit; then
   stamp "kit"
   PYTHONPATH="$HERE" timeout "${T_KIT:-60}" $PY -m validation.bench.lent_kit unpack \
@@ -93,11 +96,7 @@ if has fem3d && ! { [ -f "$KIT_DIR/.kit-mkl.tar.xz.done" ] \
   echo "calls starts bare): carry .lent/kit-mkl.tar.xz and .lent/kit-gmsh.tar.xz again"
 elif has fem3d; then
   stamp "fem3d: check"
-  # MKL's GNU threading layer: the one its runtime picks once gmsh has loaded libgomp.  At
-  # most AVX-512: a newer CPU would ask for a kernel library the kit does not carry.
-  export PYTHONPATH="$HERE:$KIT_DIR/py" MKL_THREADING_LAYER=GNU \
-    MKL_ENABLE_INSTRUCTIONS=AVX512 PYPARDISO_MKL_RT="$KIT_DIR/mkl/libmkl_rt.so.3" \
-    LD_LIBRARY_PATH="$KIT_DIR/mkl:$KIT_DIR/sys${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
+  kit_env
   if timeout "${T_CHECK:-30}" $PY -m validation.bench.lent_kit check --to "$KIT_DIR" \
       > "$OUT/kit_check.json"; then
     stamp "fem3d: threads ${FEM3D_THREADS:-1,2,4,8,16}"
@@ -107,5 +106,13 @@ elif has fem3d; then
       --split-threads ""
   fi
   cat "$OUT/kit_check.json"
+fi
+if has elastic; then
+  # The elastic pillar's compliance is read through fem_reference, which imports scikit-fem:
+  # from the kit where it is unpacked.
+  stamp "elastic pillar: 1e6"
+  if [ -f "$KIT_DIR/.kit-gmsh.tar.xz.done" ]; then kit_env; else export PYTHONPATH="$HERE"; fi
+  timeout "${T_ELASTIC:-150}" $PY -m validation.bench.gpu --out "$OUT/gpu-elastic" \
+    --levels 58 --pillars elastic-pillar --repeats "${REPEATS_1E6:-2}"
 fi
 stamp "done"
