@@ -157,8 +157,9 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
         phases of an elastic pillar's compliance build.
     device : {"cpu", "gpu", "auto"}
         Where to solve: numpy on the CPU (default), cupy on a CUDA GPU (``InputError`` saying
-        what to install when none is usable), or the GPU when cupy finds one ("auto"; the
-        CPU for the elastic pillar, whose GPU path is not yet measured).
+        what to install when none is usable), or the GPU when cupy finds one ("auto"), for
+        either pillar model (the elastic pillar on an H200 at 1e6 cells: 2.0 s against the
+        16-thread CPU's 12.9 s).
     backend : optional
         An array backend object (:mod:`bem_solver._xp`) used instead of ``device``: another
         array library, or a strict one in the tests.
@@ -199,9 +200,7 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     if precision not in PRECISIONS:
         raise InputError(f"precision = {precision!r}: choose one of {', '.join(PRECISIONS)}")
     elastic = uses_elastic_block(scene, pillars)
-    # 'auto' takes the CPU for the elastic pillar until its GPU path has been measured.
-    be = select_backend("cpu" if elastic and device == "auto" else device, workers) \
-        if backend is None else backend
+    be = select_backend(device, workers) if backend is None else backend
     if elastic:
         if scene.force_N is None:  # a refused grid never waits for a compliance build
             _refuse_grid(scene, cells_per_diameter, be)

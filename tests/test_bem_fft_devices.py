@@ -393,9 +393,9 @@ def test_elastic_pillar_on_the_cupy_stand_in_gives_the_cpu_answer(cupy_stand_in,
     cpu = solve_fft(scene, n, pillars="elastic", compliance=modal, precision="double",
                     warm_start=GPU_WARM_START_LEVELS)
     _agree(cpu, gpu, RTOL_ROUNDOFF, scene.indentation_m)
-    # 'auto' keeps the CPU for the elastic pillar (its GPU path not yet measured)
+    # 'auto' takes the GPU for the elastic pillar too
     auto = solve_fft(scene, n, device="auto", pillars="elastic", compliance=modal)
-    assert auto.diagnostics["device"] == "cpu"
+    assert auto.diagnostics["device"] == "gpu"
 
 
 @pytest.mark.usefixtures("compliance_cache")

@@ -256,14 +256,14 @@ def test_a_capped_moduli_contrast_is_said_in_the_result_and_its_summary():
     assert result.summary().startswith("model            bem, elastic pillars  (")
 
 
-def test_the_gpu_keeps_the_hooke_spring_by_default():
-    """On --device gpu the default stays Hooke (the elastic pillar's GPU path runs when asked
-    for, not yet measured)."""
+def test_the_pillar_default_is_the_same_on_either_device():
+    """The elastic pillar's default on elastic pillars holds on --device gpu too (it runs
+    there); a model asked for is kept."""
     from pillar_xval.scenes import load_scene
     from validation.registry import scene_defaults
 
     scene = load_scene("single-pillar")
-    assert scene_defaults("bem-fft", scene, {"device": "gpu"})["pillars"] == "hooke"
+    assert scene_defaults("bem-fft", scene, {"device": "gpu"})["pillars"] == "elastic"
     assert scene_defaults("bem-fft", scene, {"device": "cpu"})["pillars"] == "elastic"
-    assert scene_defaults("bem-fft", scene, {"device": "gpu", "pillars": "elastic"}) == \
-        {"device": "gpu", "pillars": "elastic"}  # as asked
+    assert scene_defaults("bem-fft", scene, {"device": "gpu", "pillars": "hooke"}) == \
+        {"device": "gpu", "pillars": "hooke"}  # as asked

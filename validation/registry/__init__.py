@@ -81,15 +81,12 @@ def default_pillars(scene: Scene) -> str | None:
 
 def scene_defaults(model: str, scene: Scene, options: dict) -> dict:
     """``options`` with the defaults that follow the scene: ``pillars`` (:func:`default_pillars`)
-    for a model that takes it, where the options do not give it; the Hooke spring on
-    ``device = "gpu"``, where the elastic pillar runs when asked for but is not yet measured
-    (and would first build its compliance).  The commands, the spec
+    for a model that takes it, where the options do not give it, on either device.  The
+    commands, the spec
     files and the pytest fixture apply it (so a case's key and its table row name the pillar
     model); the solvers themselves keep the paper's Hooke spring as their default."""
     entry = MODELS.get(model)
     pillars = default_pillars(scene)
-    if pillars and options.get("device") == "gpu":
-        pillars = "hooke"
     if entry is None or "pillars" not in entry.options or pillars is None \
             or options.get("pillars") is not None:
         return dict(options)
