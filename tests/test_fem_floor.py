@@ -219,7 +219,7 @@ def test_the_fine_floor_disk_follows_the_contact_and_refines_the_floor_alone():
     # the disk is the coarse solve's floor contact with its margin, within the candidate
     assert fine_floor_radius(20e-6, 60e-6) == pytest.approx(FINE_MARGIN * 20e-6)
     assert fine_floor_radius(50e-6, 60e-6) == 60e-6
-    assert fine_floor_radius(0.0, 60e-6) == 60e-6  # no coarse floor contact: all of it
+    assert fine_floor_radius(0.0, 60e-6) is None  # no coarse floor contact: no disk
     # a contact inside FINE_EDGE of the disk keeps it; one beyond widens it by the margin
     assert outgrown_floor(0.99 * FINE_EDGE * 25e-6, 25e-6, 60e-6) is None
     assert outgrown_floor(1.01 * FINE_EDGE * 25e-6, 25e-6, 60e-6) == pytest.approx(
