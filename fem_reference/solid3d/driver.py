@@ -86,7 +86,10 @@ CENTRE_RATIO = 0.25
 # element of the contact size wide at mesh_size 1.41; at half of it, about three.  The disk
 # holds the floor contact of a coarser solve (mesh_size COARSE_FACTOR times larger, at most
 # the coarsest allowed; :func:`.._floor.fine_floor_radius`), not the floor's rigid reach,
-# 2-3 times wider on the dense lattices, whose elements the finer size is paid from.
+# 2-3 times wider on the dense lattices, whose elements the finer size is paid from (Phi =
+# 0.4 at mesh_size 2.83-1.41: the floor area 492, 540, 546 um^2, monotone, against 466, 523,
+# 534 at the contact size; a quarter of it at 2.83, 514: the elements across the gaps are no
+# longer what limits it, PHYSICS.md).
 FLOOR_RATIO = 0.5
 # Smallest gap between neighbouring pillars, in diameters: at Phi = 0.9 (gap 0.0038 d) the
 # mesh still passes its quality check (q_min 0.047), at Phi = 0.9068 (5.5e-5 d) it fails.
@@ -222,7 +225,8 @@ def solve(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None, progress=None,
     coarse = _coarse_size(mesh_size) if force is not None and not scene.is_flat else None
     # The floor's fine disk (m; None: no floor, or the whole candidate at the contact size)
     # from a coarse solve's floor contact: the force's coarse design, else its own.
-    fine, floor_design = None, []
+    fine: float | None = None
+    floor_design: list[dict] = []
     if force is None:
         solved = scene
     elif coarse is None:
