@@ -6,7 +6,7 @@ STAMP  := $(VENV)/.installed
 OUT    ?= out
 
 .PHONY: demo study-gecit study-lattice study-floor figures test test-slow bench-bem bench-fft bench-gpu bench-fem3d \
-	bench-elastic bench-fem3d-floor bench-engine bench-figures bench-startup bench-force \
+	bench-elastic bench-fem3d-floor bench-fem3d-floor-levels bench-engine bench-figures bench-startup bench-force \
 	bench-floor bench-sweep bench-threads bench-planner-threads clean calibrate validate-planner extremes \
 	regimes docs lint reproduce lent-kit
 
@@ -143,6 +143,15 @@ bench-force: $(STAMP)
 # fem-3d with the floor against suspended runs at the same mesh size (time, phases, memory).
 bench-fem3d-floor: $(STAMP)
 	$(PY) -m validation.bench.fem3d_floor --out $(OUT)/bench-fem3d-floor --repeats 3
+
+# fem-3d's floor on the floor validation's two dense lattices (Phi 0.2, 0.4) at its three
+# levels, this checkout against BASELINE, a checkout of the old code (git archive REV | tar -x
+# -C DIR): elements, peak memory, phases and the floor's contact area, the runs interleaved
+# (about 25 minutes on 2 shared cores, 12 GiB at its peak).
+bench-fem3d-floor-levels: $(STAMP)
+	$(if $(BASELINE),,$(error BASELINE=DIR: a checkout of the code to compare against))
+	$(PY) -m validation.bench.ab --baseline $(BASELINE) --out $(OUT)/bench-fem3d-floor-levels \
+		--repeats 1 $(foreach p,0.2 0.4,$(foreach m,2.83 2 1.41,--case floor3d:$(p):$(m)))
 
 # Thread scaling: bem-fft at 1e6 cells and the dense BEM on 1 up to the CPUs this process may
 # use (fresh interpreters, medians of 3 interleaved runs, answers compared with 1 thread's),

@@ -23,6 +23,17 @@ from pillar_xval.scenes.floor import floor_reach, floor_reachable
 # Candidate floor radius over the rigid reach (contact lies within the reach; the margin
 # leaves room for the contact radius fit, which reads gaps outside the edge).
 FLOOR_MARGIN = 1.25
+# fem-3d's floor is meshed finer than the contact size (WedgeGeometry.floor_ratio) on a disk
+# that holds its contact, sized from the floor contact of a coarser solve: FINE_MARGIN times its
+# outer radius.  At mesh_size 4 that radius was 17.85 and 24.24 um on the floor-check lattices
+# Phi = 0.2 and 0.4, 4.3 and 0.5 % short of fem-3d's at 1.41 and 5.5 and 3.7 % of the BEM's
+# (18.89, 25.18 um at N = 32, converged within 0.2 %); on one pillar 24.01 against
+# fem-axisym's 24.46 um.  A solve whose floor contact ends beyond FINE_EDGE of its disk (a
+# coarse radius 12.5 % short) is meshed again on a disk FINE_MARGIN times wider (the contact
+# there may be cut short by the graded elements beyond): the disk holds the converged contact
+# with a band of fine elements around it.
+FINE_MARGIN = 1.25
+FINE_EDGE = 0.9
 # The depth of the overlap with a side wall is small next to h below this share.  Measured
 # on one pillar (h/d = 0.5, mesh_size 2): 0.4 % of h at zeta = 0.15 h, 4.5 % at 0.75 h, the
 # range where the paper's model (the lens on the pillar tops alone, no walls) was
@@ -37,6 +48,29 @@ def floor_candidate(scene, indentation_m: float) -> float | None:
     if not floor_reachable(scene, indentation_m):
         return None
     return FLOOR_MARGIN * floor_reach(scene, indentation_m)
+
+
+def fine_floor_radius(contact_radius_m: float, candidate_m: float) -> float | None:
+    """Radius (m) of the floor's fine disk for a floor contact ending at
+    ``contact_radius_m`` (m; from a coarser solve): :data:`FINE_MARGIN` times it, at most the
+    candidate floor's ``candidate_m``; None where that solve had no floor contact (the whole
+    candidate at the contact size, as without a disk: the floor is then untouched or touched
+    near its onset, and a fine candidate cost 44 % more elements on a lattice whose floor
+    stayed untouched, Phi = 0.2 with E_p = E_l at mesh_size 2)."""
+    if contact_radius_m <= 0.0:
+        return None
+    return min(FINE_MARGIN * contact_radius_m, candidate_m)
+
+
+def outgrown_floor(contact_radius_m: float, fine_m: float | None,
+                   candidate_m: float) -> float | None:
+    """The wider fine disk (m) to mesh where a solve's floor contact, ending at
+    ``contact_radius_m``, passes :data:`FINE_EDGE` of its fine disk ``fine_m``; None where it
+    stays inside (or the disk is already the whole candidate ``candidate_m``, whose own end
+    the solve's verdict checks)."""
+    if fine_m is None or fine_m >= candidate_m or contact_radius_m <= FINE_EDGE * fine_m:
+        return None
+    return min(FINE_MARGIN * max(contact_radius_m, fine_m), candidate_m)
 
 
 def side_wall_overlap(lens_r, lens_z, pillar_top_z: float, wall_r,

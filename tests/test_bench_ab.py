@@ -64,3 +64,20 @@ def test_fem3d_rows_carry_the_median_of_each_phase():
     assert this["phases_median_s"]["factorise"] == 2.0 and this["speed-up"] == 2.5
     text = ab.table([base, this])
     assert "| fem3d:0.2:2.83 | this | 1.0 | 2.0 | 2.0 | 4.0 | 0.5 | 1.50 |" in text
+
+
+def test_floor3d_cases_are_the_floor_validations_lattices_with_elements_and_area():
+    import argparse
+
+    case = ab.parse_case("floor3d:0.4:1.41")
+    assert case["model"] == "fem3d" and case["cells"] == 1.41
+    assert "pillars.surface_fraction=0.4" in case["overrides"]
+    assert "load.indentation_um=7.0" in case["overrides"]
+    with pytest.raises(argparse.ArgumentTypeError, match="floor validation's lattices, 0.03"):
+        ab.parse_case("floor3d:0.5:2")
+    phases = dict.fromkeys(ab.FEM3D_PHASES, 1.0)
+    run = {"wall_s": 5.0, "cpu_s": 5.0, "iterations": 30, "converged": True, "F_T": 1.0,
+           "sigma0": 2.0, "a": 3.0, "phases": phases, "peak_rss_GiB": 1.5,
+           "elements": 1234, "floor_area_m2": 650.4e-12}
+    rows = ab.summarise(case, {"baseline": [run], "this": [run]})
+    assert "| 1.50 | 1234 | 650.4 |" in ab.table(rows)

@@ -26,7 +26,7 @@ import pytest
 
 from fem_reference import axisym
 from fem_reference._floor import annulus_edges, side_wall_diagnostics, side_wall_overlap
-from meshes import build_axisymmetric_mesh, pillar_geometry
+from meshes import GeometryError, build_axisymmetric_mesh, pillar_geometry
 from pillar_xval.scenes import analytic, load_scene
 from pillar_xval.scenes.floor import floor_reach, floor_reachable
 
@@ -152,9 +152,11 @@ def test_annulus_helper():
 
 # --- fem-3d -------------------------------------------------------------------------------
 # fem-3d against fem-axisym on one pillar with floor contact, both at mesh_size 4 (fem-3d's
-# discretisation error there: F +1.3 %, the floor's share -0.07 points, the floor area -1.8 %;
-# at mesh_size 1.41 +0.2 %, -0.02 points, -1.0 %).  The floor area's bound fails the size rule
-# that graded the floor away from the rims (the floor area -9 % at mesh_size 4).
+# discretisation error there, the floor at half the contact size on its fine disk: F +1.1 %,
+# the floor's share -0.07 points, the floor area -2.6 %; at mesh_size 2.83 +0.7 %, -0.06
+# points, -0.5 %; with the whole candidate floor at the contact size, -1.8 % and -0.9 %).
+# The floor area's bound fails the size rule that graded the floor away from the rims (the
+# floor area -9 % at mesh_size 4).
 RTOL_3D_FORCE = 0.05
 ATOL_3D_SHARE = 0.015
 RTOL_3D_FLOOR_AREA = 0.03
@@ -207,6 +209,68 @@ def test_wedge_floor_faces_match_and_clear_the_pillars():
     assert size(2, 0, 2.5, 2.5, -1.0, 0.0) == pytest.approx(h_c)
     assert size(2, 0, 3.5, 1.5, -1.0, 0.0) == pytest.approx(h_c)
     assert size(2, 0, 9.0, 0.5, -1.0, 0.0) > 1.5 * h_c
+
+
+def test_the_fine_floor_disk_follows_the_contact_and_refines_the_floor_alone():
+    from fem_reference._floor import (FINE_EDGE, FINE_MARGIN, fine_floor_radius,
+                                      outgrown_floor)
+    from meshes import WedgeGeometry, build_wedge_mesh, sector_pillars
+
+    # the disk is the coarse solve's floor contact with its margin, within the candidate
+    assert fine_floor_radius(20e-6, 60e-6) == pytest.approx(FINE_MARGIN * 20e-6)
+    assert fine_floor_radius(50e-6, 60e-6) == 60e-6
+    assert fine_floor_radius(0.0, 60e-6) is None  # no coarse floor contact: no disk
+    # a contact inside FINE_EDGE of the disk keeps it; one beyond widens it by the margin
+    assert outgrown_floor(0.99 * FINE_EDGE * 25e-6, 25e-6, 60e-6) is None
+    assert outgrown_floor(1.01 * FINE_EDGE * 25e-6, 25e-6, 60e-6) == pytest.approx(
+        FINE_MARGIN * 25e-6)
+    assert outgrown_floor(59e-6, 60e-6, 60e-6) is None  # the candidate's end: the verdict's
+    # The size rule: floor_ratio * h_c on the floor's fine disk (c = 4 focus radii) and its
+    # copy on the lens, the contact size on the pillars' tops, graded beyond the disk.
+    pillars = sector_pillars(10e-6, 4e-6, 12e-6)
+    common = dict(pillars=pillars, pillar_height_m=2e-6, floor_radius_m=12.2e-6, mesh_size=4.0)
+    coarse = WedgeGeometry(2e-6, 2e-2, **common)
+    fine = WedgeGeometry(2e-6, 2e-2, floor_fine_radius_m=8e-6, floor_ratio=0.5, **common)
+    h_c = fine.mesh_size / fine.elements_across_contact
+    size, size0 = fine.size_callback(), coarse.size_callback()
+    for x, y in ((2.5, 0.5), (3.5, 1.5)):  # floor, 1.1-1.6 radii from the rims
+        assert size(2, 0, x, y, -1.0, 0.0) == size(2, 0, x, y, 0.0, 0.0) == 0.5 * h_c
+        assert size0(2, 0, x, y, -1.0, 0.0) == h_c
+    assert size(2, 0, 5.0, 0.0, 0.0, 0.0) == h_c  # the top of pillar (1, 0)
+    assert size(2, 0, 5.5, 2.5, -1.0, 0.0) > 2.0 * h_c  # candidate floor beyond the disk
+    with pytest.raises(GeometryError, match="without a candidate floor"):
+        WedgeGeometry(2e-6, 2e-2, pillars=pillars, pillar_height_m=2e-6,
+                      floor_fine_radius_m=8e-6)
+    nodes = [len(build_wedge_mesh(g).face_nodes("contact_floor")) for g in (coarse, fine)]
+    assert nodes[1] > 1.2 * nodes[0]
+
+
+@pytest.mark.parametrize("meshings", [None, 0], ids=["widened", "out-of-meshings"])
+def test_a_fine_floor_disk_too_small_for_the_contact_is_caught(monkeypatch, meshings):
+    # A planted disk of 8 um under a floor contact that ends at 24 um (one pillar, the
+    # fem-axisym comparison's scene): the solve meshes a wider disk until the contact ends
+    # inside FINE_EDGE of it, or, allowed no more meshes, says that it did not converge.
+    from fem_reference._floor import FINE_EDGE
+    from fem_reference.solid3d import driver
+
+    def planted(scene, mesh_size, options, clock, design):
+        design.append({"planted": True})
+        return 8e-6
+
+    monkeypatch.setattr(driver, "_floor_design", planted)
+    if meshings is not None:
+        monkeypatch.setattr(driver, "MAX_MESHINGS", meshings)
+    scene = load_scene("single-pillar", ["pillars.height_um=0.2", "load.indentation_um=0.5"])
+    res = driver.solve(scene, mesh_size=4.0)
+    d = res.diagnostics
+    if meshings == 0:
+        assert not res.converged and "fine disk" in d["message"]
+        assert d["floor_fine_radius_m"] == 8e-6
+        return
+    assert res.converged, d["message"]
+    assert len(d["floor_design"]) >= 2 and d["floor_fine_radius_m"] > 2.5 * 8e-6
+    assert res.floor_contact_radius_m <= FINE_EDGE * d["floor_fine_radius_m"]
+    assert res.floor_contact_radius_m > 20e-6
 
 
 def test_the_registry_runs_the_fems_on_a_floor_scene():

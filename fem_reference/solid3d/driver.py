@@ -41,7 +41,8 @@ from pillar_xval.scenes.lattice import lattice_indices
 
 from .._driver import (RTOL_COMPLEMENTARITY, PhaseClock, contact_radius, fem_result,
                        flat_candidate, refuse_rigid_pair, scaled_materials, verdict)
-from .._floor import FLOOR_MARGIN, floor_candidate, side_wall_diagnostics
+from .._floor import (FINE_EDGE, FLOOR_MARGIN, fine_floor_radius, floor_candidate,
+                      outgrown_floor, side_wall_diagnostics)
 from .contact import contact_area_share, contact_faces, line_profile
 from .half_space import HalfSpaceModel, serial_dense_algebra
 from .fields import cell_stresses, lens_in_side_walls, write_vtu3d
@@ -80,6 +81,16 @@ COARSE_SHORTFALL = 0.005
 COARSE_MARGIN = 1.05
 # Element size on the centre pillar's top over the contact element size (see _setup).
 CENTRE_RATIO = 0.25
+# Element size on the floor's fine disk over the contact element size.  The floor's contact
+# on a dense lattice lies in the gaps between rims (2 um at Phi = 0.4, d = 4 um), about one
+# element of the contact size wide at mesh_size 1.41; at half of it, about three.  The disk
+# holds the floor contact of a coarser solve (mesh_size COARSE_FACTOR times larger, at most
+# the coarsest allowed; :func:`.._floor.fine_floor_radius`), not the floor's rigid reach,
+# 2-3 times wider on the dense lattices, whose elements the finer size is paid from (Phi =
+# 0.4 at mesh_size 2.83-1.41: the floor area 492, 540, 546 um^2, monotone, against 466, 523,
+# 534 at the contact size; a quarter of it at 2.83, 514: the elements across the gaps are no
+# longer what limits it, PHYSICS.md).
+FLOOR_RATIO = 0.5
 # Smallest gap between neighbouring pillars, in diameters: at Phi = 0.9 (gap 0.0038 d) the
 # mesh still passes its quality check (q_min 0.047), at Phi = 0.9068 (5.5e-5 d) it fails.
 MIN_GAP = 2e-3
@@ -212,6 +223,10 @@ def solve(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None, progress=None,
     ell = 0.0  # the previous round's length unit (a flat mesh rescales from it)
     options = (sector_angle, block_factor, reach_factor, grading or {})
     coarse = _coarse_size(mesh_size) if force is not None and not scene.is_flat else None
+    # The floor's fine disk (m; None: no floor, or the whole candidate at the contact size)
+    # from a coarse solve's floor contact: the force's coarse design, else its own.
+    fine: float | None = None
+    floor_design: list[dict] = []
     if force is None:
         solved = scene
     elif coarse is None:
@@ -220,12 +235,15 @@ def solve(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None, progress=None,
         guess = scene.designed(analytic.indentation_estimate(scene))
         _refuse_if_too_large(guess, mesh_size, sector_angle, reach_factor)
         shortfall = 1.0 + COARSE_SHORTFALL * math.log2(coarse / mesh_size)
-        solved = scene.designed(shortfall * _coarse_design(scene, coarse, options, clock,
-                                                           rounds))
-    fine_rounds = len(rounds)
+        zeta, fine = _coarse_design(scene, coarse, options, clock, rounds, floor_design)
+        solved = scene.designed(shortfall * zeta)
+    if not floor_design:
+        _refuse_if_too_large(solved, mesh_size, sector_angle, reach_factor)
+        fine = _floor_design(solved, mesh_size, options, clock, floor_design)
+    fine_rounds, floor_meshings = len(rounds), 0
     while True:
         _refuse_if_too_large(solved, mesh_size, sector_angle, reach_factor)
-        setup = _setup(solved, mesh_size, *options)
+        setup = _setup(solved, mesh_size, *options, floor_fine=fine)
         if not rounds or not scene.is_flat:
             mesh, skmesh, system, faces = _mesh_and_factorise(setup, mesh_size, sector_angle,
                                                               clock)
@@ -238,23 +256,38 @@ def solve(scene: Scene, mesh_size: float = 1.0, *, vtu_path=None, progress=None,
         loose = sector_force is not None and not scene.is_flat and not rounds
         contact = _contact(solved, setup, system, faces, max(tol, LOOSE_TOL) if loose else tol,
                            clock, sector_force)
+        wider = _outgrown(setup, faces, contact["lam"])
+        if wider is not None and floor_meshings < MAX_MESHINGS:
+            clock.say(f"the floor contact passes {FINE_EDGE:.0%} of its fine disk: meshing "
+                      f"again with one of {wider * 1e6:.4g} um")
+            floor_design.append({"mesh_size": float(mesh_size), "fine_radius_m": wider,
+                                 "floor_contact_radius_m": _floor_radius(faces, contact["lam"])
+                                 * setup["ell"]})
+            fine, floor_meshings = wider, floor_meshings + 1
+            del mesh, skmesh, system, faces, contact  # before the next factor is built
+            continue
         if force is None:
             break
         zeta = contact["zeta"]
         rounds.append({"design_indentation_m": solved.indentation_m, "indentation_m": zeta,
                        "mesh_size": float(mesh_size)})
-        held = _meshed_alike(setup, _setup(scene.designed(zeta), mesh_size, *options))
+        held = _meshed_alike(setup, _setup(scene.designed(zeta), mesh_size, *options,
+                                           floor_fine=fine))
         if held and loose:  # the mesh is the solved one's: on to the tolerance from here
             contact = _contact(solved, setup, system, faces, tol, clock, sector_force,
                                start=contact["lam"])
             zeta = rounds[-1]["indentation_m"] = contact["zeta"]
-            held = _meshed_alike(setup, _setup(scene.designed(zeta), mesh_size, *options))
+            held = _meshed_alike(setup, _setup(scene.designed(zeta), mesh_size, *options,
+                                               floor_fine=fine))
         if held or len(rounds) - fine_rounds == MAX_MESHINGS:
             solved = scene.implied(zeta, f"fem-3d at mesh_size {mesh_size:g}")
             break
         solved = scene.designed(zeta)
     result = _result(solved, setup, mesh, system, faces, contact, mesh_size, sector_angle,
                      reach_factor, clock)
+    if setup["geometry"].floor_radius_m is not None:
+        result.diagnostics["floor_fine_radius_m"] = setup["geometry"].floor_fine_radius_m
+        result.diagnostics["floor_design"] = floor_design
     if force is not None:
         result.for_force(scene.to_dict(), zeta, design_rounds=rounds)
         if not held:
@@ -276,10 +309,11 @@ def _coarse_size(mesh_size: float) -> float | None:
 
 
 def _coarse_design(scene: Scene, coarse: float, options: tuple, clock: PhaseClock,
-                   rounds: list) -> float:
+                   rounds: list, floor_design: list) -> tuple:
     """The indentation (m) that ``scene``'s force gives on the coarse mesh ``coarse``, solved
     to :data:`LOOSE_TOL` on a mesh holding every pillar in its reach (see
-    :data:`COARSE_FACTOR`); each round appended to ``rounds``."""
+    :data:`COARSE_FACTOR`), each round appended to ``rounds``, and the floor's fine disk (m)
+    from its floor contact (:func:`_floor_design`)."""
     sector_angle = options[0]
     sector_force = scene.force_N * sector_angle / (2.0 * math.pi)
     design = COARSE_MARGIN * analytic.indentation_estimate(scene)
@@ -287,14 +321,59 @@ def _coarse_design(scene: Scene, coarse: float, options: tuple, clock: PhaseCloc
         at = scene.designed(design)
         setup = _setup(at, coarse, *options)
         _, _, system, faces = _mesh_and_factorise(setup, coarse, sector_angle, clock)
-        zeta = _contact(at, setup, system, faces, LOOSE_TOL, clock, sector_force)["zeta"]
-        del system, faces  # the coarse factor goes before the fine one is built
+        contact = _contact(at, setup, system, faces, LOOSE_TOL, clock, sector_force)
+        zeta = contact["zeta"]
+        del system  # the coarse factor goes before the next one is built
         rounds.append({"design_indentation_m": design, "indentation_m": zeta,
                        "mesh_size": float(coarse)})
         if _holds(setup, _setup(scene.designed(zeta), coarse, *options)):
             break
         design = COARSE_MARGIN * zeta
-    return zeta
+    return zeta, _fine_from(setup, faces, contact["lam"], coarse, floor_design)
+
+
+def _floor_design(scene: Scene, mesh_size: float, options: tuple, clock: PhaseClock,
+                  floor_design: list) -> float | None:
+    """The floor's fine disk (m) for ``scene`` at ``mesh_size``: from the floor contact of a
+    solve :data:`COARSE_FACTOR` times coarser (at most the coarsest allowed), on its whole
+    candidate floor at the contact size, to :data:`LOOSE_TOL`; None without a floor."""
+    if scene.is_flat or floor_candidate(scene, options[2] * scene.indentation_m) is None:
+        return None
+    coarse = min(COARSE_FACTOR * mesh_size, MESH_SIZE_RANGE_3D[1])
+    setup = _setup(scene, coarse, *options)
+    _, _, system, faces = _mesh_and_factorise(setup, coarse, options[0], clock)
+    lam = _contact(scene, setup, system, faces, LOOSE_TOL, clock)["lam"]
+    return _fine_from(setup, faces, lam, coarse, floor_design)
+
+
+def _fine_from(setup: dict, faces, lam, mesh_size: float, floor_design: list):
+    """The fine disk (m) for the floor contact of a coarse solve (``setup``, ``faces``, its
+    multipliers ``lam``), recorded in ``floor_design``; None without a floor."""
+    candidate = setup["geometry"].floor_radius_m
+    if candidate is None:
+        return None
+    reach = _floor_radius(faces, lam) * setup["ell"]
+    fine = fine_floor_radius(reach, candidate)
+    floor_design.append({"mesh_size": float(mesh_size), "floor_contact_radius_m": reach,
+                         "fine_radius_m": fine})
+    return fine
+
+
+def _floor_radius(faces, lam) -> float:
+    """Outer radius (mesh units) of the floor's contact: its farthest floor vertex in
+    contact; 0 without one."""
+    on = (lam > 0) & faces.floor_vertices
+    return float(np.max(np.hypot(*faces.vertex_points)[on])) if on.any() else 0.0
+
+
+def _outgrown(setup: dict, faces, lam) -> float | None:
+    """The wider fine disk (m) where the floor contact of ``lam`` passes
+    :data:`.._floor.FINE_EDGE` of the set-up's (:func:`.._floor.outgrown_floor`), else None."""
+    geo = setup["geometry"]
+    if geo.floor_fine_radius_m is None:
+        return None
+    return outgrown_floor(_floor_radius(faces, lam) * setup["ell"], geo.floor_fine_radius_m,
+                          geo.floor_radius_m)
 
 
 def _mesh_and_factorise(setup: dict, mesh_size: float, sector_angle: float,
@@ -453,14 +532,16 @@ def _result(scene: Scene, setup: dict, mesh, system, faces, contact: dict, mesh_
                  * unit_force,
                  "floor_contact_area_m2": mult * contact_area_share(
                      faces.weights[faces.floor_vertices], lam[faces.floor_vertices]) * ell**2,
-                 "floor_contact_radius_m": float(np.max(np.hypot(vx, vy)[on_floor])) * ell
-                 if on_floor.any() else 0.0}
+                 "floor_contact_radius_m": _floor_radius(faces, lam) * ell}
         if on_floor.any() and floor["floor_contact_radius_m"] >= 0.98 * geo.floor_radius_m:
             reaches_end = True
+    end = "contact reached the end of the candidate zone" if reaches_end else ""
+    if not end and _outgrown(setup, faces, lam) is not None:
+        end = (f"the floor contact passed {FINE_EDGE:.0%} of its fine disk of "
+               f"{geo.floor_fine_radius_m * 1e6:.4g} um after {MAX_MESHINGS} wider meshes")
     penetration = float(max(0.0, -w.min()) / (zeta / ell))
     failures = verdict([force, a, sigma0, residual, sol.residual, *pressure], residual, sol,
-                       force, zeta, penetration,
-                       "contact reached the end of the candidate zone" if reaches_end else "")
+                       force, zeta, penetration, end)
     walls = {} if scene.is_flat else side_wall_diagnostics(
         lens_in_side_walls(scene, setup, system, contact["x"]), scene.pillars.height_m)
     diagnostics = {
@@ -508,8 +589,11 @@ def _write_fields(vtu_path, scene: Scene, setup: dict, mesh, skmesh, system, x,
                  "indentation_m": result.indentation_m})
 
 
-def _setup(scene: Scene, mesh_size, sector_angle, block_factor, reach_factor, grading) -> dict:
-    """Geometry, units, meshed bodies and constraints for ``scene``."""
+def _setup(scene: Scene, mesh_size, sector_angle, block_factor, reach_factor, grading,
+           floor_fine: float | None = None) -> dict:
+    """Geometry, units, meshed bodies and constraints for ``scene``; ``floor_fine``: the
+    radius (m) of the floor's fine disk (at most its candidate; None: the whole candidate
+    at the contact size)."""
     lens, sub = scene.lens.material, scene.substrate
     out = {"clamp_pillar_base": False, "rigid_pillars": [], "lens_meshed": not lens.rigid,
            "floor": None}
@@ -544,11 +628,12 @@ def _setup(scene: Scene, mesh_size, sector_angle, block_factor, reach_factor, gr
         # its P1 multiplier's centre value moved 6-11 % between mesh levels (Phi = 0.2,
         # E_p = 10 E_l: 21.3, 19.1, 20.5 kPa at mesh_size 2.83, 2, 1.41); at a quarter of it,
         # 20.02, 20.12, 20.12 kPa, and 12.33, 12.32, 12.33 kPa for rigid pillars at Phi = 0.4.
-        grading = {"centre_ratio": CENTRE_RATIO, **grading}
+        grading = {"centre_ratio": CENTRE_RATIO, "floor_ratio": FLOOR_RATIO, **grading}
+        fine = None if floor is None or floor_fine is None else min(floor_fine, floor)
         geo = WedgeGeometry(ell, block_factor * ell, pillars=pillars,
                             pillar_height_m=p.height_m, floor_radius_m=floor,
-                            sector_angle=sector_angle, bodies=bodies, mesh_size=mesh_size,
-                            **grading)
+                            floor_fine_radius_m=fine, sector_angle=sector_angle,
+                            bodies=bodies, mesh_size=mesh_size, **grading)
         if pillar.rigid:
             out["lower"] = "rigid-pillar" if not sub.rigid else "fixed"
             if not sub.rigid:

@@ -176,13 +176,10 @@ def _near_pieces(x, w, tri, group, tol, own, merged):
     # a point with itself: (1 / a^2) x the integral of 1 / r over a disk of area a, twice
     itself = 16.0 / (3.0 * math.pi) * np.sqrt(a / math.pi) / a
     tree = cKDTree(centre)
-    reach = 4.0 * float(radius.max())  # centres of near pairs are at most this far apart
     out, where = [], []
     for g in group:
         gx = x @ g.T
-        pairs = tree.sparse_distance_matrix(cKDTree(centre @ g.T), reach,
-                                            output_type="ndarray")
-        t1, t2 = pairs["i"], pairs["j"]
+        t1, t2 = _candidate_pairs(tree, cKDTree(centre @ g.T), radius)
         vi, vj = tri[:, t1].T[:, :, None], tri[:, t2].T[:, None, :]  # (p, 3, 1), (p, 1, 3)
         dv = np.hypot(x[vi, 0] - gx[vj, 0], x[vi, 1] - gx[vj, 1])  # (p, 3, 3)
         near = dv.min(axis=(1, 2)) <= radius[t1] + radius[t2]
@@ -209,6 +206,26 @@ def _near_pieces(x, w, tri, group, tol, own, merged):
     if not out:
         return np.zeros(0), np.zeros(0, dtype=np.int64)
     return np.concatenate(out), np.concatenate(where)
+
+
+def _candidate_pairs(tree, image_tree, radius):
+    """Pairs (t1, t2) of triangles, the second's image under a mirror-group element, whose
+    centres lie within 4 max(r1, r2) (circumradii r): all that can be near (a vertex pair
+    within r1 + r2 puts the centres within 2 (r1 + r2)), each found from its larger
+    triangle.  A reach of 4 max(r) over all triangles instead made the pairs, their memory
+    and time grow with the largest triangle, one far from the rest on a graded floor."""
+    def within(a, b, keep):  # the points of tree b within 4 r of each point of tree a
+        found = b.query_ball_point(a.data, 4.0 * radius)
+        i = np.repeat(np.arange(len(found)), [len(f) for f in found])
+        j = np.fromiter((k for f in found for k in f), dtype=np.int64, count=len(i))
+        sel = keep(radius[i], radius[j])
+        return i[sel], j[sel]
+
+    i1, j1 = within(tree, image_tree, np.greater_equal)  # t2 no larger than t1
+    j2, i2 = within(image_tree, tree, np.greater)  # t1 smaller than t2
+    t1, t2 = np.concatenate([i1, i2]), np.concatenate([j1, j2])
+    order = np.lexsort((t2, t1))
+    return t1[order], t2[order]
 
 
 def mirror_group(sector_angle: float) -> list:

@@ -63,6 +63,10 @@ class WedgeGeometry:
         Radius c_f of the candidate floor (m): the sector's disk less the pillars, on the
         substrate's top z = -h and its copy on the lens's bottom; its circle must cross no
         pillar (:func:`floor_clear_of_pillars`).  None: the floor is not a contact face.
+    floor_fine_radius_m : float, optional
+        Radius (m) of the floor's fine disk, the part of the candidate floor that holds its
+        contact: there the floor and its copy on the lens take the size floor_ratio * h_c,
+        graded beyond it.  None: the whole candidate floor at the contact size h_c.
     sector_angle : float
         alpha in radians, one of pi/6 (default), pi/3, pi/2.
     bodies : tuple of str
@@ -80,6 +84,8 @@ class WedgeGeometry:
     centre_ratio : float
         Element size on the top of the pillar at the origin (the centre pillar, whose top
         holds sigma0 and the pressure profile), relative to the contact element size.
+    floor_ratio : float
+        Element size on the floor's fine disk relative to the contact element size.
     """
 
     focus_radius_m: float
@@ -88,6 +94,7 @@ class WedgeGeometry:
     pillar_height_m: float | None = None
     contact_radius_m: float | None = None
     floor_radius_m: float | None = None
+    floor_fine_radius_m: float | None = None
     sector_angle: float = math.pi / 6.0
     bodies: tuple = BODIES
     mesh_size: float = 1.0
@@ -95,6 +102,7 @@ class WedgeGeometry:
     edge_ratio: float = 0.25
     growth: float = 0.35
     centre_ratio: float = 1.0
+    floor_ratio: float = 1.0
 
     def __post_init__(self):
         def positive(name, value):
@@ -102,7 +110,7 @@ class WedgeGeometry:
                 raise GeometryError(f"{name} = {value!r}: must be a finite number > 0")
 
         for name in ("focus_radius_m", "block_size_m", "mesh_size", "elements_across_contact",
-                     "edge_ratio", "growth", "centre_ratio"):
+                     "edge_ratio", "growth", "centre_ratio", "floor_ratio"):
             positive(name, getattr(self, name))
         if not any(math.isclose(self.sector_angle, s, rel_tol=1e-12) for s in SECTORS):
             raise GeometryError(f"sector_angle = {self.sector_angle!r}: allowed values are pi/6, "
@@ -130,6 +138,11 @@ class WedgeGeometry:
                 if clear != self.floor_radius_m:
                     raise GeometryError(f"floor_radius_m = {self.floor_radius_m:g} m: its "
                                         "circle crosses a pillar (or the centre pillar's rim)")
+            if self.floor_fine_radius_m is not None:
+                positive("floor_fine_radius_m", self.floor_fine_radius_m)
+                if self.floor_radius_m is None:
+                    raise GeometryError("floor_fine_radius_m given without a candidate floor "
+                                        "(floor_radius_m)")
         lo, hi = MESH_SIZE_RANGE_3D
         if self.mesh_size > hi or self.mesh_size < lo:
             raise GeometryError(f"mesh_size = {self.mesh_size:g}: allowed range is "
@@ -200,10 +213,14 @@ class WedgeGeometry:
         # With a floor the rule is the same at z and -h - z (the floor's faces and their
         # copies on the lens, the pillars' tops and bases get the same curves' nodes).
         mirror = self.floor_radius_m is not None
-        # The floor's candidate disk is a contact face as the tops are: size h_c throughout
-        # (else it grows with the distance from the nearest rim, and the floor's contact
-        # edges, far from the rims on a sparse lattice, were resolved by a few elements).
-        c_f = self.floor_radius_m / self.focus_radius_m if mirror else 0.0
+        # The floor's candidate disk is a contact face as the tops are: a uniform size on the
+        # disk that holds its contact, h_c or floor_ratio * h_c on the fine disk, graded
+        # beyond (graded from the nearest rim instead, the floor's contact edges, far from
+        # the rims on a sparse lattice, were resolved by a few elements).  Outside the
+        # pillars only: their tops keep the contact size.
+        fine = self.floor_fine_radius_m
+        c_f = (fine or self.floor_radius_m or 0.0) / self.focus_radius_m
+        h_fl = h_c if fine is None else self.floor_ratio * h_c
         around = [(dn, dm) for dn in (-1, 0, 1) for dm in (-1, 0, 1)]
         near = {}  # rounded lattice indices -> the meshed centres among their 3 x 3 block
 
@@ -241,7 +258,8 @@ class WedgeGeometry:
                 s = t
             if mirror:  # the floor's disk rho <= c_f at z = -h and its copy at z = 0
                 rf = hypot(x, y) - c_f
-                t = h_c + g * hypot(rf if rf > 0.0 else 0.0, zf)
+                t = h_fl + g * hypot(hypot(rf if rf > 0.0 else 0.0, rim if rim < 0.0 else 0.0),
+                                     zf)
                 if t < s:
                     s = t
             if centred:  # the centre pillar's top: the disk r <= 1 at z = 0

@@ -21,7 +21,10 @@ Cases: ``dense`` (the dense BEM at its default P = 11 on paper-fig3-dense, zeta 
 diameter on paper-fig3-dense), optionally ``@tol`` (the FFT's tolerance), e.g. ``fft:58@1e-12``;
 ``fem3d:PHI:MESH_SIZE`` (fem-3d on paper-fig3-sparse with surface fraction PHI, the lattice
 study's scene at zeta = 0.3 um), whose rows add the median time of each phase of the solve and
-the interpreter's peak RSS (its own, since each run is a fresh process).
+the interpreter's peak RSS (its own, since each run is a fresh process);
+``floor3d:PHI:MESH_SIZE`` (fem-3d on the floor validation's lattice of surface fraction PHI,
+its floor touched: :data:`validation.studies.floor_check.POINTS`), whose rows add the
+elements and the floor's contact area.
 """
 
 from __future__ import annotations
@@ -78,6 +81,8 @@ out = {"wall_s": wall, "cpu_s": cpu, "iterations": r.iterations, "converged": r.
        "F_T": r.total_force_N, "sigma0": r.centre_pressure_Pa, "a": r.contact_radius_m}
 if case["model"] == "fem3d":
     import resource
+    out["elements"] = r.discretisation["elements"]
+    out["floor_area_m2"] = r.floor_contact_area_m2
     out["phases"] = r.diagnostics["time_s"]
     out["peak_rss_GiB"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20
 if case["model"] == "fft":  # the fine level's time per iteration over the bare FFT pair
@@ -112,13 +117,13 @@ print(json.dumps(out))
 
 
 def parse_case(text: str) -> dict:
-    if text.startswith("fem3d:"):
+    if text.startswith(("fem3d:", "floor3d:")):
         return _parse_fem3d(text)
     name, _, tol = text.partition("@")
     model, _, cells = name.partition(":")
     if model not in ("dense", "fft", "elastic-fft") or (model != "dense") != bool(cells):
         raise argparse.ArgumentTypeError(f"{text!r}: expected dense, fft:N, elastic-fft:N or "
-                                         "fem3d:PHI:MESH_SIZE")
+                                         "fem3d:PHI:MESH_SIZE (floor3d:PHI:MESH_SIZE)")
     options = {"tol": float(tol)} if tol else {}
     return {"label": text, "model": "dense" if model == "dense" else "fft",
             "pillars": "elastic" if model == "elastic-fft" else "hooke",
@@ -133,10 +138,20 @@ def _parse_fem3d(text: str) -> dict:
         if len(parts) != 3:
             raise ValueError
     except (IndexError, ValueError):
-        raise argparse.ArgumentTypeError(f"{text!r}: expected fem3d:PHI:MESH_SIZE, e.g. "
-                                         "fem3d:0.82:2") from None
-    return {"label": text, "model": "fem3d", "cells": mesh_size, "options": {},
+        raise argparse.ArgumentTypeError(f"{text!r}: expected {parts[0]}:PHI:MESH_SIZE, e.g. "
+                                         f"{parts[0]}:0.4:2") from None
+    case = {"label": text, "model": "fem3d", "cells": mesh_size, "options": {},
             "scene": FEM3D_SCENE, "overrides": [f"pillars.surface_fraction={phi}"]}
+    if parts[0] == "floor3d":
+        from validation.studies.floor_check import POINTS
+
+        point = next((p for p in POINTS if p.surface_fraction == phi and not p.single), None)
+        if point is None:
+            raise argparse.ArgumentTypeError(
+                f"{text!r}: PHI must be one of the floor validation's lattices, " + ", ".join(
+                    f"{p.surface_fraction:g}" for p in POINTS if not p.single))
+        case.update(overrides=point.overrides())
+    return case
 
 
 def run_once(root: Path, case: dict, warm: bool) -> dict:
@@ -168,6 +183,8 @@ def summarise(case, runs) -> list[dict]:
             rows[-1]["phases_median_s"] = {k: statistics.median([r["phases"][k] for r in rs])
                                            for k in FEM3D_PHASES}
             rows[-1]["peak_rss_median_GiB"] = statistics.median([r["peak_rss_GiB"] for r in rs])
+            rows[-1]["elements"] = rs[-1].get("elements")
+            rows[-1]["floor_area_m2"] = rs[-1].get("floor_area_m2")
     base, this = rows
     this["speed-up"] = base["wall_median_s"] / this["wall_median_s"]
     this["max_rel_diff"] = max(_rel(base[q], this[q]) for q in ("F_T", "sigma0", "a"))
@@ -190,10 +207,13 @@ def table(rows) -> str:
     phased = [r for r in rows if "phases_median_s" in r]
     if phased:
         lines += ["", "| case | side | " + " | ".join(f"{k} s" for k in FEM3D_PHASES)
-                  + " | peak RSS GiB |", "|" + "---|" * (len(FEM3D_PHASES) + 3)]
+                  + " | peak RSS GiB | elements | floor area um^2 |",
+                  "|" + "---|" * (len(FEM3D_PHASES) + 5)]
         lines += [f"| {r['case']} | {r['side']} | "
                   + " | ".join(f"{r['phases_median_s'][k]:.1f}" for k in FEM3D_PHASES)
-                  + f" | {r['peak_rss_median_GiB']:.2f} |" for r in phased]
+                  + f" | {r['peak_rss_median_GiB']:.2f} | {r.get('elements') or '-'} | "
+                  + ("-" if r.get("floor_area_m2") is None else f"{r['floor_area_m2'] * 1e12:.1f}")
+                  + " |" for r in phased]
     return "\n".join(lines)
 
 

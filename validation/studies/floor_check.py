@@ -92,13 +92,20 @@ class FloorPoint:
         return (("one pillar " if self.single else "")
                 + f"Phi={self.surface_fraction:g} Ep/El={self.ratio:g} zeta={self.zeta_um:g}um")
 
+    @property
+    def preset(self) -> str:
+        return "single-pillar" if self.single else "paper-fig3-sparse"
+
+    def overrides(self) -> list[str]:
+        """The preset's overrides: a 0.25 mm lens, h = 1 um, E_s = E_l, this Phi, E_p, zeta."""
+        return [f"lens.radius_mm={LENS_RADIUS_MM!r}", f"pillars.height_um={HEIGHT_UM!r}",
+                f"pillars.surface_fraction={self.surface_fraction!r}",
+                f"pillars.E_Pa={E_LENS * self.ratio!r}", f"substrate.E_Pa={E_LENS!r}",
+                "substrate.nu=0.5", f"load.indentation_um={self.zeta_um!r}"]
+
     def scene(self) -> Scene:
         """Table 1 with a 0.25 mm lens, h = 1 um, E_s = E_l and this Phi, E_p, zeta."""
-        return load_scene("single-pillar" if self.single else "paper-fig3-sparse", [
-            f"lens.radius_mm={LENS_RADIUS_MM!r}", f"pillars.height_um={HEIGHT_UM!r}",
-            f"pillars.surface_fraction={self.surface_fraction!r}",
-            f"pillars.E_Pa={E_LENS * self.ratio!r}", f"substrate.E_Pa={E_LENS!r}",
-            "substrate.nu=0.5", f"load.indentation_um={self.zeta_um!r}"])
+        return load_scene(self.preset, self.overrides())
 
 
 # Floor shares (BEM, N = 8): 55 % (one pillar), 28, 15, 15 and 6 % (Phi = 0.4, where the
