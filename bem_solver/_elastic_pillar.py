@@ -481,7 +481,9 @@ class FFTPillarTerm:
             c = correction.tocoo()
             same = grid.pillar[c.row] == grid.pillar[c.col]
             kept = [c.row[same], c.col[same], c.data[same]]
-            diagonal = sp.csr_matrix((kept[2], (kept[0], kept[1])), shape=c.shape).diagonal()
+            diagonal = np.zeros(self.n)  # the pairs are distinct: the diagonal's own entries
+            on = kept[0] == kept[1]
+            diagonal[kept[0][on]] = kept[2][on]
             correction = be.sparse(*(be.asarray(v) for v in kept), self.n)
         return {"M": M, "index": be.asarray(index), "spectrum": be.asarray(spectrum),
                 "correction": correction, "correction_diagonal": diagonal,

@@ -69,7 +69,7 @@ from pillar_xval.scenes import InputError, Scene, ScopeError
 
 from ._dense import _smooth_edge_radius
 from ._fft_grid import (CellGrid, build_grid, candidate_side, check_grid_side,
-                        estimate_host_memory)
+                        estimate_host_memory, outer_radii, rim_radii)
 from ._elastic_pillar import (FFTPillarTerm, TopsOnlyTerm, check_pillars, operator_records,
                               pillar_record, scene_compliance, tops_grid, uses_elastic_block)
 from ._fft_operator import CirculantPreconditioner, CompliancePlan, near_field_correction
@@ -564,19 +564,21 @@ def _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, mess
     total = float(cell_force.sum())
     n_p = len(grid.pillar_nm)
     pillar_force = np.bincount(grid.pillar, weights=cell_force, minlength=n_p)[:n_p]
-    # The cells in contact, and their outer radii (collocation radius plus half the side of
-    # the equivalent square), once: the tops' and the floor's contact radii come from them
-    # (1e7 cells: a pass over all of them cost a second of a 2e7-cell GPU solve).
+    # The contact radii: the largest outer radius (outer_radii) of the tops' and the floor's
+    # cells in contact, from the grid's radii where a device built them, else computed for
+    # the cells in contact alone (1e7 cells: a pass over all cost a second of a 2e7 solve).
     n_top = grid.n_top
     floor_force = float(cell_force[n_top:].sum())  # the floor's unknowns come last
     floor_area = float(grid.covered[n_top:][contact[n_top:]].sum() * L2)
     if grid.reach is not None:  # built with the grid (on a device), the tops' capped
         floor_radius = float(np.max(grid.reach[n_top:], where=contact[n_top:], initial=0.0))
-    else:
+    else:  # the cells in contact only
         touching = np.flatnonzero(contact)
-        far = _reach(grid, touching, L)
-        on_floor = touching >= n_top
-        floor_radius = float(far[on_floor].max(initial=0.0))
+        far = outer_radii(grid.colloc_x[touching], grid.colloc_y[touching],
+                          grid.covered[touching], L, grid.pillar[touching],
+                          None if grid.flat else rim_radii(grid.pillar_xy,
+                                                           scene.pillars.diameter_m))
+        floor_radius = float(far[touching >= n_top].max(initial=0.0))
     if grid.flat:
         # Same definition as the dense model: where p^2 (linear in r^2 at a square-root edge)
         # extrapolates to zero; area pi a^2.
@@ -591,11 +593,7 @@ def _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, mess
         if grid.reach is not None:
             contact_radius = float(np.max(grid.reach, where=contact, initial=0.0))
         else:
-            rho = np.hypot(grid.pillar_xy[:, 0], grid.pillar_xy[:, 1])
-            top = ~on_floor
-            far[top] = np.minimum(far[top], rho[grid.pillar[touching[top]]]
-                                  + 0.5 * scene.pillars.diameter_m)
-            contact_radius = float(far.max()) if touching.size else 0.0
+            contact_radius = float(far.max(initial=0.0))
         area = float((grid.covered[contact]).sum() * L2)
     forces = []
     if not grid.flat:
@@ -660,13 +658,6 @@ def _result(scene, grid, plan, outcome, cells_per_diameter, tol, converged, mess
         pillar_top_profile=profile, diagnostics=diagnostics, fields=fields,
         floor_force_N=floor_force, floor_contact_area_m2=floor_area,
         floor_contact_radius_m=floor_radius)
-
-
-def _reach(grid: CellGrid, cells, L: float):
-    """Outermost radius of each of ``cells``: its collocation radius plus half the side of
-    its equivalent square (m)."""
-    return np.hypot(grid.colloc_x[cells], grid.colloc_y[cells]) \
-        + 0.5 * np.sqrt(grid.covered[cells]) * L
 
 
 def _centre_profile(scene, grid, pressure) -> dict:

@@ -252,16 +252,30 @@ def build_grid(scene: Scene, cells_per_diameter: int,
         raise RuntimeError("grid construction lost the centre cell")  # a bug, not user input
     reach = None
     if xp is not np and not flat:
-        reach = xp.hypot(colloc_x, colloc_y) + 0.5 * xp.sqrt(covered) * L
-        rim = xp.asarray(np.hypot(pillar_xy[:, 0], pillar_xy[:, 1])
-                         + 0.5 * scene.pillars.diameter_m)
-        top = pillar < len(pillar_nm)  # the floor's index is len(pillar_nm)
-        reach[top] = xp.minimum(reach[top], rim[pillar[top]])
+        reach = outer_radii(colloc_x, colloc_y, covered, L, pillar,
+                            xp.asarray(rim_radii(pillar_xy, scene.pillars.diameter_m)), xp)
     host = getattr(xp, "asnumpy", np.asarray)  # cupy's arrays come back once
     return CellGrid(L, shape, host(keep), host(x), host(y), host(covered), host(gap0),
                     host(pillar), pillar_nm, pillar_xy, int(centre[0]), r_cand, flat,
                     host(colloc_x), host(colloc_y), None if floor is None else host(floor),
                     n_unique, r_floor, None if reach is None else host(reach))
+
+
+def rim_radii(pillar_xy, diameter: float):
+    """Distance (m) of each pillar's rim's farthest point from the origin."""
+    return np.hypot(pillar_xy[:, 0], pillar_xy[:, 1]) + 0.5 * diameter
+
+
+def outer_radii(x, y, covered, L: float, pillar=None, rims=None, xp=np):
+    """Outer radius (m) of cells collocated at (``x``, ``y``) with covered fractions
+    ``covered``: the collocation radius plus half the side of the equivalent square, as in
+    the dense model; with ``rims`` (:func:`rim_radii`) a top cell's capped at its pillar's
+    rim (``pillar`` indices beyond ``rims``, the floor's, uncapped)."""
+    r = xp.hypot(x, y) + 0.5 * xp.sqrt(covered) * L
+    if rims is not None:
+        top = pillar < rims.shape[0]
+        r[top] = xp.minimum(r[top], rims[pillar[top]])
+    return r
 
 
 def _floor_cells(ax, L, r_floor, keep, tops, xp=np):

@@ -7,8 +7,8 @@ default model; the rows of the records in ``measured/``), and on request 'elasti
 the same pillars as the elastic pillar (``pillars="elastic"``: its finite-element
 compliance, loaded or built before the clock and once before the cases, is not timed; its
 term's set-up is, in the kernel table), edge correction on, tolerance 1e-8 zeta, from 3e5
-to 2e7 grid cells (32 to 256 cells per pillar diameter).  For each case it reports the wall time of each path,
-the time to build the kernel table (kernel block, its spectrum and the near-field correction
+to 2e7 grid cells (32 to 256 cells per pillar diameter).  For each case it reports the wall
+time of each path, the time to build the kernel table (kernel block, its spectrum and the near-field correction
 of the finest level) apart, the iterations, and the relative difference of F_T between the
 paths.  Each case runs in its own interpreter, so its peak host memory (``ru_maxrss``) is
 its own, and is solved there twice: the first solve is what a one-off call takes (cuFFT plans
@@ -51,8 +51,8 @@ CPU_ONLY_LEVELS = (32, 58)  # without a GPU: the CPU column on a small subset
 TOL = 1e-8
 # The GPU's variants (--gpu-variants): the grid's construction, the precision.
 VARIANTS = {"host": "the grid on the host at every size",
-                 "windows": "the grid on the device, pillar window by pillar window",
-                 "double": "float64 throughout (precision='double')"}
+            "windows": "the grid on the device, pillar window by pillar window",
+            "double": "float64 throughout (precision='double')"}
 # Cells per diameter of the untimed GPU run that compiles cupy's kernels first (with warm-start
 # levels, so that their kernels are compiled too).
 WARM_UP_N = 32

@@ -48,6 +48,7 @@ def measure(device: str, pillars: str, n: int, repeats: int) -> dict:
     from bem_solver._fft import _Options, _prepare, solve_fft
     from bem_solver._xp import select_backend
     from pillar_xval.contact._cg import _residual
+    from pillar_xval.contact._xp import one_piece
     from pillar_xval.scenes import load_scene
 
     scene = load_scene(SCENE, list(PILLARS[pillars]))
@@ -75,7 +76,7 @@ def measure(device: str, pillars: str, n: int, repeats: int) -> dict:
         "axpy_3_launches": lambda: (out.__setitem__(Ellipsis, t), out.__imul__(-0.5),
                                     out.__iadd__(q)),
         "residual_pass": lambda: _residual(xp, gap, active, None, cells,
-                                           getattr(be, "chunks", None) or _one, None),
+                                           getattr(be, "chunks", one_piece), None),
     }
     measured = {name: _timed(fn, be, repeats) for name, fn in parts.items()}
     iterations = max(res.iterations, 1)
@@ -87,10 +88,6 @@ def measure(device: str, pillars: str, n: int, repeats: int) -> dict:
             "solve_s": timings["solve"], "per_iteration_s": timings["solve"] / iterations,
             "timings_s": timings, "wall_time_s": res.wall_time_s, "parts_s": measured,
             "total_force_N": res.total_force_N, "converged": res.converged}
-
-
-def _one(work, n, size=1):
-    work(0, n)
 
 
 def report(rows: list) -> str:
