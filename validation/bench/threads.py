@@ -22,8 +22,8 @@
    load, CPU times stay where wall times do not.  With ``--split-threads 1,2``, the same
    iteration's measured wall time over the pair's, on the threads given.  With ``--baseline
    DIR`` (another checkout, e.g. ``git archive main | tar -x -C DIR``) the same split of that
-   checkout's iteration, each of its runs right after this one's (its own chunks' definition); ``--cases ''``
-   measures the split alone.
+   checkout's iteration, each of its runs right after this one's (its own chunks'
+   definition); ``--cases ''`` measures the split alone.
 
 Prints the tables and writes them with the runs and the load averages to ``bench_threads.md``
 and ``bench_threads.json``, both rewritten after every run (a run stopped by a time limit
