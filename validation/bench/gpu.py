@@ -10,8 +10,8 @@ term's set-up is, in the kernel table), edge correction on, tolerance 1e-8 zeta,
 to 2e7 grid cells (32 to 256 cells per pillar diameter).  For each case it reports the wall
 time of each path, the time to build the kernel table (kernel block, its spectrum and the
 near-field correction of the finest level) apart, the iterations, and the relative
-difference of F_T between the paths.  Each case runs in its own interpreter, so its peak host memory (``ru_maxrss``) is
-its own, and is solved there twice: the first solve is what a one-off call takes (cuFFT plans
+difference of F_T between the paths.  Each case runs in its own interpreter, so its peak
+host memory (``ru_maxrss``) is its own, and is solved there twice: the first solve is what a one-off call takes (cuFFT plans
 made, kernels loaded; the CUDA context is made before the clock), the second ('again') what
 each solve of a study in one process takes.  Prints a table and writes ``bench_gpu.json``
 after every case, so that a run stopped at a lent machine's limit keeps what it measured
