@@ -13,9 +13,10 @@ near-field correction of the finest level) apart, the iterations, and the relati
 difference of F_T between the paths.  Each case runs in its own interpreter, so its peak
 host memory (``ru_maxrss``) is its own, and is solved there twice: the first solve is what
 a one-off call takes (cuFFT plans made, kernels loaded; the CUDA context is made before the
-clock), the second ('again') what each solve of a study in one process takes.  Prints a table and writes ``bench_gpu.json``
-after every case, so that a run stopped at a lent machine's limit keeps what it measured
-(``--budget-s`` starts no case after that many seconds).  The runs on lent GPUs are kept in
+clock), the second ('again') what each solve of a study in one process takes.  Prints a
+table and writes ``bench_gpu.json`` after every case, so that a run stopped at a lent
+machine's limit keeps what it measured (``--budget-s`` starts no case after that many
+seconds).  The runs on lent GPUs are kept in
 ``validation/bench/measured/``.
 
 Without a usable GPU (no cupy, or cupy finds no device) it runs the CPU column on the smallest
