@@ -132,22 +132,37 @@ def _constants(scene: Scene, compliance):
     return 1.0 / (E_p * 0.5 * p.diameter_m), gamma_p - s.compliance
 
 
-def coupling_moments(scene: Scene, compliance, x, y) -> np.ndarray:
+def p2_hats(vert, r, xp=np):
+    """(edge, (h0, h1, h2)): the edge of the top's P2 trace (``vert``: its vertices, units
+    of a) that holds each radius r (units of a, in [0, 1]) and the three P2 hats of that edge
+    at r, the only non-zero columns of ``trace_basis(r)``; ``xp``: numpy or cupy."""
+    e = xp.clip(xp.searchsorted(vert, r, side="right") - 1, 0, vert.shape[0] - 2)
+    t = (r - vert[e]) / (vert[e + 1] - vert[e])
+    return e, ((1.0 - t) * (1.0 - 2.0 * t), 4.0 * t * (1.0 - t), t * (2.0 * t - 1.0))
+
+
+def coupling_moments(scene: Scene, compliance, x, y, xp=np):
     """(len(x), 3): the excess second moment ΔM(x) = alpha I + beta R(2 theta) of the load a
     pillar passes to its substrate per unit force at (x, y) on its top (m, relative to the
     pillar centre, global axes), as (alpha, beta cos 2 theta, beta sin 2 theta) in m^2:
     alpha = a^2 (R_0 - r^2) / 2, beta = a^2 (R_2 - r^2) / 2 (the column's moments r^2
-    subtracted).  Callers check :func:`uses_coupling` first."""
-    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
-    out = np.zeros((len(x), 3))
+    subtracted), their traces at r by the three P2 hats of its edge (:func:`p2_hats`).
+    ``xp``: the namespace of x and y (numpy, or cupy on a GPU).  Callers check
+    :func:`uses_coupling` first."""
+    x, y = xp.asarray(x, dtype=xp.float64), xp.asarray(y, dtype=xp.float64)
     a = 0.5 * scene.pillars.diameter_m
-    phi = compliance.trace_basis(np.hypot(x, y) / a)
-    excess = np.asarray(compliance.base_moments) - compliance.r_top[None, :] ** 2  # (2, n_top)
-    alpha = 0.5 * a * a * (phi @ excess[0])
-    beta = 0.5 * a * a * (phi @ excess[1])
-    theta2 = 2.0 * np.arctan2(y, x)
-    out[:, 0], out[:, 1], out[:, 2] = alpha, beta * np.cos(theta2), beta * np.sin(theta2)
-    return out
+    r = xp.clip(xp.hypot(x, y) / a, 0.0, 1.0)
+    e, hats = p2_hats(xp.asarray(compliance.r_top[::2]), r, xp)
+    excess = xp.asarray(np.asarray(compliance.base_moments)
+                        - compliance.r_top[None, :] ** 2)              # (2, n_top)
+
+    def trace(v):  # phi(r) @ v: the hats times the values at the edge's three points
+        return hats[0] * v[2 * e] + hats[1] * v[2 * e + 1] + hats[2] * v[2 * e + 2]
+
+    alpha = 0.5 * a * a * trace(excess[0])
+    beta = 0.5 * a * a * trace(excess[1])
+    theta2 = 2.0 * xp.arctan2(y, x)
+    return xp.stack([alpha, beta * xp.cos(theta2), beta * xp.sin(theta2)], axis=1)
 
 
 def coupling_kernel(scene: Scene, centres) -> np.ndarray:
@@ -361,6 +376,9 @@ class FFTPillarTerm:
         be = NumpyDevice() if backend is None else backend
         self.backend = be
         self.on_host = isinstance(be, NumpyDevice)
+        # The per-cell set-up runs where the term is applied when that device has numpy's
+        # API (cupy: 0.05 s instead of ~1 s of host work at 1e6 cells), else on the host.
+        xp = np if self.on_host else getattr(be, "numpy_like", np)
         self.modal = compliance
         self.half_space = scene.half_space_compliance
         a = 0.5 * scene.pillars.diameter_m
@@ -370,37 +388,41 @@ class FFTPillarTerm:
         self.L2 = L * L
         self.n = grid.n_cells
         centre = grid.pillar_xy[grid.pillar]
-        dx, dy = grid.colloc_x - centre[:, 0], grid.colloc_y - centre[:, 1]
-        r = np.clip(np.hypot(dx, dy) / a, 0.0, 1.0)
-        theta = np.arctan2(dy, dx)
-        vert = compliance.r_top[::2]
-        n_edges = len(vert) - 1
-        e = np.clip(np.searchsorted(vert, r, side="right") - 1, 0, n_edges - 1)
-        t = (r - vert[e]) / (vert[e + 1] - vert[e])
-        values = ((1.0 - t) * (1.0 - 2.0 * t), 4.0 * t * (1.0 - t), t * (2.0 * t - 1.0))
+        dx = xp.asarray(grid.colloc_x - centre[:, 0])
+        dy = xp.asarray(grid.colloc_y - centre[:, 1])
+        pillar = xp.asarray(grid.pillar)
+        r = xp.clip(xp.hypot(dx, dy) / a, 0.0, 1.0)
+        theta = xp.arctan2(dy, dx)
+        e, values = p2_hats(xp.asarray(compliance.r_top[::2]), r, xp)
         self.n_pillars = len(grid.pillar_xy)
-        self.n_edges = n_edges
+        self.n_edges = len(compliance.r_top[::2]) - 1
         self.n_top = len(compliance.r_top)
         # Projection of cell forces onto the P2 points of their pillar's top: a sparse
         # matrix (pillar, point) x cells with the three hats of each cell's edge.  The cells
         # are taken by pillar (the permutation ``order``); the projection back is the
         # transpose.
-        order = np.argsort(grid.pillar, kind="stable")
-        position = np.argsort(order)  # of each cell in ``order``
-        rows = np.concatenate([grid.pillar * self.n_top + 2 * e + l for l in range(3)])
-        cols = np.tile(position, 3)
-        hats = np.concatenate(values)
-        self.chunks = self._chunks(grid.pillar[order], rows, cols, hats)
+        if xp is np:
+            order = np.argsort(grid.pillar, kind="stable")
+            position = np.argsort(order)  # of each cell in ``order``
+        else:  # any order of a pillar's cells serves (the products sum them in that order)
+            order = xp.argsort(pillar)
+            position = xp.empty_like(order)
+            position[order] = xp.arange(self.n, dtype=order.dtype)
+        rows = xp.concatenate([pillar * self.n_top + 2 * e + l for l in range(3)])
+        cols = xp.tile(xp.asarray(position), 3)
+        hats = xp.concatenate(values)
+        self.chunks = self._chunks(grid.pillar[order] if self.on_host else None, rows, cols,
+                                   hats)
         self.order = be.asarray(order)
         self.position = position if self.on_host else be.asarray(position)
         trig, modes = [], []
         w = compliance.mode_weights()
         for m in range(compliance.modes + 1):
-            for f in ((np.cos,) if m == 0 else (np.cos, np.sin)):
+            for f in ((xp.cos,) if m == 0 else (xp.cos, xp.sin)):
                 trig.append(f(m * theta))
                 modes.append(m)
-        trig = np.column_stack(trig)                               # (cells, K)
-        self.trig = be.asarray(trig[order])                        # (cells by pillar, K)
+        trig = xp.stack(trig, axis=1)                              # (cells, K)
+        self.trig = be.asarray(trig[xp.asarray(order)])            # (cells by pillar, K)
         S = compliance.excess
         S = np.stack([w[m] * S[m] for m in modes]) * fem_scale     # (K, n_top, n_top)
         self.S = be.asarray(S)
@@ -408,7 +430,7 @@ class FFTPillarTerm:
         self.local = None
         if local != 0.0:
             self.local = self._local_plan(grid, local, correction_builder)
-        self.diagonal = be.asarray(self._diagonal(S, values, e, trig))
+        self.diagonal = be.asarray(self._diagonal(S, values, e, trig, xp))
         # Mean excess of the mode part under a uniform load on the whole top (m/N).
         rr = np.linspace(0.0, 1.0, 4001)
         mid, dr = 0.5 * (rr[1:] + rr[:-1]), np.diff(rr)
@@ -418,7 +440,7 @@ class FFTPillarTerm:
         # moments (3, cells), per pillar pair the kernel h.
         self.coupling = None
         if uses_coupling(scene, compliance):
-            moments = np.ascontiguousarray(coupling_moments(scene, compliance, dx, dy).T)
+            moments = xp.ascontiguousarray(coupling_moments(scene, compliance, dx, dy, xp).T)
             self.coupling = {"m": be.asarray(moments),
                              "h": be.asarray(coupling_kernel(scene, grid.pillar_xy)),
                              "pillar": be.asarray(np.asarray(grid.pillar))}
@@ -489,23 +511,28 @@ class FFTPillarTerm:
                 "correction": correction, "correction_diagonal": diagonal,
                 "self": float(block[0, 0])}
 
-    def _diagonal(self, S, values, e, trig):
-        """X[b, b] (m/Pa per unit q: times L^2), on the host: sum_k trig_k^2 v^T S_k[edge] v
-        over the three hats v of each cell's edge, by edge: (cells x K) (K x 6) products with
-        the unique entries of the 3 x 3 blocks of S_k on that edge."""
+    def _diagonal(self, S, values, e, trig, xp=np):
+        """X[b, b] (m/Pa per unit q: times L^2): sum_k trig_k^2 v^T S_k[edge] v over the
+        three hats v of each cell's edge, by edge: (cells x K) (K x 6) products with the
+        unique entries of the 3 x 3 blocks of S_k on that edge; on the host of the cells of
+        each edge, on a device (``xp`` cupy) of every cell, kept where the edge is theirs
+        (no host synchronisation per edge)."""
         n = self.n
-        d = np.zeros(n)
-        v = np.stack(values, axis=1)                                   # (cells, 3)
+        d = xp.zeros(n)
+        v = xp.stack(values, axis=1)                                   # (cells, 3)
         iu, ju = np.triu_indices(3)
-        vv = v[:, iu] * v[:, ju] * np.where(iu == ju, 1.0, 2.0)        # (cells, 6)
+        vv = v[:, xp.asarray(iu)] * v[:, xp.asarray(ju)] \
+            * xp.asarray(np.where(iu == ju, 1.0, 2.0))                 # (cells, 6)
         t2 = trig * trig
         for edge in range(self.n_edges):
-            cells = np.nonzero(e == edge)[0]
-            if cells.size == 0:
-                continue
             nodes = 2 * edge + np.arange(3)
-            blocks = S[:, nodes[iu], nodes[ju]]                        # (K, 6)
-            d[cells] = np.einsum("bm,bm->b", t2[cells] @ blocks, vv[cells])
+            blocks = xp.asarray(S[:, nodes[iu], nodes[ju]])            # (K, 6)
+            if xp is np:
+                cells = np.nonzero(e == edge)[0]
+                if cells.size:
+                    d[cells] = np.einsum("bm,bm->b", t2[cells] @ blocks, vv[cells])
+            else:
+                d += xp.where(e == edge, xp.einsum("bm,bm->b", t2 @ blocks, vv), 0.0)
         d *= self.L2
         if self.local is not None:
             d += self.local["self"]

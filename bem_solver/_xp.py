@@ -116,8 +116,8 @@ class NumpyDevice(NumpyArrays):
 class CupyDevice(CupyArrays):
     """cupy + cuFFT + cupyx.scipy.sparse on the current CUDA device."""
 
-    def __init__(self):
-        super().__init__()
+    def __init__(self, fused: bool = True):
+        super().__init__(fused)
         import cupyx.scipy.fft as cfft
         import cupyx.scipy.sparse as csp
 

@@ -206,6 +206,9 @@ def constrained_cg(apply: Operator, b, q0, *, scale, tol=1e-8, max_iterations=10
     xp = be.xp
     dot = be.dot
     chunks = getattr(be, "chunks", one_piece)
+    # The passes over the cells: one fused kernel each where the backend has them (a GPU).
+    fused = getattr(be, "cg_passes", None)
+    passes = fused if fused is not None and weights is None else ArrayPasses(xp, chunks, weights)
     if precondition is None:
         scaling = 1.0 if inverse_diagonal is None else inverse_diagonal
         precondition = lambda r, free: xp.where(free, r * scaling, 0.0)  # noqa: E731
@@ -261,11 +264,11 @@ def constrained_cg(apply: Operator, b, q0, *, scale, tol=1e-8, max_iterations=10
         if fc is not None:
             gap = fc.recentre(gap, active)
             scale = fc.scale
-        err = _residual(xp, gap, active, weights, n, chunks, free) / scale
+        err = passes.residual(gap, active, n, free) / scale
         if drift > 0.0 and (err <= tol or drift > DRIFT_SHARE * err * scale):
             gap = exact_gap(q)
             drift, since_refresh = 0.0, 0
-            err = _residual(xp, gap, active, weights, n, chunks, free) / scale
+            err = passes.residual(gap, active, n, free) / scale
         history.append(err)
         best, since_best = (err, 0) if err < best else (best, since_best + 1)
         if not monotone and since_best >= STALL_ITERATIONS:
@@ -280,7 +283,7 @@ def constrained_cg(apply: Operator, b, q0, *, scale, tol=1e-8, max_iterations=10
         slope = None
         if conj and g_old > 0:
             beta = max((g_new - dot(z_old, gap)) / g_old, 0.0)
-            chunks(_conjugate(xp, t, beta, z, free), n)  # t may be z_old's: not read again
+            passes.conjugate(t, beta, z, free, n)  # t may be z_old's: not read again
             if fc is not None:
                 t = fc.reproject(t)
             slope = dot(gap, t)
@@ -297,7 +300,7 @@ def constrained_cg(apply: Operator, b, q0, *, scale, tol=1e-8, max_iterations=10
                                    history, entries, halved, None if fc is None else fc.zeta)
         tau = slope / denom
         q_new, spare_q = spare_q, q  # q's array is free once q_new replaces it
-        any_clipped = n > 0 and _step(xp, chunks, q_new, q, tau, t, n) < 0.0
+        any_clipped = n > 0 and passes.step(q_new, q, tau, t, n) < 0.0
         clip_gap = None
         if any_clipped:
             if apply_few is not None:  # A of the clipping, q_new's change on few cells
@@ -305,7 +308,7 @@ def constrained_cg(apply: Operator, b, q0, *, scale, tol=1e-8, max_iterations=10
                 values = -xp.take(q_new, clipped)
                 clip_gap = apply_few(clipped, values, single=True) if approximate \
                     else apply_few(clipped, values)
-            chunks(_clip(xp, q_new), n)
+            passes.clip(q_new, n)
         conj = True
         since_refresh += 1
         if (any_clipped and clip_gap is None) or since_refresh >= REFRESH_EVERY:
@@ -313,7 +316,7 @@ def constrained_cg(apply: Operator, b, q0, *, scale, tol=1e-8, max_iterations=10
             since_refresh = 0
             drift = 0.0
         else:  # the step was taken whole along t (exact up to A's rounding)
-            largest = _update_gap(xp, chunks, gap, w, tau, clip_gap, n)
+            largest = passes.update_gap(gap, w, tau, clip_gap, n)
             if approximate:
                 drift += rel_error * largest
         if fc is not None and any_clipped:
@@ -340,7 +343,7 @@ def constrained_cg(apply: Operator, b, q0, *, scale, tol=1e-8, max_iterations=10
         elif monotone:
             energy -= 0.5 * tau * slope  # exact line search along t
         new_active, spare_active = spare_active, active
-        entries += _new_set(xp, chunks, new_active, q_new, active, n)
+        entries += passes.new_set(new_active, q_new, active, n)
         q, active = q_new, new_active
         if callback is not None:
             callback(it, err)
@@ -456,6 +459,33 @@ def _energy_slack(xp, drift, q, reference) -> float:
 def _max_abs(xp, v) -> float:
     """max |v_i| in two reductions (no temporary)."""
     return max(float(xp.max(v)), -float(xp.min(v)), 0.0) if v.shape[0] else 0.0
+
+
+class ArrayPasses:
+    """The CG's passes over the cells as array operations, in the backend's ``chunks``
+    (threads on the FFT model's numpy path); :class:`pillar_xval.contact._cuda.CudaPasses`
+    fuses each into one kernel on a GPU, with the same values."""
+
+    def __init__(self, xp, chunks, weights=None):
+        self.xp, self.chunks, self.weights = xp, chunks, weights
+
+    def residual(self, gap, active, n, free) -> float:
+        return _residual(self.xp, gap, active, self.weights, n, self.chunks, free)
+
+    def conjugate(self, t, beta, z, free, n) -> None:
+        self.chunks(_conjugate(self.xp, t, beta, z, free), n)
+
+    def step(self, q_new, q, tau, t, n) -> float:
+        return _step(self.xp, self.chunks, q_new, q, tau, t, n)
+
+    def clip(self, q, n) -> None:
+        self.chunks(_clip(self.xp, q), n)
+
+    def update_gap(self, gap, w, tau, clip_gap, n) -> float:
+        return _update_gap(self.xp, self.chunks, gap, w, tau, clip_gap, n)
+
+    def new_set(self, new_active, q, active, n) -> bool:
+        return _new_set(self.xp, self.chunks, new_active, q, active, n)
 
 
 def _residual(xp, gap, active, weights, n, chunks=one_piece, free=None) -> float:

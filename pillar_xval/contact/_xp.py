@@ -126,11 +126,16 @@ class CupyArrays:
     name = "cupy"
     device = "gpu"
 
-    def __init__(self):
+    def __init__(self, fused: bool = True):
         import cupy
 
         self._cp = cupy
         self.numpy_like = cupy
+        # The CG's passes as fused kernels (pillar_xval.contact._cuda), made on first use;
+        # ``fused=False`` keeps the array passes (an A/B of the two; cupy stand-ins without
+        # RawModule have only those).
+        self.fused = fused and hasattr(cupy, "RawModule")
+        self._passes = None
         try:  # the standard's names (asinh, concat, ...) on every cupy version
             import array_api_compat.cupy as xp
         except ImportError:  # cupy >= 14 mirrors numpy 2's namespace itself
@@ -155,7 +160,17 @@ class CupyArrays:
         return out
 
     def segments(self, index, n: int):
-        return lambda weights: self.segment_sum(index, weights, n)
+        """``weights -> segment_sum(index, weights, n)`` for a fixed ``index``, as the product
+        of the (n x len(index)) incidence matrix in CSR (cuSPARSE): one launch, each label's
+        sum in a fixed order (the same bits on every run), where the scatter-add's atomics
+        contend on few labels (a pillar's thousands of cells) in no fixed order."""
+        import cupyx.scipy.sparse as csp
+
+        m = int(index.shape[0])
+        cp = self._cp
+        incidence = csp.coo_matrix((cp.ones(m, dtype=cp.float64),
+                                    (cp.asarray(index), cp.arange(m))), shape=(n, m)).tocsr()
+        return lambda weights: incidence @ weights
 
     def spreader(self, index):
         return lambda values: self._cp.take(values, index)
@@ -163,6 +178,15 @@ class CupyArrays:
     def put(self, target, index, values):
         target[index] = values
         return target
+
+    @property
+    def cg_passes(self):
+        """The CG's passes fused into one kernel each, or None (``fused`` off)."""
+        if self.fused and self._passes is None:
+            from ._cuda import CudaPasses
+
+            self._passes = CudaPasses(self._cp)
+        return self._passes
 
     chunks = staticmethod(one_piece)
 

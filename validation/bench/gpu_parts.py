@@ -16,12 +16,13 @@ Prints a table and writes ``bench_gpu_parts.json``.
 from __future__ import annotations
 
 import argparse
-import json
 import platform
 import statistics
 import sys
 import time
 from pathlib import Path
+
+from . import write_record
 
 SCENE = "paper-fig3-dense"
 PILLARS = {"rigid": ("pillars.rigid=true",), "hooke": ()}
@@ -43,8 +44,10 @@ def _timed(fn, be, repeats: int) -> float:
     return statistics.median(times)
 
 
-def measure(device: str, pillars: str, n: int, repeats: int) -> dict:
-    """The solve's time per iteration and each part's median time (s)."""
+def measure(device: str, pillars: str, n: int, repeats: int, fused: bool = True) -> dict:
+    """The solve's time per iteration and each part's median time (s); ``fused``: the CG's
+    passes as fused kernels on a GPU (the backend's ``cg_passes``), else as array
+    operations."""
     from bem_solver._fft import _Options, _prepare, solve_fft
     from bem_solver._xp import select_backend
     from pillar_xval.contact._cg import _residual
@@ -53,6 +56,8 @@ def measure(device: str, pillars: str, n: int, repeats: int) -> dict:
 
     scene = load_scene(SCENE, list(PILLARS[pillars]))
     be = select_backend(device)
+    if device == "gpu":
+        be.fused = fused
     xp = be.xp
     res = solve_fft(scene, n, tol=TOL, backend=be, warm_start=False)
     res = solve_fft(scene, n, tol=TOL, backend=be, warm_start=False)  # plans made
@@ -78,9 +83,15 @@ def measure(device: str, pillars: str, n: int, repeats: int) -> dict:
         "residual_pass": lambda: _residual(xp, gap, active, None, cells,
                                            getattr(be, "chunks", one_piece), None),
     }
+    passes = getattr(be, "cg_passes", None)
+    if passes is not None:  # the fused kernels of the residual pass and of a step
+        scratch = xp.zeros_like(active)
+        parts["residual_fused"] = lambda: passes.residual(gap, active, cells, scratch)
+        parts["step_fused"] = lambda: passes.step(out, q, 0.5, t, cells)
     measured = {name: _timed(fn, be, repeats) for name, fn in parts.items()}
     iterations = max(res.iterations, 1)
     return {"device": device, "pillars": pillars, "n": n, "cells": cells,
+            "fused": passes is not None,
             "fft_shape": list(plan.fft_shape), "iterations": res.iterations,
             "operator_applications": res.diagnostics["operator_applications"],
             "single_precision_applications":
@@ -91,12 +102,15 @@ def measure(device: str, pillars: str, n: int, repeats: int) -> dict:
 
 
 def report(rows: list) -> str:
-    lines = [f"{'device':>6} {'pillars':>7} {'cells':>9} {'it':>4} {'ms/it':>7} "
-             + " ".join(f"{k[:12]:>12}" for k in rows[0]["parts_s"])]
+    names = list(dict.fromkeys(k for r in rows for k in r["parts_s"]))
+    lines = [f"{'device':>6} {'pillars':>7} {'fused':>5} {'cells':>9} {'it':>4} {'ms/it':>7} "
+             + " ".join(f"{k[:14]:>14}" for k in names)]
     for r in rows:
-        lines.append(f"{r['device']:>6} {r['pillars']:>7} {r['cells']:>9.3g} "
-                     f"{r['iterations']:>4} {1e3 * r['per_iteration_s']:>7.3f} "
-                     + " ".join(f"{1e3 * v:>12.4f}" for v in r["parts_s"].values()))
+        lines.append(f"{r['device']:>6} {r['pillars']:>7} {r['fused']!s:>5} "
+                     f"{r['cells']:>9.3g} {r['iterations']:>4} "
+                     f"{1e3 * r['per_iteration_s']:>7.3f} "
+                     + " ".join(f"{1e3 * r['parts_s'][k]:>14.4f}" if k in r["parts_s"]
+                                else f"{'-':>14}" for k in names))
     lines.append("parts in ms per call (median, device synchronised after each)")
     return "\n".join(lines)
 
@@ -110,20 +124,20 @@ def main(argv=None) -> int:
     ap.add_argument("--pillars", nargs="+", default=list(PILLARS), choices=list(PILLARS))
     ap.add_argument("--n", type=int, default=58, help="cells per pillar diameter")
     ap.add_argument("--repeats", type=int, default=20, help="timed calls per part")
+    ap.add_argument("--unfused", action="store_true",
+                    help="on a GPU, also the rows with the CG's passes as array operations")
     args = ap.parse_args(argv)
     if args.n < 4 or args.repeats < 1:
         ap.error(f"--n {args.n} (at least 4), --repeats {args.repeats} (at least 1)")
-    from pillar_xval.outcome import write_atomic
 
-    rows = [measure(args.device, p, args.n, args.repeats) for p in args.pillars]
+    fusings = (True, False) if args.unfused and args.device == "gpu" else (True,)
+    rows = [measure(args.device, p, args.n, args.repeats, fused) for p in args.pillars
+            for fused in fusings]
     table = report(rows)
     print(table)
-    args.out.mkdir(parents=True, exist_ok=True)
     meta = {"scene": SCENE, "tolerance": TOL, "python": platform.python_version(),
             "command": "python -m validation.bench.gpu_parts " + " ".join(sys.argv[1:])}
-    write_atomic(args.out / "bench_gpu_parts.json",
-                 json.dumps({"meta": meta, "rows": rows, "table": table}, indent=2,
-                            allow_nan=False))
+    write_record(args.out, "bench_gpu_parts.json", meta, rows, table)
     return 0
 
 

@@ -10,7 +10,11 @@
 #      unpacked), the elastic pillar (--pillars elastic-pillar) on the GPU against the CPU at
 #      1e6 cells; its compliance is read from $PILLAR_XVAL_CACHE (set it to a carried folder
 #      holding the cached one, or it is built there first);
-#   1b. an iteration's parts on the GPU at 1e6 cells (validation/bench/gpu_parts.py);
+#   1b. an iteration's parts on the GPU at 1e6 cells (validation/bench/gpu_parts.py), with
+#      the CG's passes fused and not;
+#   1c. on request (PARTS with "first"), where a first call's time goes
+#      (validation/bench/gpu_first.py); (PARTS with "tests") the GPU-marked tests, with
+#      pytest and array_api_strict carried in .lent/pytest (copied from .venv);
 #   2. thread scaling of bem-fft at 1e6 cells on 1 to 16 threads (validation/bench/threads.py);
 #   3. the planner's predicted over measured seconds at 1, 4 and 16 threads
 #      (validation/bench/planner_threads.py);
@@ -22,8 +26,11 @@
 #      mesh_size FEM3D_MESH (2) on FEM3D_THREADS (1,2,4,8,16), its JSON rewritten after
 #      each run.
 # Usage: OUT=DIR [BASE=DIR] [PY=python3] [PARTS="gpu parts threads planner"] [GPU_WARM="1 0"]
+#        [NO_2E7=1: the GPU benchmark at 1e6 only] [CPU_MAX_CELLS=1e5: no CPU column at 1e6]
 #        [VARIANTS_1E6="host"] [VARIANTS_2E7="windows"]
-#        [REPEATS_1E6=2] [REPEATS_2E7=1] validation/bench/lent_machine.sh
+#        [REPEATS_1E6=2] [REPEATS_2E7=1] [REPEATS_ELASTIC] [AGAIN=1: GPU solves after the
+#        first in each interpreter] [CPU_REPEATS: runs of each CPU case]
+#        validation/bench/lent_machine.sh
 # The fem-3d kit in two calls: PARTS=kit, carrying .lent/kit-mkl.tar.xz, then
 # PARTS="kit fem3d", carrying .lent/kit-gmsh.tar.xz, while the machine is still warm.
 # The files land in $OUT (at most two folders down, eight files: what a lent machine returns).
@@ -45,6 +52,14 @@ stamp() { echo "== $1 at $(( $(date +%s) - start )) s"; }
   $PY -c "import cupy; print('cupy', cupy.__version__)"
 } > "$OUT/machine.txt" 2>&1
 cat "$OUT/machine.txt"
+if has tests; then
+  # The GPU-marked tests, with pytest and array_api_strict carried in .lent/pytest (the lent
+  # machine has neither): the fused CG passes against the array passes, cupy against numpy.
+  stamp "tests"
+  PYTHONPATH="$HERE:$HERE/.lent/pytest" timeout "${T_TESTS:-120}" $PY -m pytest -q -rs \
+    -p no:cacheprovider -m gpu tests/test_cuda_passes.py tests/test_bem_fft_devices.py \
+    2>&1 | tail -30 | tee "$OUT/tests.txt"
+fi
 if has gpu && [ -n "${BASE:-}" ] && [ -d "$BASE" ]; then
   stamp "gpu, before"
   (cd "$BASE" && PYTHONPATH="$BASE" timeout "${T_BEFORE:-100}" $PY -m validation.bench.gpu \
@@ -55,17 +70,25 @@ if has gpu; then
   # shellcheck disable=SC2086  # GPU_WARM: a list of variants
   PYTHONPATH="$HERE" timeout "${T_AFTER1:-120}" $PY -m validation.bench.gpu \
     --out "$OUT/gpu-1e6" --levels 58 --repeats "${REPEATS_1E6:-2}" --gpu-warm $GPU_WARM \
-    --gpu-variants ${VARIANTS_1E6-}
+    --gpu-variants ${VARIANTS_1E6-} --cpu-max-cells "${CPU_MAX_CELLS:-2.1e7}" \
+    --again "${AGAIN:-1}" ${CPU_REPEATS:+--cpu-repeats "$CPU_REPEATS"}
+fi
+if has gpu && [ -z "${NO_2E7:-}" ]; then
   stamp "gpu, after: 2e7"
   # shellcheck disable=SC2086
   PYTHONPATH="$HERE" timeout "${T_AFTER2:-80}" $PY -m validation.bench.gpu \
     --out "$OUT/gpu-2e7" --levels 256 --repeats "${REPEATS_2E7:-1}" --cpu-max-cells 2e6 \
-    --gpu-warm $GPU_WARM --gpu-variants ${VARIANTS_2E7-}
+    --gpu-warm $GPU_WARM --gpu-variants ${VARIANTS_2E7-} --again "${AGAIN:-1}"
 fi
 if has parts; then
   stamp "parts"
   PYTHONPATH="$HERE" timeout "${T_PARTS:-60}" $PY -m validation.bench.gpu_parts \
-    --out "$OUT/parts" --device gpu --n 58 --repeats 20
+    --out "$OUT/parts" --device gpu --n 58 --repeats 20 --unfused
+fi
+if has first; then
+  stamp "first call"
+  PYTHONPATH="$HERE" timeout "${T_FIRST:-90}" $PY -m validation.bench.gpu_first \
+    --out "$OUT/first" --n 58
 fi
 if has threads; then
   stamp "threads"
@@ -113,6 +136,7 @@ if has elastic; then
   stamp "elastic pillar: 1e6"
   if [ -f "$KIT_DIR/.kit-gmsh.tar.xz.done" ]; then kit_env; else export PYTHONPATH="$HERE"; fi
   timeout "${T_ELASTIC:-150}" $PY -m validation.bench.gpu --out "$OUT/gpu-elastic" \
-    --levels 58 --pillars elastic-pillar --repeats "${REPEATS_1E6:-2}"
+    --levels 58 --pillars elastic-pillar --repeats "${REPEATS_ELASTIC:-${REPEATS_1E6:-2}}" \
+    --again "${AGAIN:-1}" ${CPU_REPEATS:+--cpu-repeats "$CPU_REPEATS"}
 fi
 stamp "done"
