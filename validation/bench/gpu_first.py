@@ -6,9 +6,12 @@ paper-fig3-dense, ``--pillars`` rigid or Hooke, N cells per diameter (``--n``, d
 1e6 cells).  Each case runs in a fresh interpreter (the kernels' binaries are on cupy's disk
 cache: a warm-up run fills it first) and times, in order: cupy's import, the backend (the
 CUDA context), one small FFT (cuFFT's load), then the solve twice ('first', 'again'); with
-``prime``, a small solve (N = 8: every kernel of the solve loaded, plans of other sizes)
-runs before the timed pair, so that first - again splits into what a process pays once
-(libraries and kernels) and what each new grid size pays (its plans).  The first solve runs
+``prime``, a small solve (N = 32, the smallest level whose grid the device builds: every
+kernel of the solve loaded, plans of other sizes) runs before the timed pair, so that
+first - again splits into what a process pays once (libraries and kernels) and what each new
+grid size pays (its plans, its memory); with ``pool``, cupy's memory pool is first grown to
+the size two solves left it at (one block, freed: the pool splits it), which says what the
+pool's growth costs a first call.  The first solve runs
 under cProfile: its 25 costliest functions (own time) are kept.  Prints a table and writes
 ``bench_gpu_first.json``.
 """
@@ -31,7 +34,7 @@ from .fft import run_worker
 SCENE = "paper-fig3-dense"
 PILLARS = {"rigid": ("pillars.rigid=true",), "hooke": ()}
 TOL = 1e-8
-PRIME_N = 8
+PRIME_N = 32
 
 
 def _case(spec: dict) -> dict:
@@ -53,6 +56,13 @@ def _case(spec: dict) -> dict:
     be.synchronize()
     out["small_fft_s"] = time.perf_counter() - lap
     scene = load_scene(SCENE, list(PILLARS[spec["pillars"]]))
+    pool = cupy.get_default_memory_pool()
+    if spec.get("pool_bytes"):  # the memory pool sized once, before the solve
+        lap = time.perf_counter()
+        block = cupy.empty(int(spec["pool_bytes"]), dtype=cupy.uint8)
+        del block
+        be.synchronize()
+        out["pool_s"] = time.perf_counter() - lap
     if spec["prime"]:
         lap = time.perf_counter()
         solve_fft(scene, PRIME_N, tol=TOL, backend=be)
@@ -69,6 +79,7 @@ def _case(spec: dict) -> dict:
     out["first_timings_s"] = first.diagnostics["timings_s"]
     out["again_timings_s"] = again.diagnostics["timings_s"]
     out["iterations"] = first.iterations
+    out["pool_bytes"] = int(pool.total_bytes())
     text = io.StringIO()
     pstats.Stats(profile, stream=text).sort_stats("tottime").print_stats(25)
     out["profile_tottime"] = text.getvalue().splitlines()[-40:]
@@ -96,25 +107,35 @@ def main(argv=None) -> int:
     if reason:
         print(f"bench-gpu-first: no GPU here ({reason})", file=sys.stderr)
         return 2
+    # The warm-up at the timed size: every kernel of the solve on the disk cache, and the
+    # memory pool's size after two solves (for the 'pool' cases).
     warm = run_worker("validation.bench.gpu_first",
-                      {"pillars": args.pillars[0], "n": PRIME_N, "prime": False}, args.timeout)
+                      {"pillars": args.pillars[0], "n": args.n, "prime": False}, args.timeout)
     rows = []
     for pillars in args.pillars:
-        for prime in (False, True):
-            spec = {"pillars": pillars, "n": args.n, "prime": prime}
+        for prime, pool in ((False, False), (True, False), (False, True)):
+            if pool and not warm.get("pool_bytes"):
+                continue
+            spec = {"pillars": pillars, "n": args.n, "prime": prime,
+                    "pool_bytes": warm["pool_bytes"] if pool else 0}
             rows.append({**spec, **run_worker("validation.bench.gpu_first", spec,
                                               args.timeout)})
-    keys = ("import_cupy_s", "backend_s", "small_fft_s", "prime_s", "first_s", "again_s")
-    lines = [f"{'pillars':>7} {'prime':>5} " + " ".join(f"{k[:-2]:>11}" for k in keys)]
+    keys = ("import_cupy_s", "backend_s", "small_fft_s", "pool_s", "prime_s", "first_s",
+            "again_s")
+    lines = [f"{'pillars':>7} {'prime':>5} {'pool GB':>7} "
+             + " ".join(f"{k[:-2]:>11}" for k in keys)]
     for r in rows:
-        lines.append(f"{r['pillars']:>7} {r['prime']!s:>5} " + " ".join(
-            f"{r[k]:>11.3f}" if isinstance(r.get(k), float) else f"{'-':>11}" for k in keys))
+        pool_gb = r.get("pool_bytes", 0) / 1e9
+        lines.append(f"{r['pillars']:>7} {r['prime']!s:>5} {pool_gb:>7.2f} "
+                     + " ".join(f"{r[k]:>11.3f}" if isinstance(r.get(k), float)
+                                else f"{'-':>11}" for k in keys))
     lines.append(f"seconds; first = the first solve of N = {args.n} in the interpreter (under "
                  "cProfile), again = the next")
     table = "\n".join(lines)
     print(table)
     meta = {"scene": SCENE, "n": args.n, "python": platform.python_version(),
-            "warm_up": {k: warm.get(k) for k in ("first_s", "error") if k in warm},
+            "warm_up": {k: warm.get(k) for k in ("first_s", "pool_bytes", "error")
+                        if k in warm},
             "command": "python -m validation.bench.gpu_first " + " ".join(sys.argv[1:])}
     write_record(args.out, "bench_gpu_first.json", meta, rows, table)
     return 0

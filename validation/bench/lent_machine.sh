@@ -30,6 +30,7 @@
 #        [VARIANTS_1E6="host"] [VARIANTS_2E7="windows"]
 #        [REPEATS_1E6=2] [REPEATS_2E7=1] [REPEATS_ELASTIC] [AGAIN=1: GPU solves after the
 #        first in each interpreter] [CPU_REPEATS: runs of each CPU case]
+#        [FIRST_N="58 256": the first-call profile's levels] [FIRST_PILLARS="rigid"]
 #        validation/bench/lent_machine.sh
 # The fem-3d kit in two calls: PARTS=kit, carrying .lent/kit-mkl.tar.xz, then
 # PARTS="kit fem3d", carrying .lent/kit-gmsh.tar.xz, while the machine is still warm.
@@ -86,9 +87,11 @@ if has parts; then
     --out "$OUT/parts" --device gpu --n 58 --repeats 20 --unfused
 fi
 if has first; then
-  stamp "first call"
-  PYTHONPATH="$HERE" timeout "${T_FIRST:-90}" $PY -m validation.bench.gpu_first \
-    --out "$OUT/first" --n 58
+  for n in ${FIRST_N:-58}; do
+    stamp "first call: N = $n"
+    PYTHONPATH="$HERE" timeout "${T_FIRST:-90}" $PY -m validation.bench.gpu_first \
+      --out "$OUT/first-$n" --n "$n" --pillars ${FIRST_PILLARS:-rigid hooke}
+  done
 fi
 if has threads; then
   stamp "threads"
