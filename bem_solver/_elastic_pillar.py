@@ -477,8 +477,9 @@ class FFTPillarTerm:
 
     def _local_plan(self, grid, local, correction_builder):
         """The boxes' layout and kernel spectrum, and the near-field correction's pairs on
-        one pillar (``correction_builder(gamma)``: a host scipy matrix or None), built on
-        the host and kept on the device."""
+        one pillar (``correction_builder(gamma)``: None, or a sparse matrix on the host
+        (scipy) or on the device (cupyx), whose pairs are kept there), kept on the
+        device."""
         from ._fft_operator import kernel_block
 
         be = self.backend
@@ -499,11 +500,13 @@ class FFTPillarTerm:
         spectrum = np.real(sfft.rfft2(padded))
         index = (grid.pillar * M + ly) * M + lx
         correction, diagonal = correction_builder(local), None
-        if correction is not None:  # keep the pairs on one pillar
+        if correction is not None:  # keep the pairs on one pillar (where the matrix is)
+            xp = np if isinstance(correction, sp.spmatrix) else be.numpy_like
             c = correction.tocoo()
-            same = grid.pillar[c.row] == grid.pillar[c.col]
+            pillar = xp.asarray(grid.pillar)
+            same = pillar[c.row] == pillar[c.col]
             kept = [c.row[same], c.col[same], c.data[same]]
-            diagonal = np.zeros(self.n)  # the pairs are distinct: the diagonal's own entries
+            diagonal = xp.zeros(self.n)  # the pairs are distinct: the diagonal's own entries
             on = kept[0] == kept[1]
             diagonal[kept[0][on]] = kept[2][on]
             correction = be.sparse(*(be.asarray(v) for v in kept), self.n)

@@ -282,9 +282,12 @@ def _prepare(scene: Scene, cells_per_diameter: int, opts: _Options, be, workspac
     term: FFTPillarTerm | TopsOnlyTerm | None = None
     if opts.elastic:
         tops = tops_grid(grid) if grid.has_floor else grid
-        # The term is set up on the host (its correction too) and applied on the device.
+        # The term's near-field correction is built where the term is set up: on the
+        # device where it has numpy's API (cupy), else on the host.
+        on_device = not isinstance(be, NumpyDevice) and hasattr(be, "numpy_like")
         term = FFTPillarTerm(scene, tops, opts.compliance, lambda gamma: near_field_correction(
-            tops, gamma) if opts.edge_correction else None, backend=be)
+            tops, gamma, backend=be if on_device else None) if opts.edge_correction
+            else None, backend=be)
         if grid.has_floor:
             term = TopsOnlyTerm(term, grid.n_cells)
     floor = grid.has_floor

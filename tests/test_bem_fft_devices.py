@@ -412,3 +412,22 @@ def test_elastic_pillar_on_the_strict_namespace_gives_the_numpy_answer(case):
                        pillars="elastic", compliance=modal, precision="double")
     assert ref.converged and strict.converged
     _agree(ref, strict, RTOL_ROUNDOFF, scene.indentation_m)
+
+
+@pytest.mark.gpu
+@pytest.mark.usefixtures("compliance_cache")
+@pytest.mark.parametrize("case", ELASTIC, ids=lambda c: c[0])
+def test_elastic_pillar_on_the_gpu_gives_the_cpu_answer(case):
+    """The elastic pillar set up and applied on a CUDA GPU (its per-cell set-up and its
+    near-field pairs built there): the CPU path's answer to round-off, as on the stand-in
+    (RTOL_ROUNDOFF; the solve's own tolerance is 1e-8 of the indentation)."""
+    _gpu_or_skip()
+    pytest.importorskip("skfem", reason="the pillar's compliance is read through scikit-fem")
+    _, overrides, n = case
+    scene, modal = _elastic(overrides)
+    gpu = solve_fft(scene, n, device="gpu", pillars="elastic", compliance=modal,
+                    precision="double")
+    assert gpu.converged and gpu.diagnostics["device"] == "gpu"
+    cpu = solve_fft(scene, n, pillars="elastic", compliance=modal, precision="double",
+                    warm_start=GPU_WARM_START_LEVELS)
+    _agree(cpu, gpu, RTOL_ROUNDOFF, scene.indentation_m)

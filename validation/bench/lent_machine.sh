@@ -53,13 +53,30 @@ stamp() { echo "== $1 at $(( $(date +%s) - start )) s"; }
   $PY -c "import cupy; print('cupy', cupy.__version__)"
 } > "$OUT/machine.txt" 2>&1
 cat "$OUT/machine.txt"
+KIT_DIR=${KIT_DIR:-/tmp/lent-kit}
+kit_env() {
+  # MKL's GNU threading layer: the one its runtime picks once gmsh has loaded libgomp.  At
+  # most AVX-512: a newer CPU would ask for a kernel library the kit does not carry.
+  export PYTHONPATH="$HERE:$KIT_DIR/py" MKL_THREADING_LAYER=GNU \
+    MKL_ENABLE_INSTRUCTIONS=AVX512 PYPARDISO_MKL_RT="$KIT_DIR/mkl/libmkl_rt.so.3" \
+    LD_LIBRARY_PATH="$KIT_DIR/mkl:$KIT_DIR/sys${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
+}
+if has kit; then
+  stamp "kit"
+  PYTHONPATH="$HERE" timeout "${T_KIT:-60}" $PY -m validation.bench.lent_kit unpack \
+    --kit .lent --to "$KIT_DIR"
+fi
 if has tests; then
   # The GPU-marked tests, with pytest and array_api_strict carried in .lent/pytest (the lent
   # machine has neither): the fused CG passes against the array passes, cupy against numpy.
   stamp "tests"
-  PYTHONPATH="$HERE:$HERE/.lent/pytest" timeout "${T_TESTS:-120}" $PY -m pytest -q -rs \
-    -p no:cacheprovider -m gpu tests/test_cuda_passes.py tests/test_bem_fft_devices.py \
-    2>&1 | tail -30 | tee "$OUT/tests.txt"
+  (  # a subshell: the kit's environment stays out of the parts after it
+    # with the kit where it is unpacked (the elastic pillar's tests read its compliance)
+    if [ -f "$KIT_DIR/.kit-gmsh.tar.xz.done" ]; then kit_env; fi
+    PYTHONPATH="$HERE:$HERE/.lent/pytest${PYTHONPATH:+:$PYTHONPATH}" \
+      timeout "${T_TESTS:-120}" $PY -m pytest -q -rs -p no:cacheprovider -m gpu tests/test_cuda_passes.py tests/test_bem_fft_devices.py \
+      2>&1 | tail -30 | tee "$OUT/tests.txt"
+  )
 fi
 if has gpu && [ -n "${BASE:-}" ] && [ -d "$BASE" ]; then
   stamp "gpu, before"
@@ -102,19 +119,6 @@ if has planner; then
   stamp "planner"
   PYTHONPATH="$HERE" timeout "${T_PLANNER:-70}" $PY -m validation.bench.planner_threads \
     --out "$OUT/planner" --threads 1,4,16 --repeats 2
-fi
-KIT_DIR=${KIT_DIR:-/tmp/lent-kit}
-kit_env() {
-  # MKL's GNU threading layer: the one its runtime picks once gmsh has loaded libgomp.  At
-  # most AVX-512: a newer CPU would ask for a kernel library the kit does not carry.
-  export PYTHONPATH="$HERE:$KIT_DIR/py" MKL_THREADING_LAYER=GNU \
-    MKL_ENABLE_INSTRUCTIONS=AVX512 PYPARDISO_MKL_RT="$KIT_DIR/mkl/libmkl_rt.so.3" \
-    LD_LIBRARY_PATH="$KIT_DIR/mkl:$KIT_DIR/sys${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
-}
-if has kit; then
-  stamp "kit"
-  PYTHONPATH="$HERE" timeout "${T_KIT:-60}" $PY -m validation.bench.lent_kit unpack \
-    --kit .lent --to "$KIT_DIR"
 fi
 if has fem3d && ! { [ -f "$KIT_DIR/.kit-mkl.tar.xz.done" ] \
     && [ -f "$KIT_DIR/.kit-gmsh.tar.xz.done" ]; }; then
