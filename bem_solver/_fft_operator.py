@@ -40,6 +40,10 @@ try:  # scipy.fft's own transforms, which write into given arrays (scipy.fft has
     from scipy.fft._pocketfft import pypocketfft as _pocketfft
 except ImportError:  # another scipy layout: the public scipy.fft path (fresh arrays per call)
     _pocketfft = None
+try:  # scipy.sparse's own CSR product on a range of rows, y += A x (its GIL released)
+    from scipy.sparse._sparsetools import csr_matvec as _csr_matvec
+except ImportError:  # another scipy layout: the public product, whole
+    _csr_matvec = None
 
 # Half-width (in cells) of the stencil around a partly covered cell within which its grid
 # coefficients are replaced by the equivalent-square ones.  Beyond it the two differ by a
@@ -474,6 +478,7 @@ class CompliancePlan:
             self.spring * self.pillar_weight
         self.applications = 0
         self.correction = correction
+        self._correction_scratch = None  # numpy: _add_correction's rows, kept between calls
         diagonal = xp.full(flat.shape[0], self.self_coefficient, dtype=xp.float64)
         if correction is not None:
             diagonal = diagonal + be.asarray(correction.diagonal())
@@ -501,9 +506,10 @@ class CompliancePlan:
         """Sum of q over the cells of each pillar (Pa); multiply by L^2 for forces."""
         return self._pillar_sums(q)
 
-    def per_cell(self, values):
-        """A value per pillar out to each of its cells (``values[pillar]``)."""
-        return self._pillar_spread(values)
+    def per_cell(self, values, lo=0, hi=None):
+        """A value per pillar out to each of its cells (``values[pillar]``), or to the cells
+        ``lo`` to ``hi`` (a chunk's)."""
+        return self._pillar_spread(values, lo, hi)
 
     def half_space(self, q, single: bool = False):
         """K q on the candidate cells (m); ``single``: the transforms in float32."""
@@ -531,18 +537,43 @@ class CompliancePlan:
         ``approximate_error`` of the result's largest value; the rest in float64)."""
         u = self.half_space(q, single)
         if self.correction is not None:
-            u += self.correction @ q
+            self._add_correction(u, q)
         if self.has_spring:
-            self._add(u, self.per_cell(self.pillar_spring * self.pillar_sums(q)))
+            self._add_per_cell(u, self.pillar_spring * self.pillar_sums(q))
         if self.pillar_term is not None:
             u += self.pillar_term(q)
         return u
 
-    def _add(self, u, v) -> None:
-        """u += v in place, in the backend's chunks (the FFT threads on numpy)."""
+    def _add_correction(self, u, q) -> None:
+        """u += C q for the near-field correction C.  On numpy, its rows in the backend's
+        chunks (scipy's CSR product releases the GIL): each chunk's rows summed from zero in
+        their stored order into a kept scratch, then added, as the whole product does, so
+        the bits are the whole product's in any split; elsewhere the whole product."""
+        c = self.correction
+        if _csr_matvec is None or not isinstance(self.backend, NumpyDevice):
+            u += c @ q
+            return
+        n = int(u.shape[0])
+        if self._correction_scratch is None:
+            self._correction_scratch = np.empty(n)
+        scratch = self._correction_scratch
+        x = np.ascontiguousarray(q, dtype=np.float64)
+
+        def rows(lo, hi):
+            t = scratch[lo:hi]
+            t.fill(0.0)
+            _csr_matvec(hi - lo, c.shape[1], c.indptr[lo:hi + 1], c.indices, c.data, x, t)
+            w = u[lo:hi]
+            w += t
+
+        self.backend.chunks(rows, n, max(c.nnz // max(n, 1), 1))
+
+    def _add_per_cell(self, u, values) -> None:
+        """u += ``values[pillar]`` in place, in the backend's chunks (the FFT threads on
+        numpy), each chunk spreading the values to its own cells."""
         def part(lo, hi):
             w = u[lo:hi]
-            w += v[lo:hi]
+            w += self.per_cell(values, lo, hi)
 
         getattr(self.backend, "chunks", one_piece)(part, int(u.shape[0]))
 
@@ -592,10 +623,10 @@ class CompliancePlan:
             if on_numpy and m <= n // SPARSE_ROWS_FRACTION:  # symmetric: columns are rows
                 u += self.correction[index].T @ values
             else:
-                u += self.correction @ whole()
+                self._add_correction(u, whole())
         if self.has_spring:
             forces = be.segment_sum(xp.take(self.pillar, index), values, self.n_pillars)
-            self._add(u, self.per_cell(self.pillar_spring * forces))
+            self._add_per_cell(u, self.pillar_spring * forces)
         if self.pillar_term is not None:
             pillar_part = self.pillar_term.apply_few(index, values)
             u += self.pillar_term(whole()) if pillar_part is None else pillar_part
@@ -807,11 +838,11 @@ class CirculantPreconditioner:
             sums = self.plan.pillar_sums(rf)
             if weight is not None:
                 sums = sums * weight
-            means = self.plan.per_cell(sums * per_cell)
+            means = sums * per_cell  # per pillar; each chunk spreads its cells' own
 
             def remove_means(lo, hi):
                 v = rf[lo:hi]
-                v -= means[lo:hi]
+                v -= self.plan.per_cell(means, lo, hi)
                 v *= restriction(lo, hi)
 
             chunks(remove_means, n)
@@ -835,11 +866,11 @@ class CirculantPreconditioner:
             z_sums = z_sums * weight
         mode = self.plan.pillar_mode_compliance(count) + self._disk * count * xp.sqrt(count)
         coarse = sums / xp.where(count > 0.0, mode, 1.0)
-        modes = self.plan.per_cell(coarse - z_sums * per_cell)
+        modes = coarse - z_sums * per_cell
 
         def add_modes(lo, hi):
             v = z[lo:hi]
-            v += modes[lo:hi]
+            v += self.plan.per_cell(modes, lo, hi)
             v *= mask[lo:hi]
 
         chunks(add_modes, n)

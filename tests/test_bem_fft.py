@@ -217,6 +217,44 @@ def test_the_numpy_paths_threads_change_no_bit(monkeypatch):
             assert np.array_equal(a, b)
 
 
+def test_the_correction_split_by_rows_is_the_whole_product(monkeypatch):
+    """The near-field correction's sparse product on numpy runs by rows in the backend's
+    chunks: on 2, 3 and 5 threads (as many row blocks, each a CSR product of its own) u += C q
+    gives the bits of the single whole product scipy computes, in the operator and in the
+    clipping update's whole-field branch."""
+    import bem_solver._fft_operator as operator
+    import bem_solver._xp as devices
+
+    monkeypatch.setattr(devices, "CHUNK_MIN", 1)  # chunks on this small grid too
+    _, grid, plan = _small_plan("paper-fig3-dense", ["load.indentation_um=0.02"], 6)
+    calls = []
+    product = operator._csr_matvec
+    assert product is not None  # scipy's layout: the split is what is tested
+
+    def counted(n_rows, *args):
+        calls.append(n_rows)
+        return product(n_rows, *args)
+
+    monkeypatch.setattr(operator, "_csr_matvec", counted)
+    rng = np.random.default_rng(5)
+    q, u0 = rng.standard_normal(grid.n_cells), rng.standard_normal(grid.n_cells)
+    index = np.arange(grid.n_cells)  # more cells than the clipping update's row slice takes
+    whole = u0 + plan.correction @ q
+    assert plan.correction.nnz > 0 and not np.array_equal(whole, u0)
+    monkeypatch.setattr(operator, "_csr_matvec", None)  # the whole product, in one call
+    expect = [plan(q), plan.apply_few(index, q)]
+    monkeypatch.setattr(operator, "_csr_matvec", counted)
+    for workers in (2, 3, 5):
+        plan.backend.workers = workers
+        calls.clear()
+        u = u0.copy()
+        plan._add_correction(u, q)
+        assert len(calls) == workers and sum(calls) == grid.n_cells  # every row, once
+        assert np.array_equal(u, whole)
+        for got, want in zip([plan(q), plan.apply_few(index, q)], expect):
+            assert np.array_equal(got, want)
+
+
 def test_convolution_of_a_few_cells_is_the_whole_field_convolution():
     """``few(index, values)`` (the clipping update's convolution: the scatter buffer cleared
     and only the given cells put in it) equals the convolution of the whole field that is

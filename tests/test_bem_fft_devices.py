@@ -106,7 +106,7 @@ class StrictDevice:
         return lambda weights: xps.asarray(numpy_sums(self.to_numpy(weights)))
 
     def spreader(self, index):
-        return lambda values: xps.take(values, index)
+        return lambda values, lo=0, hi=None: xps.take(values, index[lo:hi])
 
     def put(self, target, index, values):
         out = np.array(self.to_numpy(target))

@@ -174,16 +174,24 @@ def _labels(kind, n, rng):
 def test_spreader_is_the_gather(kind):
     """The backend's reusable spread of per-label values to their entries: exactly
     ``values[index]`` (a copy, so bit for bit) whether the labels come in runs (repeated per
-    run) or scattered (gathered)."""
+    run) or scattered (gathered), and ``values[index[lo:hi]]`` for a range of entries."""
     from pillar_xval.contact._xp import NUMPY
 
     rng = np.random.default_rng(8)
     n = 40
     index = _labels(kind, n, rng)
     values = rng.standard_normal(n)
-    got = NUMPY.spreader(index)(values)
+    spread = NUMPY.spreader(index)
+    got = spread(values)
     assert got.shape == index.shape
     assert np.array_equal(got, values[index])
+    # a chunk's entries: ranges that cut runs, hold one run's middle, or nothing
+    bounds = [0, 1, 3, index.size // 3, index.size // 2, index.size - 1, index.size]
+    for lo in bounds:
+        for hi in bounds:
+            part = spread(values, lo, hi)
+            assert part.shape == index[lo:hi].shape
+            assert np.array_equal(part, values[index[lo:hi]])
 
 
 @pytest.mark.parametrize("kind", ["runs", "scattered", "empty"])

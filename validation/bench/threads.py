@@ -23,7 +23,9 @@
    iteration's measured wall time over the pair's, on the threads given.  With ``--baseline
    DIR`` (another checkout, e.g. ``git archive main | tar -x -C DIR``) the same split of that
    checkout's iteration, each of its runs right after this one's (its own chunks'
-   definition); ``--cases ''`` measures the split alone.
+   definition); ``--cases ''`` measures the split alone.  With ``--edge-correction`` the
+   iteration of the default solve instead, edge cells at their centroids (the near-field
+   correction's sparse product in the operator, the rest of the split unchanged).
 
 Prints the tables and writes them with the runs and the load averages to ``bench_threads.md``
 and ``bench_threads.json``, both rewritten after every run (a run stopped by a time limit
@@ -138,11 +140,12 @@ def _split(spec: dict) -> dict:
             spent["on"] = False
 
     fft_model.constrained_cg = cg
-    r = fft_model.solve_fft(scene, n, edge_correction=False)
+    edges = bool(spec.get("edge_correction", False))
+    r = fft_model.solve_fft(scene, n, edge_correction=edges)
     shape = r.diagnostics["fft_shape"]
     workers = thread_count()
     it = max(r.iterations, 1)
-    return {"n": n, "pillars": spec["pillars"], "threads": workers,
+    return {"n": n, "pillars": spec["pillars"], "threads": workers, "edge_correction": edges,
             "iterations": r.iterations, "fft_shape": shape,
             "cells": cells, "grid_cells": r.diagnostics["grid_shape"][0]
             * r.diagnostics["grid_shape"][1],
@@ -218,9 +221,10 @@ def format_tables(scaling: list, split: list, meta: dict) -> str:
         lines.append(f"| {r['case']} | {r['threads']} | {r['wall_s']:.3g} | "
                      f"{r['cpu_per_wall']:.2f} | {f(r['speedup'], '.2f')} | "
                      f"{f(r['answers_rel_diff'], '.1e')} |")
-    lines += ["", "FFT iteration (bem-fft, fine level) over the float64 FFT pair in kept "
-              "arrays:", "", "| side | cells | pillars | threads | R_fft | R_chunks | R_rest | "
-              "R (CPU) | predicted on 2 threads | measured wall / wall |",
+    edges = " with the near-field correction" if meta.get("edge_correction") else ""
+    lines += ["", f"FFT iteration (bem-fft, fine level{edges}) over the float64 FFT pair in "
+              "kept arrays:", "", "| side | cells | pillars | threads | R_fft | R_chunks | "
+              "R_rest | R (CPU) | predicted on 2 threads | measured wall / wall |",
               "|---|---|---|---|---|---|---|---|---|---|"]
     for r in split:
         lines.append(f"| {r['side']} | {r['grid_cells']:.2g} | {r['pillars']} | {r['threads']} | "
@@ -255,6 +259,9 @@ def main(argv=None) -> int:
     ap.add_argument("--baseline", type=Path, default=None,
                     help="another checkout (e.g. git archive main | tar -x -C DIR): its split "
                          "too, interleaved with this one's (its own chunks' definition)")
+    ap.add_argument("--edge-correction", action="store_true",
+                    help="split the default solve's iteration (edge cells corrected) instead "
+                         "of the one with cells at their centres")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.worker:
@@ -276,6 +283,7 @@ def main(argv=None) -> int:
     def write() -> str:
         """The files as they stand (after every run: a run cut short keeps what it had)."""
         meta = {"cpus": cpu_count(), "repeats": args.repeats, "load_before": load_before,
+                "edge_correction": args.edge_correction,
                 "baseline": None if args.baseline is None else str(args.baseline),
                 "load_after": [round(v, 2) for v in os.getloadavg()], "threads": counts}
         scaling, split = scaling_rows(runs), split_rows(splits)
@@ -297,7 +305,9 @@ def main(argv=None) -> int:
             for pillars in ("rigid", "elastic"):
                 for t in (int(v) for v in args.split_threads.split(",") if v):
                     for root in (None, args.baseline) if args.baseline else (None,):
-                        splits.append(_run("split", {"n": n, "pillars": pillars}, t, root))
+                        splits.append(_run("split", {"n": n, "pillars": pillars,
+                                                     "edge_correction": args.edge_correction},
+                                           t, root))
                         write()
     print(write())
     return 0
