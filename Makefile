@@ -7,7 +7,7 @@ OUT    ?= out
 
 .PHONY: demo study-gecit study-lattice study-floor figures test test-slow bench-bem bench-fft bench-gpu bench-fem3d \
 	bench-elastic bench-fem3d-floor bench-fem3d-floor-levels bench-engine bench-figures bench-startup bench-force \
-	bench-floor bench-sweep bench-threads bench-planner-threads clean calibrate validate-planner extremes \
+	bench-floor bench-floor-gap bench-sweep bench-threads bench-planner-threads clean calibrate validate-planner extremes \
 	regimes docs lint reproduce lent-kit
 
 $(STAMP): pyproject.toml
@@ -113,6 +113,13 @@ bench-fft: $(STAMP)
 bench-floor: $(STAMP)
 	$(PY) -m pip install --quiet -e '.[bench]' || echo "bench-floor: ContactMechanics not installed; the comparison will be skipped"
 	$(PY) -m validation.bench.floor --out $(OUT)/bench-floor
+
+# Where the elastic BEM's floor area parts from fem-3d on dense lattices, by parts: the BEM's
+# ladder and a floor-only gap offset, the floor's excess coupling beside one bonded pillar
+# (Fourier FEM), the BEM with it, fem-3d with its floor disk refined alone:
+# $(OUT)/bench-floor-gap/bench_floor_gap.md (about 40 minutes; fem-3d peaks at 12 GiB).
+bench-floor-gap: $(STAMP)
+	$(PY) -m validation.bench.floor_gap --out $(OUT)/bench-floor-gap
 
 # Study engine: a sweep killed (kill -9) mid-way and resumed loses and repeats nothing; the
 # same sweep on a Dask scheduler + two worker processes (127.0.0.1) gives the pool's table.
