@@ -431,6 +431,8 @@ def test_closed_form_assembly_equals_the_forms():
         assert abs(B_b - B_ref).max() < 1e-14 * abs(B_ref).max()
         assert abs(M_b - M_ref).max() < 1e-14 * abs(M_ref).max()
     assert abs(A - A_ref).max() < 1e-14 * abs(A_ref).max()
+    assert all(np.all(np.diff(A.indices[A.indptr[k]:A.indptr[k + 1]]) > 0)  # sorted, as said
+               for k in range(A.shape[0]))
 
 
 @pytest.mark.slow

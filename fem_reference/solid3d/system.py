@@ -299,36 +299,29 @@ def assemble_blocks(mesh, sb, pressures: list):
 
 def _pair_pattern(nodes: np.ndarray, N: int):
     """(row, col) of the node pairs that share an element, sorted by row then column, and
-    where[e, 10 t + s]: the index of the pair (nodes[e, t], nodes[e, s])."""
-    k = nodes.shape[1]
-    pattern = sp.csr_matrix((np.ones(nodes.size * k, dtype=np.float32),
-                             (np.repeat(nodes, k, axis=1).ravel(), np.tile(nodes, k).ravel())),
-                            shape=(N, N))
-    pattern.sum_duplicates()
+    where[e, 10 t + s]: the index of the pair (nodes[e, t], nodes[e, s]).
+
+    The pairs are the pattern of P^T P, P the elements' node incidence (scipy's sparse
+    product finds them without sorting the elements' 100 pairs each), and ``where`` is read
+    from that pattern holding each pair's index."""
+    E, k = nodes.shape
+    incidence = sp.csr_matrix((np.ones(nodes.size), nodes.ravel(),
+                               np.arange(0, nodes.size + 1, k)), shape=(E, N))
+    pattern = (incidence.T.tocsr() @ incidence).tocsr()
     pattern.sort_indices()
     row = np.repeat(np.arange(N, dtype=np.int64), np.diff(pattern.indptr))
-    keys = row * N + pattern.indices
-    pairs = (nodes[:, :, None].astype(np.int64) * N + nodes[:, None, :]).reshape(len(nodes), -1)
-    return row, pattern.indices.astype(np.int64), np.searchsorted(keys, pairs)
+    pattern.data = np.arange(pattern.nnz, dtype=float)  # exact integers (< 2^53)
+    where = pattern[np.repeat(nodes, k, axis=1).ravel(), np.tile(nodes, k).ravel()]
+    return row, pattern.indices.astype(np.int64), np.asarray(where).astype(np.int64).reshape(E, -1)
 
 
 def _vector_csr(row, col, blocks, N) -> sp.csr_matrix:
     """The 3 N x 3 N CSR matrix with the 3 x 3 block ``blocks[k]`` (row component b, column
-    component a) at node pair (row[k], col[k]), the pairs sorted by row, then column."""
-    indptr_s = np.searchsorted(row, np.arange(N + 1))
-    length = np.diff(indptr_s)
-    k = np.arange(len(row))
-    start = indptr_s[row]
-    data = np.empty(9 * len(row))
-    indices = np.empty(9 * len(row), dtype=np.int64)
-    for b in range(3):
-        first = 3 * (3 * start + b * length[row] + (k - start))
-        for a in range(3):
-            data[first + a] = blocks[:, b, a]
-            indices[first + a] = 3 * col + a
-    indptr = np.append((9 * indptr_s[:-1, None] + 3 * np.arange(3) * length[:, None]).ravel(),
-                       9 * len(row))
-    A = sp.csr_matrix((data, indices, indptr), shape=(3 * N, 3 * N))
+    component a) at node pair (row[k], col[k]), the pairs sorted by row, then column: the
+    pairs are a block sparse row layout as they stand, which scipy expands in C (its rows'
+    columns sorted as the blocks are)."""
+    indptr = np.searchsorted(row, np.arange(N + 1))
+    A = sp.bsr_matrix((blocks, col, indptr), shape=(3 * N, 3 * N)).tocsr()
     A.has_sorted_indices = True
     return A
 
