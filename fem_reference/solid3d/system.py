@@ -158,17 +158,19 @@ class SectorSystem(ReducedSystem):
         x, _ = self.solve(rhs, refine=self.exact_steps, check=False)
         return x
 
-    def solve(self, rhs: np.ndarray, refine: int = 2,
-              check: bool = True) -> tuple[np.ndarray, float]:
+    def solve(self, rhs: np.ndarray, refine: int = 2, check: bool = True,
+              start: np.ndarray | None = None) -> tuple[np.ndarray, float]:
         """Solve K x = rhs (columns allowed) with up to ``refine`` steps of iterative
         refinement against the float64 matrix, until the residual is below 1e-12; returns x
         and the relative scaled residual max_j ||S (K x_j - b_j)|| / ||S b_j|| (NaN, not
         computed, with ``refine=0``: one back-substitution and nothing else, of relative
         error ``single_error`` for a float32 factor; ``check=False``: ``refine`` steps and
-        no residual)."""
+        no residual).  ``start``: an approximate x (shaped as ``rhs``) that the refinement
+        starts from in place of the first back-substitution."""
         rhs = np.asarray(rhs, dtype=float)
         b = self.scale[:, None] * rhs.reshape(rhs.shape[0], -1)
-        y = self.factor.solve(b)
+        y = self.factor.solve(b) if start is None else \
+            np.asarray(start, dtype=float).reshape(b.shape) / self.scale[:, None]
         if refine == 0 or not check:  # inside the contact iterations
             for _ in range(refine):
                 y += self.factor.solve(b - self._Ks @ y)
