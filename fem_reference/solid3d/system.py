@@ -277,11 +277,10 @@ def assemble_blocks(mesh, sb, pressures: list):
     divergence = np.empty((len(elements), 4, 10, 3))
     for lo in range(0, len(elements), CHUNK):
         sl = slice(lo, lo + CHUNK)
-        dphi = tet_p2.p2_gradients(grad[sl])
-        V = tet_p2.elasticity_blocks(tet_p2.gradient_products(dphi, volume[sl]), mu[sl])
-        index = (where[sl, :, None] * 9 + np.arange(9)).ravel()
+        V = tet_p2.elasticity_blocks(grad[sl], volume[sl], mu[sl])  # [e, 3 b + a, 10 t + s]
+        index = (where[sl, None, :] * 9 + np.arange(9)[:, None]).ravel()
         blocks += np.bincount(index, weights=V.ravel(), minlength=len(blocks))
-        divergence[sl] = tet_p2.divergence_blocks(dphi, volume[sl])
+        divergence[sl] = tet_p2.divergence_blocks(grad[sl], volume[sl])
     del where, grad
     A = _vector_csr(row, col, blocks.reshape(-1, 3, 3), N)
     B, M = [], []
