@@ -431,6 +431,8 @@ def test_closed_form_assembly_equals_the_forms():
         assert abs(B_b - B_ref).max() < 1e-14 * abs(B_ref).max()
         assert abs(M_b - M_ref).max() < 1e-14 * abs(M_ref).max()
     assert abs(A - A_ref).max() < 1e-14 * abs(A_ref).max()
+    assert all(np.all(np.diff(A.indices[A.indptr[k]:A.indptr[k + 1]]) > 0)  # sorted, as said
+               for k in range(A.shape[0]))
 
 
 @pytest.mark.slow
@@ -502,3 +504,32 @@ def test_a_sliver_from_gmsh_is_optimised_away():
         assert r.converged, r.diagnostics.get("message")
         forces.append(r.total_force_N)
     assert forces[1] == pytest.approx(forces[0], rel=0.03)
+
+
+def test_the_refinement_starts_where_it_is_told():
+    """SectorSystem.solve from a start: none of the factor's back-substitutions where the
+    start already meets the residual of 1e-12 (the CG's exact solutions after the contact
+    phase), one where it is 1e-6 off (a float32 factor gains three digits a step or more)."""
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import spsolve
+
+    from fem_reference._pardiso import Pardiso
+    from fem_reference.solid3d.system import SectorSystem
+
+    n = 300
+    K = sp.diags([-np.ones(n - 1), 2.5 * np.ones(n), -np.ones(n - 1)], [-1, 0, 1], format="csr")
+    b = np.random.default_rng(0).standard_normal((n, 2))
+    exact = np.column_stack([spsolve(K.tocsc(), c) for c in b.T])
+    calls = []
+
+    class Counted(Pardiso):
+        def solve(self, rhs):
+            calls.append(1)
+            return super().solve(rhs)
+
+    system = SectorSystem.__new__(SectorSystem)
+    system.scale, system._Ks, system.factor = np.ones(n), K, Counted(K, single=True)
+    x, rel = system.solve(b, refine=4, start=exact)
+    assert not calls and rel < 1e-12 and np.allclose(x, exact, rtol=0, atol=1e-12)
+    x, rel = system.solve(b, refine=4, start=exact * (1 + 1e-6))
+    assert len(calls) == 1 and rel < 1e-12

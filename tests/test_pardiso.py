@@ -75,3 +75,42 @@ def test_a_solve_agrees_with_superlu(by_nodes):
     reference = spsolve(K.tocsc(), b)
     assert np.max(np.abs(x - reference)) <= RTOL_SOLVE * np.max(np.abs(reference))
     assert factor.ordering == ("nodes" if by_nodes else "matching")
+
+
+def test_the_upper_triangle_is_scipys():
+    """The masked upper triangle equals scipy's triu, columns sorted, on a matrix with empty
+    rows, unsorted columns and an empty matrix."""
+    rng = np.random.default_rng(3)
+    A = sp.random(40, 40, density=0.2, random_state=4, format="lil")
+    A[7, :] = 0
+    A[:, 0] = 0
+    A = A.tocsr()
+    A.eliminate_zeros()
+    for k in range(A.shape[0]):  # scramble each row's column order
+        lo, hi = A.indptr[k], A.indptr[k + 1]
+        order = lo + rng.permutation(hi - lo)
+        A.indices[lo:hi], A.data[lo:hi] = A.indices[order], A.data[order]
+    A.has_sorted_indices = False
+    for M in (A, sp.csr_matrix((5, 5))):
+        U = _pardiso.upper_triangle(M)
+        assert U.has_sorted_indices and (U != sp.triu(M)).nnz == 0
+        assert all(np.all(np.diff(U.indices[U.indptr[k]:U.indptr[k + 1]]) > 0)
+                   for k in range(U.shape[0]))
+
+
+def test_the_node_ordering_eliminates_node_by_node():
+    """Every node's unknowns come together, in their own order, and all are ordered once;
+    a node whose lone unknown has no diagonal (an incompressible pressure) is ordered too."""
+    K, _ = _saddle()
+    nodes = np.arange(K.shape[0]) // 3
+    K = K.tolil()
+    K[-1, -1] = 0  # the last node holds one unknown: without its diagonal
+    K = K.tocsr()
+    K.eliminate_zeros()
+    perm = _pardiso.node_ordering(_pardiso.PardisoHandle(), sp.triu(K, format="csr"), nodes) - 1
+    assert np.array_equal(np.sort(perm), np.arange(K.shape[0]))
+    seq = nodes[perm]
+    starts = np.r_[0, np.nonzero(np.diff(seq))[0] + 1]
+    ends = np.r_[starts[1:], len(seq)]
+    assert len(starts) == len(np.unique(nodes))  # each node's unknowns in one run
+    assert all(np.all(np.diff(perm[a:b]) == 1) for a, b in zip(starts, ends))

@@ -403,15 +403,32 @@ class _Condensed:
     """The condensed operator D^T G K^-1 G^T D with a float32 factor: exact applications by
     the refined solve, the constrained CG's steps and clipping updates by one float32
     back-substitution (:class:`pillar_xval.contact.MixedPrecision`,
-    :class:`pillar_xval.contact.FewCellUpdates`)."""
+    :class:`pillar_xval.contact.FewCellUpdates`).
 
-    def __init__(self, D, G, system, n: int):
+    ``probes`` (columns) ride along the first exact application of one vector: PARDISO
+    reads its factor once a back-substitution whatever the columns (Phi = 0.82, mesh_size
+    2: 0.16 s for one column, 0.18 s for two), so their solutions (``probe_x``) cost little
+    there, where the solve after the CG would take its own refinement steps.  ``last``: the
+    multipliers and the solution of the latest exact application of one vector."""
+
+    def __init__(self, D, G, system, n: int, probes=None):
         self.D, self.G, self.system, self.n = D, G, system, n
         # its error bound for the CG's bookkeeping (the accepted gap is always exact)
         self.approximate_error = 10.0 * system.single_error
+        self.probes, self.probe_x, self.last = probes, None, None
 
     def __call__(self, lam):  # columns allowed
-        return self.D.T @ (self.G @ self.system.exact(self.G.T @ (self.D @ lam)))
+        lam = np.asarray(lam)
+        rhs = self.G.T @ (self.D @ lam)
+        along = lam.ndim == 1 and self.probes is not None and self.probe_x is None
+        if along:
+            rhs = np.column_stack([rhs, self.G.T @ (self.D @ self.probes)])
+        x = self.system.exact(rhs)
+        if along:
+            x, self.probe_x = x[:, 0], x[:, 1:]
+        if lam.ndim == 1:
+            self.last = (lam.copy(), x)
+        return self.D.T @ (self.G @ x)
 
     def approximate(self, lam):
         x, _ = self.system.solve(self.G.T @ (self.D @ lam), refine=0)
@@ -421,6 +438,13 @@ class _Condensed:
         lam = np.zeros(self.n)
         lam[index] = values
         return (self.approximate if single else self)(lam)
+
+    def start(self, lam):
+        """The solutions of ``lam`` and the probes from the CG's exact applications, as
+        columns (a start for their refinement), or None where it did not make them."""
+        if self.probe_x is None or self.last is None or not np.array_equal(self.last[0], lam):
+            return None
+        return np.column_stack([self.last[1], self.probe_x])
 
 
 def _contact(scene: Scene, setup: dict, system, faces, tol: float, clock: PhaseClock,
@@ -444,7 +468,9 @@ def _contact(scene: Scene, setup: dict, system, faces, tol: float, clock: PhaseC
     D, G = faces.D, faces.G
     single = system.single_error > 0.0
 
-    condensed = _Condensed(D, G, system, faces.n_vertices)
+    # two seeded probes of the operator's symmetry (:func:`_asymmetry`)
+    probes = np.random.default_rng(12345).random((faces.n_vertices, 2))
+    condensed = _Condensed(D, G, system, faces.n_vertices, probes if single else None)
     # In float64 the CG gets the exact application alone (no cheaper step, no few-cell
     # update: either would cost a whole back-substitution).
     apply = condensed if single else condensed.__call__
@@ -474,14 +500,12 @@ def _contact(scene: Scene, setup: dict, system, faces, tol: float, clock: PhaseC
         gap0 = (analytic.lens_gap(R, r_pts) - zeta) / ell + lift
     lam = sol.pressure
     clock.done("contact")
-    probes = np.random.default_rng(12345).random((faces.n_vertices, 2))
     if single:
-        # The displacement under the contact load and the operator on two seeded probes (its
-        # symmetry), both refined, in one solve of three columns: PARDISO reads its factor
-        # once a back-substitution whatever the columns (Phi = 0.82, mesh_size 2: 0.16 s for
-        # one column, 0.18 s for two), where two solves read it twice.
+        # The displacement under the contact load and the operator on the probes, both
+        # refined, in one solve of three columns, from the CG's exact solutions where it
+        # made them (then one step of refinement or none, against four).
         rhs = G.T @ (D @ np.column_stack([lam, probes]))
-        X, _ = system.solve(rhs, refine=EXACT_REFINE)
+        X, _ = system.solve(rhs, refine=EXACT_REFINE, start=condensed.start(lam))
         x, applied = X[:, 0], D.T @ (G @ X[:, 1:])
         residual = system.residual(x, rhs[:, 0])
     else:  # the CG's applications are single back-substitutions: the probes' are too

@@ -158,17 +158,19 @@ class SectorSystem(ReducedSystem):
         x, _ = self.solve(rhs, refine=self.exact_steps, check=False)
         return x
 
-    def solve(self, rhs: np.ndarray, refine: int = 2,
-              check: bool = True) -> tuple[np.ndarray, float]:
+    def solve(self, rhs: np.ndarray, refine: int = 2, check: bool = True,
+              start: np.ndarray | None = None) -> tuple[np.ndarray, float]:
         """Solve K x = rhs (columns allowed) with up to ``refine`` steps of iterative
         refinement against the float64 matrix, until the residual is below 1e-12; returns x
         and the relative scaled residual max_j ||S (K x_j - b_j)|| / ||S b_j|| (NaN, not
         computed, with ``refine=0``: one back-substitution and nothing else, of relative
         error ``single_error`` for a float32 factor; ``check=False``: ``refine`` steps and
-        no residual)."""
+        no residual).  ``start``: an approximate x (shaped as ``rhs``) that the refinement
+        starts from in place of the first back-substitution."""
         rhs = np.asarray(rhs, dtype=float)
         b = self.scale[:, None] * rhs.reshape(rhs.shape[0], -1)
-        y = self.factor.solve(b)
+        y = self.factor.solve(b) if start is None else \
+            np.asarray(start, dtype=float).reshape(b.shape) / self.scale[:, None]
         if refine == 0 or not check:  # inside the contact iterations
             for _ in range(refine):
                 y += self.factor.solve(b - self._Ks @ y)
@@ -202,7 +204,8 @@ def assemble_sector(mesh, materials: dict, *, sector_angle: float, clamp_pillar_
         Rigid pillars bonded to the elastic substrate (their ``pillar_base_{name}`` faces
         move rigidly), centres in mesh units.
     """
-    sb = Basis(mesh, ElementTetP2(), intorder=INTORDER)  # numbering, positions and sets
+    # numbering, positions and sets only: the one-point rule spares the basis values at four
+    sb = Basis(mesh, ElementTetP2(), intorder=1)
     n_u = 3 * sb.N
     pressures, offset = [], n_u
     for body, (E, nu) in materials.items():
@@ -275,11 +278,10 @@ def assemble_blocks(mesh, sb, pressures: list):
     divergence = np.empty((len(elements), 4, 10, 3))
     for lo in range(0, len(elements), CHUNK):
         sl = slice(lo, lo + CHUNK)
-        dphi = tet_p2.p2_gradients(grad[sl])
-        V = tet_p2.elasticity_blocks(tet_p2.gradient_products(dphi, volume[sl]), mu[sl])
-        index = (where[sl, :, None] * 9 + np.arange(9)).ravel()
+        V = tet_p2.elasticity_blocks(grad[sl], volume[sl], mu[sl])  # [e, 3 b + a, 10 t + s]
+        index = (where[sl, None, :] * 9 + np.arange(9)[:, None]).ravel()
         blocks += np.bincount(index, weights=V.ravel(), minlength=len(blocks))
-        divergence[sl] = tet_p2.divergence_blocks(dphi, volume[sl])
+        divergence[sl] = tet_p2.divergence_blocks(grad[sl], volume[sl])
     del where, grad
     A = _vector_csr(row, col, blocks.reshape(-1, 3, 3), N)
     B, M = [], []
@@ -299,36 +301,29 @@ def assemble_blocks(mesh, sb, pressures: list):
 
 def _pair_pattern(nodes: np.ndarray, N: int):
     """(row, col) of the node pairs that share an element, sorted by row then column, and
-    where[e, 10 t + s]: the index of the pair (nodes[e, t], nodes[e, s])."""
-    k = nodes.shape[1]
-    pattern = sp.csr_matrix((np.ones(nodes.size * k, dtype=np.float32),
-                             (np.repeat(nodes, k, axis=1).ravel(), np.tile(nodes, k).ravel())),
-                            shape=(N, N))
-    pattern.sum_duplicates()
+    where[e, 10 t + s]: the index of the pair (nodes[e, t], nodes[e, s]).
+
+    The pairs are the pattern of P^T P, P the elements' node incidence (scipy's sparse
+    product finds them without sorting the elements' 100 pairs each), and ``where`` is read
+    from that pattern holding each pair's index."""
+    E, k = nodes.shape
+    incidence = sp.csr_matrix((np.ones(nodes.size), nodes.ravel(),
+                               np.arange(0, nodes.size + 1, k)), shape=(E, N))
+    pattern = (incidence.T.tocsr() @ incidence).tocsr()
     pattern.sort_indices()
     row = np.repeat(np.arange(N, dtype=np.int64), np.diff(pattern.indptr))
-    keys = row * N + pattern.indices
-    pairs = (nodes[:, :, None].astype(np.int64) * N + nodes[:, None, :]).reshape(len(nodes), -1)
-    return row, pattern.indices.astype(np.int64), np.searchsorted(keys, pairs)
+    pattern.data = np.arange(pattern.nnz, dtype=float)  # exact integers (< 2^53)
+    where = pattern[np.repeat(nodes, k, axis=1).ravel(), np.tile(nodes, k).ravel()]
+    return row, pattern.indices.astype(np.int64), np.asarray(where).astype(np.int64).reshape(E, -1)
 
 
 def _vector_csr(row, col, blocks, N) -> sp.csr_matrix:
     """The 3 N x 3 N CSR matrix with the 3 x 3 block ``blocks[k]`` (row component b, column
-    component a) at node pair (row[k], col[k]), the pairs sorted by row, then column."""
-    indptr_s = np.searchsorted(row, np.arange(N + 1))
-    length = np.diff(indptr_s)
-    k = np.arange(len(row))
-    start = indptr_s[row]
-    data = np.empty(9 * len(row))
-    indices = np.empty(9 * len(row), dtype=np.int64)
-    for b in range(3):
-        first = 3 * (3 * start + b * length[row] + (k - start))
-        for a in range(3):
-            data[first + a] = blocks[:, b, a]
-            indices[first + a] = 3 * col + a
-    indptr = np.append((9 * indptr_s[:-1, None] + 3 * np.arange(3) * length[:, None]).ravel(),
-                       9 * len(row))
-    A = sp.csr_matrix((data, indices, indptr), shape=(3 * N, 3 * N))
+    component a) at node pair (row[k], col[k]), the pairs sorted by row, then column: the
+    pairs are a block sparse row layout as they stand, which scipy expands in C (its rows'
+    columns sorted as the blocks are)."""
+    indptr = np.searchsorted(row, np.arange(N + 1))
+    A = sp.bsr_matrix((blocks, col, indptr), shape=(3 * N, 3 * N)).tocsr()
     A.has_sorted_indices = True
     return A
 

@@ -82,7 +82,9 @@ out = {"wall_s": wall, "cpu_s": cpu, "iterations": r.iterations, "converged": r.
 if case["model"] == "fem3d":
     import resource
     out["elements"] = r.discretisation["elements"]
-    out["floor_area_m2"] = r.floor_contact_area_m2
+    # None on a baseline from before the floor contact (e.g. 13c5f52, the fem-3d speed
+    # work's reference)
+    out["floor_area_m2"] = getattr(r, "floor_contact_area_m2", None)
     out["phases"] = r.diagnostics["time_s"]
     out["peak_rss_GiB"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20
 if case["model"] == "fft":  # the fine level's time per iteration over the bare FFT pair
