@@ -378,13 +378,9 @@ def _elastic(overrides):
     return scene, modal_compliance(PillarKind.of_scene(scene), 2, mesh_size=4.0)
 
 
-@pytest.mark.usefixtures("compliance_cache")
-@pytest.mark.parametrize("case", ELASTIC, ids=lambda c: c[0])
-def test_elastic_pillar_on_the_cupy_stand_in_gives_the_cpu_answer(cupy_stand_in, case):
-    """The elastic pillar's term on the cupy backend (one sparse product over all pillars
-    instead of cache-sized chunks, its boxes' transforms by cupyx's FFT, no few-cell updates):
-    the CPU path's answer to round-off (RTOL_ROUNDOFF: the same expressions, the sums of a
-    product's rows in another order)."""
+def _elastic_gpu_agrees_with_cpu(case):
+    """``case`` solved on the device 'gpu' (cupy or its stand-in) and on the CPU, in double
+    precision: the same answer to RTOL_ROUNDOFF; (scene, compliance, N)."""
     _, overrides, n = case
     scene, modal = _elastic(overrides)
     gpu = solve_fft(scene, n, device="gpu", pillars="elastic", compliance=modal,
@@ -393,6 +389,17 @@ def test_elastic_pillar_on_the_cupy_stand_in_gives_the_cpu_answer(cupy_stand_in,
     cpu = solve_fft(scene, n, pillars="elastic", compliance=modal, precision="double",
                     warm_start=GPU_WARM_START_LEVELS)
     _agree(cpu, gpu, RTOL_ROUNDOFF, scene.indentation_m)
+    return scene, modal, n
+
+
+@pytest.mark.usefixtures("compliance_cache")
+@pytest.mark.parametrize("case", ELASTIC, ids=lambda c: c[0])
+def test_elastic_pillar_on_the_cupy_stand_in_gives_the_cpu_answer(cupy_stand_in, case):
+    """The elastic pillar's term on the cupy backend (one sparse product over all pillars
+    instead of cache-sized chunks, its boxes' transforms by cupyx's FFT, no few-cell updates):
+    the CPU path's answer to round-off (RTOL_ROUNDOFF: the same expressions, the sums of a
+    product's rows in another order)."""
+    scene, modal, n = _elastic_gpu_agrees_with_cpu(case)
     # 'auto' takes the GPU for the elastic pillar too
     auto = solve_fft(scene, n, device="auto", pillars="elastic", compliance=modal)
     assert auto.diagnostics["device"] == "gpu"
@@ -423,11 +430,4 @@ def test_elastic_pillar_on_the_gpu_gives_the_cpu_answer(case):
     (RTOL_ROUNDOFF; the solve's own tolerance is 1e-8 of the indentation)."""
     _gpu_or_skip()
     pytest.importorskip("skfem", reason="the pillar's compliance is read through scikit-fem")
-    _, overrides, n = case
-    scene, modal = _elastic(overrides)
-    gpu = solve_fft(scene, n, device="gpu", pillars="elastic", compliance=modal,
-                    precision="double")
-    assert gpu.converged and gpu.diagnostics["device"] == "gpu"
-    cpu = solve_fft(scene, n, pillars="elastic", compliance=modal, precision="double",
-                    warm_start=GPU_WARM_START_LEVELS)
-    _agree(cpu, gpu, RTOL_ROUNDOFF, scene.indentation_m)
+    _elastic_gpu_agrees_with_cpu(case)
