@@ -14,7 +14,9 @@
 #      the CG's passes fused and not;
 #   1c. on request (PARTS with "first"), where a first call's time goes
 #      (validation/bench/gpu_first.py); (PARTS with "tests") the GPU-marked tests, with
-#      pytest and array_api_strict carried in .lent/pytest (copied from .venv);
+#      pytest and array_api_strict carried in .lent/pytest, made here by
+#      mkdir -p .lent/pytest && cp -r .venv/lib/python3*/site-packages/{pytest,_pytest,\
+#      pluggy,iniconfig,packaging,array_api_strict,py.py} .lent/pytest/;
 #   2. thread scaling of bem-fft at 1e6 cells on 1 to 16 threads (validation/bench/threads.py);
 #   3. the planner's predicted over measured seconds at 1, 4 and 16 threads
 #      (validation/bench/planner_threads.py);
