@@ -74,7 +74,7 @@ from ._elastic_pillar import (FFTPillarTerm, TopsOnlyTerm, check_pillars, operat
                               pillar_record, scene_compliance, tops_grid, uses_elastic_block)
 from ._fft_operator import CirculantPreconditioner, CompliancePlan, near_field_correction
 from ._limits import PRECISIONS
-from ._xp import NumpyDevice, select_backend
+from ._xp import NumpyDevice, fft_point_limit, select_backend
 
 if TYPE_CHECKING:  # scikit-fem and gmsh load only with the elastic pillar
     from fem_reference._pillar_compliance import ModalCompliance
@@ -203,7 +203,7 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
     be = select_backend(device, workers) if backend is None else backend
     if elastic:
         if scene.force_N is None:  # a refused grid never waits for a compliance build
-            _refuse_grid(scene, cells_per_diameter, be)
+            _refuse_grid(scene, cells_per_diameter, be, elastic)
         compliance = scene_compliance(scene, compliance, progress=progress)
     opts = _Options(tol, max_iterations, workers, warm_start, edge_correction, progress,
                     preconditioner, pillars, compliance if elastic else None, precision,
@@ -266,11 +266,12 @@ def _prepare(scene: Scene, cells_per_diameter: int, opts: _Options, be, workspac
              start: float) -> _Setup:
     """Grid, operator and preconditioner of ``scene`` (indentation-controlled: its
     indentation sets the candidate region, and on a flat scene the cell size)."""
-    _refuse_grid(scene, cells_per_diameter, be)
+    _refuse_grid(scene, cells_per_diameter, be, opts.elastic)
     xp = getattr(be, "numpy_like", np)
     if candidate_side(scene, cells_per_diameter) ** 2 < GPU_GRID_MIN_POINTS:
         xp = np  # a small grid is built faster on the host than by a device's launches
-    grid = build_grid(scene, cells_per_diameter, max_fft_points=be.max_fft_points, xp=xp)
+    grid = build_grid(scene, cells_per_diameter,
+                      max_fft_points=fft_point_limit(be, opts.elastic), xp=xp)
     if not opts.edge_correction:
         grid = _plain_grid(grid, scene)
     L = grid.cell_size
@@ -302,11 +303,13 @@ def _prepare(scene: Scene, cells_per_diameter: int, opts: _Options, be, workspac
     return _Setup(grid, plan, _preconditioner(plan, opts.preconditioner), timings)
 
 
-def _refuse_grid(scene: Scene, cells_per_diameter: int, be) -> None:
+def _refuse_grid(scene: Scene, cells_per_diameter: int, be,
+                 elastic: bool = False) -> None:
     """Refuse, before any array is built, a grid of ``scene`` beyond the FFT size limit (by
-    its side) or one that would not fit in the memory this process may take."""
+    its side; on a GPU, with the elastic pillar's term where ``elastic``) or one that would
+    not fit in the memory this process may take."""
     side = candidate_side(scene, cells_per_diameter)
-    check_grid_side(side, cells_per_diameter, be.max_fft_points)
+    check_grid_side(side, cells_per_diameter, fft_point_limit(be, elastic))
     need = estimate_host_memory(scene, cells_per_diameter, isinstance(be, NumpyDevice))
     short = memory_short(need)
     if short is not None:

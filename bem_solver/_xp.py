@@ -25,6 +25,20 @@ GPU_INSTALL = "pip install -e '.[gpu]' (cupy-cuda12x; with CUDA 13, pip install 
 # spectrum 4, complex column transforms 16 + 8, cuFFT work area ~16, vectors) with a margin;
 # the limit is the free device memory over this.
 GPU_BYTES_PER_FFT_POINT = 64
+# The elastic pillar's term on a GPU, per padded FFT point: per top cell ~440 bytes (kept: 13
+# trigonometric columns 104, its two projections' 6 entries 72, base moments 24, order and
+# position 16, diagonal and owner 16; in an application, two cells x 13 temporaries 208), at
+# most one top cell per 4 padded points, with a margin.
+GPU_ELASTIC_BYTES_PER_FFT_POINT = 128
+
+
+def fft_point_limit(be, elastic: bool) -> int:
+    """The padded FFT points a solve on ``be`` may take: its ``max_fft_points``, on a GPU
+    shared with the elastic pillar's term where ``elastic``."""
+    if not elastic or isinstance(be, NumpyDevice):
+        return be.max_fft_points
+    return be.max_fft_points * GPU_BYTES_PER_FFT_POINT \
+        // (GPU_BYTES_PER_FFT_POINT + GPU_ELASTIC_BYTES_PER_FFT_POINT)
 
 
 # Elementwise work of the numpy path on fewer elements than this runs in one piece: below it

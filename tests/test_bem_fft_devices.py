@@ -431,3 +431,31 @@ def test_elastic_pillar_on_the_gpu_gives_the_cpu_answer(case):
     _gpu_or_skip()
     pytest.importorskip("skfem", reason="the pillar's compliance is read through scikit-fem")
     _elastic_gpu_agrees_with_cpu(case)
+
+
+def test_the_elastic_pillar_takes_its_share_of_a_gpus_memory(cupy_stand_in):
+    """On a GPU the elastic pillar's term takes device memory beside the operator's
+    (GPU_ELASTIC_BYTES_PER_FFT_POINT): a grid that fits the operator alone but not both is
+    refused, before any array is built, naming cells_per_diameter; the CPU's limit is its
+    own (the stand-in's device has 8 GiB free)."""
+    from pillar_xval.scenes import SceneError
+
+    from bem_solver._fft_grid import candidate_side, check_grid_side
+    from bem_solver._xp import (GPU_BYTES_PER_FFT_POINT, GPU_ELASTIC_BYTES_PER_FFT_POINT,
+                                fft_point_limit)
+
+    be = select_backend("gpu")
+    full, shared = fft_point_limit(be, False), fft_point_limit(be, True)
+    assert full == (8 << 30) // GPU_BYTES_PER_FFT_POINT
+    assert shared == full * GPU_BYTES_PER_FFT_POINT \
+        // (GPU_BYTES_PER_FFT_POINT + GPU_ELASTIC_BYTES_PER_FFT_POINT)
+    assert fft_point_limit(NumpyDevice(), True) == NumpyDevice().max_fft_points
+    scene = load_scene("paper-fig3-sparse", ["pillars.E_Pa=1.6e5"])
+    n = 64
+    while candidate_side(scene, n) ** 2 <= 4 * shared:  # the first level past the shared limit
+        n += max(1, n // 64)
+    side = candidate_side(scene, n)
+    assert side ** 2 <= 4 * full  # ... that the operator alone would take
+    check_grid_side(side, n, full)
+    with pytest.raises(SceneError, match=f"cells_per_diameter = {n}"):
+        fft_module._refuse_grid(scene, n, be, elastic=True)
