@@ -3,7 +3,8 @@ on the same cupy arrays: the same values bit for bit, since each kernel does the
 round-to-nearest operations in the same order and its reductions (max, min, any) are exact
 in any order; and a solve with either gives the same iterations and, where no sum of the
 solve runs in an unfixed order (rigid pillars), the same pressures.  Marked
-``gpu``: skipped, with the reason, without cupy and a CUDA GPU."""
+``gpu``: skipped, with the reason, without cupy and a CUDA GPU; the kernels' compilation is
+checked wherever cupy's NVRTC is (no GPU needed)."""
 
 from __future__ import annotations
 
@@ -13,8 +14,6 @@ import pytest
 from bem_solver._xp import available_devices
 from pillar_xval.contact._cg import ArrayPasses
 from pillar_xval.contact._xp import one_piece
-
-pytestmark = pytest.mark.gpu
 
 # 1 cell; fewer cells than one block; more than MAX_BLOCKS x THREADS (each thread loops).
 SIZES = (1, 1000, 300_001)
@@ -50,6 +49,7 @@ def _equal(be, a, b):
     np.testing.assert_array_equal(be.to_numpy(a), be.to_numpy(b))
 
 
+@pytest.mark.gpu
 @pytest.mark.parametrize("n", SIZES)
 def test_each_fused_pass_equals_the_array_pass(backend, n):
     fused, arrays = backend.cg_passes, ArrayPasses(backend.xp, one_piece)
@@ -84,6 +84,7 @@ def test_each_fused_pass_equals_the_array_pass(backend, n):
     assert fused.new_set(na, qa, na.copy(), n) is False
 
 
+@pytest.mark.gpu
 @pytest.mark.parametrize("overrides", [["pillars.rigid=true"], []], ids=["rigid", "hooke"])
 def test_a_solve_with_the_fused_passes_is_the_array_passes_solve(overrides):
     if available_devices()["gpu"]:
@@ -103,3 +104,22 @@ def test_a_solve_with_the_fused_passes_is_the_array_passes_solve(overrides):
         # order on a GPU: F_T moved by 1.2e-13 and 3.2e-13 relative between the two solves
         # on an H200 (the solve's own tolerance is 1e-8 of the indentation)
         assert runs[0].total_force_N == pytest.approx(runs[1].total_force_N, rel=1e-12)
+
+
+def test_the_kernels_compile_without_a_gpu():
+    """The CUDA source of the fused passes compiles with NVRTC, which needs cupy's NVRTC
+    bindings and the NVRTC library but no GPU (a scratch environment with cupy-cuda12x and
+    nvidia-cuda-nvrtc-cu12 checks it on a machine without one); skipped where they are
+    missing."""
+    nvrtc = pytest.importorskip("cupy_backends.cuda.libs.nvrtc",
+                                reason="cupy's NVRTC bindings")
+    from pillar_xval.contact._cuda import SOURCE
+
+    try:
+        program = nvrtc.createProgram(SOURCE, "passes.cu", [], [])
+    except Exception as exc:  # no NVRTC library: nothing to compile with here
+        pytest.skip(f"NVRTC unavailable ({type(exc).__name__})")
+    try:
+        nvrtc.compileProgram(program, ["-arch=compute_70"])
+    except Exception:
+        pytest.fail(nvrtc.getProgramLog(program))
