@@ -363,9 +363,11 @@ class FFTPillarTerm:
       partly covered cells restricted to pairs on the same pillar.
 
     Collocation points: the grid's (centroids of partly covered cells), relative to their
-    pillar's centre.  Set up on the host (numpy and scipy); applied on the device of
-    ``backend`` (:mod:`bem_solver._xp`, default numpy on the CPU): ``term(q)`` takes and
-    returns that device's vectors, and ``diagonal`` lives there.  On numpy the projections
+    pillar's centre.  Set up and applied on the device of ``backend`` (:mod:`bem_solver._xp`,
+    default numpy on the CPU; the set-up on the host where the device lacks numpy's API):
+    ``term(q)`` takes and returns that device's vectors, and ``diagonal`` lives there; the
+    near-field pairs come from ``correction_builder(gamma, backend)``, built on that backend
+    (None: the host).  On numpy the projections
     run in chunks of whole pillars (cache-sized) and the boxes' transforms on the backend's
     threads; on another device each projection is one sparse product over every pillar.
     """
@@ -377,8 +379,10 @@ class FFTPillarTerm:
         self.backend = be
         self.on_host = isinstance(be, NumpyDevice)
         # The per-cell set-up runs where the term is applied when that device has numpy's
-        # API (cupy: 0.05 s instead of ~1 s of host work at 1e6 cells), else on the host.
+        # API (cupy: the elastic solve's kernel table 0.06 s instead of 1.07 s at 1e6 cells on
+        # an H200), else on the host.
         xp = np if self.on_host else getattr(be, "numpy_like", np)
+        self._setup_xp = xp
         self.modal = compliance
         self.half_space = scene.half_space_compliance
         a = 0.5 * scene.pillars.diameter_m
@@ -443,7 +447,7 @@ class FFTPillarTerm:
             moments = xp.ascontiguousarray(coupling_moments(scene, compliance, dx, dy, xp).T)
             self.coupling = {"m": be.asarray(moments),
                              "h": be.asarray(coupling_kernel(scene, grid.pillar_xy)),
-                             "pillar": be.asarray(np.asarray(grid.pillar))}
+                             "pillar": be.asarray(pillar)}
 
     @property
     def applies_few(self) -> bool:
@@ -477,9 +481,8 @@ class FFTPillarTerm:
 
     def _local_plan(self, grid, local, correction_builder):
         """The boxes' layout and kernel spectrum, and the near-field correction's pairs on
-        one pillar (``correction_builder(gamma)``: None, or a sparse matrix on the host
-        (scipy) or on the device (cupyx), whose pairs are kept there), kept on the
-        device."""
+        one pillar (``correction_builder(gamma, backend)``: None, or the correction built
+        where the term is set up, whose pairs are kept there), kept on the device."""
         from ._fft_operator import kernel_block
 
         be = self.backend
@@ -499,9 +502,10 @@ class FFTPillarTerm:
         padded[:, M - B + 1:] = padded[:, 1:B][:, ::-1]
         spectrum = np.real(sfft.rfft2(padded))
         index = (grid.pillar * M + ly) * M + lx
-        correction, diagonal = correction_builder(local), None
+        xp = self._setup_xp
+        correction = correction_builder(local, None if xp is np else be)
+        diagonal = None
         if correction is not None:  # keep the pairs on one pillar (where the matrix is)
-            xp = np if isinstance(correction, sp.spmatrix) else be.numpy_like
             c = correction.tocoo()
             pillar = xp.asarray(grid.pillar)
             same = pillar[c.row] == pillar[c.col]

@@ -128,14 +128,14 @@ class NumpyDevice(NumpyArrays):
 
 
 class CupyDevice(CupyArrays):
-    """cupy + cuFFT + cupyx.scipy.sparse on the current CUDA device."""
+    """cupy + cuFFT + cupyx.scipy.sparse (:meth:`CupyArrays.sparse`) on the current CUDA
+    device."""
 
     def __init__(self, fused: bool = True):
         super().__init__(fused)
         import cupyx.scipy.fft as cfft
-        import cupyx.scipy.sparse as csp
 
-        self._fft, self._sparse = cfft, csp
+        self._fft = cfft
         free, _total = self._cp.cuda.runtime.memGetInfo()
         self.max_fft_points = int(free // GPU_BYTES_PER_FFT_POINT)
 
@@ -159,12 +159,6 @@ class CupyDevice(CupyArrays):
 
     def next_fast_len(self, n: int) -> int:
         return self._fft.next_fast_len(n)
-
-    def sparse(self, rows, cols, values, n: int, columns: int | None = None):
-        # COO with the entries in any order, then CSR for the products (the callers' entries
-        # are distinct).
-        shape = (n, n if columns is None else columns)
-        return self._sparse.coo_matrix((values, (rows, cols)), shape=shape).tocsr()
 
     def synchronize(self) -> None:
         self._cp.cuda.Device().synchronize()

@@ -290,7 +290,7 @@ def test_fft_pillar_term_is_the_dense_block():
     scene = _single("pillars.E_Pa=1.6e7", "load.indentation_um=0.05")
     m = _modal(scene)
     grid = build_grid(scene, 8)
-    term = FFTPillarTerm(scene, grid, m, lambda g: near_field_correction(grid, g))
+    term = FFTPillarTerm(scene, grid, m, lambda g, where: near_field_correction(grid, g, backend=where))
     A = term.dense_matrix()
     np.testing.assert_allclose(A, A.T, atol=1e-12 * np.abs(A).max())
     np.testing.assert_allclose(np.diag(A), term.diagonal, rtol=1e-10)

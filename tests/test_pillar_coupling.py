@@ -177,7 +177,7 @@ def test_fft_coupling_equals_the_formula_on_its_cells():
     scene = _scene(zeta_um=0.05, E_p=1.6e9)
     m = modal_compliance(PillarKind.of_scene(scene), 2, **COARSE)
     grid = build_grid(scene, 6)
-    term = FFTPillarTerm(scene, grid, m, lambda g: near_field_correction(grid, g))
+    term = FFTPillarTerm(scene, grid, m, lambda g, where: near_field_correction(grid, g, backend=where))
     assert term.coupling is not None and len(grid.pillar_xy) >= 7
     centre = grid.pillar_xy[grid.pillar]
     K = _formula(scene, m, grid.colloc_x - centre[:, 0], grid.colloc_y - centre[:, 1],
@@ -197,7 +197,7 @@ def test_fft_coupling_equals_the_formula_on_its_cells():
     same = _scene(zeta_um=0.05, E_p=1.6e6)
     grid = build_grid(same, 6)
     term = FFTPillarTerm(same, grid, modal_compliance(PillarKind.of_scene(same), 2, **COARSE),
-                         lambda g: near_field_correction(grid, g))
+                         lambda g, where: near_field_correction(grid, g, backend=where))
     assert term.local is None and term.coupling is not None
     idx = np.array([0, grid.n_cells // 2])
     few = term.apply_few(idx, np.array([1.0, -2.0]))

@@ -181,13 +181,20 @@ class CupyArrays:
         of the (n x len(index)) incidence matrix in CSR (cuSPARSE): one launch, each label's
         sum in a fixed order (the same bits on every run), where the scatter-add's atomics
         contend on few labels (a pillar's thousands of cells) in no fixed order."""
-        import cupyx.scipy.sparse as csp
-
         m = int(index.shape[0])
         cp = self._cp
-        incidence = csp.coo_matrix((cp.ones(m, dtype=cp.float64),
-                                    (cp.asarray(index), cp.arange(m))), shape=(n, m)).tocsr()
+        incidence = self.sparse(cp.asarray(index), cp.arange(m), cp.ones(m, dtype=cp.float64),
+                                n, m)
         return lambda weights: incidence @ weights
+
+    def sparse(self, rows, cols, values, n: int, columns: int | None = None):
+        """The CSR matrix (cupyx) of (row, column, value) triples, ``n`` rows and ``columns``
+        (default ``n``) columns: COO with the entries in any order, then CSR for the
+        products (the callers' entries are distinct)."""
+        import cupyx.scipy.sparse as csp
+
+        shape = (n, n if columns is None else columns)
+        return csp.coo_matrix((values, (rows, cols)), shape=shape).tocsr()
 
     def spreader(self, index):
         return lambda values, lo=0, hi=None: self._cp.take(values, index[lo:hi])

@@ -11,9 +11,10 @@ to 2e7 grid cells (32 to 256 cells per pillar diameter).  For each case it repor
 time of each path, the time to build the kernel table (kernel block, its spectrum and the
 near-field correction of the finest level) apart, the iterations, and the relative
 difference of F_T between the paths.  Each case runs in its own interpreter, so its peak
-host memory (``ru_maxrss``) is its own, and is solved there twice: the first solve is what
-a one-off call takes (cuFFT plans made, kernels loaded; the CUDA context is made before the
-clock), the second ('again') what each solve of a study in one process takes.  Prints a
+host memory (``ru_maxrss``) is its own, and is solved there 1 + ``--again`` times: the first
+solve is what a one-off call takes (cuFFT plans made, kernels loaded; the CUDA context is made
+before the clock), the median of the others ('again') what each solve of a study in one
+process takes.  Prints a
 table and writes ``bench_gpu.json`` after every case, so that a run stopped at a lent
 machine's limit keeps what it measured (``--budget-s`` starts no case after that many
 seconds).  The runs on lent GPUs are kept in
@@ -65,9 +66,10 @@ CPU_BYTES_PER_FFT_POINT = 64
 
 
 def _solve(spec: dict) -> dict:
-    """The case solved twice in this interpreter: 'first' as a one-off call pays for its
-    cuFFT plans and kernel loads (CUDA context made before the clock), 'again' as the next
-    solve of a study does not.  The measurements of the first, plus the second's times."""
+    """The case solved 1 + ``again`` times in this interpreter (once again on the CPU):
+    'first' as a one-off call pays for its cuFFT plans and kernel loads (CUDA context made
+    before the clock), 'again' as the next solves of a study do not.  The measurements of
+    the first, plus the times of the median of the others."""
     from bem_solver._fft import solve_fft
     from bem_solver._xp import NumpyDevice, select_backend
     from pillar_xval.scenes import load_scene
@@ -243,9 +245,9 @@ def main(argv=None) -> int:
                 else:
                     print(f"bench-gpu: {pillars} N = {n} on {device} ({elapsed:.0f} s)",
                           file=sys.stderr, flush=True)
-                    repeats = args.cpu_repeats if device == "cpu" else args.repeats
+                    repeats = (args.cpu_repeats if device == "cpu" else None) or args.repeats
                     row[device] = _median([run_case(spec, args.timeout)
-                                           for _ in range(repeats or args.repeats)])
+                                           for _ in range(repeats)])
                 # each finished case at once: a run stopped at its limit keeps the rest
                 table = write_report(args.out, rows, meta)
     print(table)

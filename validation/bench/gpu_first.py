@@ -30,10 +30,8 @@ from pathlib import Path
 
 from . import write_record
 from .fft import run_worker
+from .gpu_parts import PILLARS, SCENE, TOL  # the same scene, pillars and tolerance
 
-SCENE = "paper-fig3-dense"
-PILLARS = {"rigid": ("pillars.rigid=true",), "hooke": ()}
-TOL = 1e-8
 PRIME_N = 32
 
 
