@@ -187,6 +187,25 @@ def padded_length(n: int, next_fast_len) -> int:
     return next_fast_len(max(2 * int(n) - 2, 1))
 
 
+def padded_rows(n: int, be) -> int:
+    """Rows of the operator's zero-padded grid for ``n`` rows of cells on backend ``be``:
+    on numpy (``split_columns``), twice a fast length of complex transforms >= n
+    (:class:`PrunedConvolution` then splits its column transforms in two halves; at least
+    the 2 n - 2 points of :func:`padded_length`); elsewhere :func:`padded_length`."""
+    if _pocketfft is None or not getattr(be, "split_columns", False):
+        return padded_length(n, be.next_fast_len)
+    import scipy.fft as sfft
+
+    return 2 * sfft.next_fast_len(int(n), real=False)
+
+
+def _zero(a: np.ndarray) -> None:
+    """Zeros into the numpy array ``a`` (rows contiguous: a view, never a copy), as bytes:
+    numpy fills bytes with memset, complex elements with its own loop (8.3 MB of complex64
+    in 0.09 against 0.30 ms when in cache, 0.29 against 0.55 ms when not)."""
+    a.view(np.uint8).fill(0)
+
+
 class TransformWorkspace:
     """Work arrays of the numpy path's transforms, shared by convolutions that run one after
     the other: a plan's two precisions, its preconditioner and the warm start's coarser
@@ -222,6 +241,16 @@ class PrunedConvolution:
     floating-point operations as the generic path: identical results, no page faults of
     fresh 10-60 MB arrays per call).
 
+    On numpy, where my = 2 M with M >= ny (:func:`padded_rows`) and the spectrum's products
+    are kept in pairs (every call but the mixed plan's rare float64 ones), the column
+    transforms are split in two (decimation in frequency, the zero half never
+    transformed): the even output rows are the M-point transform of the ny rows, the odd ones
+    that of the rows times exp(-i pi n / M); each half is multiplied by its own rows of the
+    spectrum (halved: exact), transformed back on M points, and the first ny rows are the
+    even half's plus the odd half's times exp(i pi n / M).  Two M-point transforms cost less
+    than one of 2 M points: the operator's application at 1e6 cells ~10 % less.  The
+    same result to round-off, not the generic path's bits.
+
     ``single=True`` runs the same transforms in float32 (complex64), 0.6-0.65 of the float64
     time, with a relative error of a few 1e-7 of the result's scale
     (:data:`SINGLE_PRECISION_ERROR`); the result is returned in float64.  The arrays of each
@@ -253,6 +282,11 @@ class PrunedConvolution:
         # on numpy it multiplies by the real spectrum itself (3 ms more a call at 1e6 cells)
         # instead of keeping its own pairs (33 MB to fill with every level's plan).
         self._double_is_rare = set(precisions) == {"single", "double"}
+        my = self.fft_shape[0]
+        self._split = self._pocket and be.split_columns and my % 2 == 0 and my // 2 >= ny
+        if self._split:  # exp(-i pi n / M) for the ny rows, then its conjugate
+            shift = np.exp(-1j * np.pi * np.arange(ny) / (my // 2))[:, None]
+            self._twiddles = (shift, np.conj(shift))
         for precision in precisions:  # made now, with the plan, not in the first solve's call
             self._state(precision)
 
@@ -266,7 +300,7 @@ class PrunedConvolution:
             ny = self.shape[0]
             my, mx = self.fft_shape
             real = xp.float64 if precision == "double" else xp.float32
-            spectrum, work = None, None
+            spectrum, work, twiddles = None, None, None
             if not self._pocket:
                 spectrum = xp.astype(self.spectrum, real)
             else:
@@ -278,12 +312,17 @@ class PrunedConvolution:
                     # spectrum: one float product of equal arrays (half the time of numpy's
                     # complex-by-real product, which widens the real factor; the same
                     # values).
+                    source = self.spectrum
+                    if self._split:  # the even rows, then the odd ones, halved (exact)
+                        source = 0.5 * np.concatenate((source[0::2], source[1::2]))
                     pairs = np.empty((my, mx // 2 + 1, 2), dtype=real)
-                    pairs[..., 0] = self.spectrum
-                    pairs[..., 1] = self.spectrum
+                    pairs[..., 0] = source
+                    pairs[..., 1] = source
                     factor = pairs.reshape(my, 2 * (mx // 2 + 1))
+                    if self._split:
+                        twiddles = tuple(t.astype(complex_) for t in self._twiddles)
                 work = (self.workspace.take("spectrum", (my, mx // 2 + 1), complex_),
-                        self.workspace.take("output", (ny, mx), real), factor)
+                        self.workspace.take("output", (ny, mx), real), factor, twiddles)
             state = (xp.zeros(ny * mx, dtype=real), spectrum, work)
             self._arrays[precision] = state
         return state
@@ -336,7 +375,7 @@ class PrunedConvolution:
             n = self.padded_index.shape[0]
             return self(be.put(xp.zeros(n, dtype=xp.float64), index, values), single)
         # zero off the candidate cells already: the same buffer as a scatter
-        in_chunks(lambda lo, hi: buffer[lo:hi].fill(0.0), buffer.shape[0], be.workers)
+        in_chunks(lambda lo, hi: _zero(buffer[lo:hi]), buffer.shape[0], be.workers)
         if self.n_unique < self.padded_index.shape[0]:  # two unknowns may share a position
             np.add.at(buffer, self.padded_index[index], values.astype(buffer.dtype))
         else:
@@ -350,19 +389,41 @@ class PrunedConvolution:
         chunks on the transforms' threads (:func:`in_chunks`)."""
         ny = self.shape[0]
         my, mx = self.fft_shape
-        spec, out, factor = work
+        spec, out, factor, twiddles = work
         workers = self.backend.workers
         _pocketfft.r2c(buffer.reshape(ny, mx), (1,), True, 0, spec[:ny], workers)
         row = spec.shape[1]
-        in_chunks(lambda lo, hi: spec[ny + lo:ny + hi].fill(0.0), my - ny, workers, row)
-        _pocketfft.c2c(spec, (0,), True, 0, spec, workers)
+        if twiddles is None:
+            in_chunks(lambda lo, hi: _zero(spec[ny + lo:ny + hi]), my - ny, workers, row)
+            columns, axis = spec, 0
+        else:  # two halves of M rows (class docstring)
+            half = my // 2
+            even, odd = spec[:half], spec[half:]
+            shift, back = twiddles
+
+            def shifted(lo, hi):
+                np.multiply(even[lo:hi], shift[lo:hi], out=odd[lo:hi])
+
+            in_chunks(shifted, ny, workers, row)
+            _zero(even[ny:])
+            _zero(odd[ny:])
+            columns, axis = spec.reshape(2, half, row), 1
+        _pocketfft.c2c(columns, (axis,), True, 0, columns, workers)
         if factor.shape == spec.shape:  # the real spectrum itself
             product = spec
         else:  # its (re, im) pairs
             product = spec.view(out.dtype).reshape(factor.shape)
         in_chunks(lambda lo, hi: np.multiply(product[lo:hi], factor[lo:hi],
                                              out=product[lo:hi]), my, workers, row)
-        _pocketfft.c2c(spec, (0,), False, 2, spec, workers)
+        _pocketfft.c2c(columns, (axis,), False, 2, columns, workers)
+        if twiddles is not None:
+
+            def combined(lo, hi):
+                part = odd[lo:hi]
+                np.multiply(part, back[lo:hi], out=part)
+                even[lo:hi] += part
+
+            in_chunks(combined, ny, workers, row)
         _pocketfft.c2r(spec[:ny], (1,), mx, False, 2, out, workers)
         flat, index = out.reshape(-1), self.padded_index
         result = np.empty(index.shape[0])
@@ -429,8 +490,7 @@ class CompliancePlan:
         self.compliance = float(compliance)
         self.workers = getattr(be, "workers", workers)
         # Linear convolution of n-point sequences with an even kernel: >= 2n - 2 points.
-        self.fft_shape = (padded_length(ny, be.next_fast_len),
-                          padded_length(nx, be.next_fast_len))
+        self.fft_shape = (padded_rows(ny, be), padded_length(nx, be.next_fast_len))
         my, mx = self.fft_shape
         block = kernel_block(shape, cell_size, compliance, xp)
         padded = xp.zeros(self.fft_shape, dtype=xp.float64)
@@ -695,7 +755,7 @@ class CompliancePlan:
             u[lo:hi] = flat.take(index[lo:hi])
 
         in_chunks(gather, index.shape[0], workers)
-        in_chunks(lambda lo, hi: acc[lo:hi].fill(0.0), ny, workers, nx)
+        in_chunks(lambda lo, hi: _zero(acc[lo:hi]), ny, workers, nx)
         return u
 
     def dense_matrix(self, x, y) -> np.ndarray:

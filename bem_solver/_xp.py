@@ -9,9 +9,11 @@ runs on: numpy and scipy.fft on the CPU (the default), cupy and cuFFT on a CUDA 
 from __future__ import annotations
 
 import functools
+import math
 import os
 from concurrent.futures import ThreadPoolExecutor
 
+import numpy as np
 
 from pillar_xval.contact._xp import CupyArrays, NumpyArrays
 from pillar_xval.scenes import InputError
@@ -44,6 +46,10 @@ def fft_point_limit(be, elastic: bool) -> int:
 # Elementwise work of the numpy path on fewer elements than this runs in one piece: below it
 # handing chunks to threads costs more than it saves.
 CHUNK_MIN = 1 << 16
+# The numpy path's scalar products are summed over blocks of this many entries, each block's
+# product whole and the blocks' sums added exactly (math.fsum): the blocks are shared among the
+# FFT threads, and the bits do not depend on how many there are.
+DOT_BLOCK = 1 << 15
 
 _POOLS: dict = {}
 
@@ -68,11 +74,16 @@ def in_chunks(work, n: int, workers: int, size: int = 1) -> None:
 
 class NumpyDevice(NumpyArrays):
     """numpy + scipy.fft (threaded: ``workers``, default
-    :func:`pillar_xval.threads.thread_count`) + scipy.sparse on the CPU."""
+    :func:`pillar_xval.threads.thread_count`) + scipy.sparse on the CPU.  ``split_columns``
+    (default True): the operator's column transforms in two halves
+    (:class:`bem_solver._fft_operator.PrunedConvolution`); False gives the generic path's
+    grid and bits (a reference for the array-API tests)."""
 
-    def __init__(self, workers: int | None = None, max_fft_points: int = MAX_FFT_POINTS):
+    def __init__(self, workers: int | None = None, max_fft_points: int = MAX_FFT_POINTS,
+                 split_columns: bool = True):
         self.workers = thread_count() if workers is None else int(workers)
         self.max_fft_points = max_fft_points  # default ~1 GB of work arrays
+        self.split_columns = bool(split_columns)
 
     def rfft2(self, a):
         import scipy.fft as sfft
@@ -105,6 +116,23 @@ class NumpyDevice(NumpyArrays):
         import scipy.fft as sfft
 
         return sfft.irfft(a, n=n, axis=axis, workers=self.workers)
+
+    def dot(self, a, b) -> float:
+        """The scalar product of two vectors (a Python float), by blocks of
+        :data:`DOT_BLOCK` entries in chunks on the FFT threads; one block: the whole
+        product."""
+        blocks = -(-int(a.shape[0]) // DOT_BLOCK)
+        if blocks <= 1:
+            return super().dot(a, b)
+        sums = np.empty(blocks)
+
+        def part(k0, k1):
+            for k in range(k0, k1):
+                lo = k * DOT_BLOCK
+                sums[k] = np.einsum("i,i->", a[lo:lo + DOT_BLOCK], b[lo:lo + DOT_BLOCK])
+
+        self.chunks(part, blocks, DOT_BLOCK)
+        return math.fsum(sums.tolist())
 
     def chunks(self, work, n: int, size: int = 1) -> None:
         """``work(lo, hi)`` over [0, n) in chunks on the FFT threads (:func:`in_chunks`); the

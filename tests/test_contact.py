@@ -232,8 +232,9 @@ def test_threaded_segments_give_the_one_piece_bits(kind, monkeypatch):
 def test_chunked_steps_are_the_plain_steps():
     """The CG's fused passes (in chunks, in kept arrays) against the plain expressions they
     replace, bit for bit, in one piece and in uneven pieces: the residual and the free set,
-    the conjugate direction, the step and its minimum, the clipping, the gap's update with
-    its rounding scale, and the new contact set with its entries."""
+    the conjugate direction, the step and its minimum, the cells it drives negative, the
+    clipping, the gap's update with its rounding scale, and the new contact set with its
+    entries."""
     from pillar_xval.contact import _cg
 
     rng = np.random.default_rng(11)
@@ -261,6 +262,8 @@ def test_chunked_steps_are_the_plain_steps():
         step = np.empty(n)
         low = _cg._step(np, chunks, step, q, tau, t, n)
         assert np.array_equal(step, q - tau * t) and low == float((q - tau * t).min())
+        negatives = _cg.ArrayPasses(np, chunks).negatives(step, n)
+        assert negatives.size > 0 and np.array_equal(negatives, np.nonzero(step < 0.0)[0])
         clipped = step.copy()
         chunks(_cg._clip(np, clipped), n)
         assert np.array_equal(clipped, np.maximum(step, 0.0))

@@ -66,6 +66,7 @@ def test_each_fused_pass_equals_the_array_pass(backend, n):
     low = fused.step(qa, a["q"], 0.8, a["t"], n)
     assert low == arrays.step(qb, b["q"], 0.8, b["t"], n)
     _equal(backend, qa, qb)
+    _equal(backend, fused.negatives(qa, n), arrays.negatives(qb, n))
     fused.clip(qa, n)
     arrays.clip(qb, n)
     _equal(backend, qa, qb)

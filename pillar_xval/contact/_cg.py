@@ -304,7 +304,7 @@ def constrained_cg(apply: Operator, b, q0, *, scale, tol=1e-8, max_iterations=10
         clip_gap = None
         if any_clipped:
             if apply_few is not None:  # A of the clipping, q_new's change on few cells
-                clipped = xp.nonzero(q_new < 0.0)[0]
+                clipped = passes.negatives(q_new, n)
                 values = -xp.take(q_new, clipped)
                 clip_gap = apply_few(clipped, values, single=True) if approximate \
                     else apply_few(clipped, values)
@@ -480,6 +480,17 @@ class ArrayPasses:
 
     def clip(self, q, n) -> None:
         self.chunks(_clip(self.xp, q), n)
+
+    def negatives(self, q, n):
+        """The cells where q < 0, in increasing order (each chunk finds its own)."""
+        xp, found = self.xp, {}
+
+        def part(lo, hi):
+            found[lo] = xp.nonzero(q[lo:hi] < 0.0)[0] + lo
+
+        self.chunks(part, n)
+        parts = [found[lo] for lo in sorted(found)]
+        return parts[0] if len(parts) == 1 else xp.concat(parts)
 
     def update_gap(self, gap, w, tau, clip_gap, n) -> float:
         return _update_gap(self.xp, self.chunks, gap, w, tau, clip_gap, n)

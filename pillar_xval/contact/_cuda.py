@@ -219,6 +219,9 @@ class CudaPasses:
     def clip(self, q, n: int) -> None:
         self._launch("clip", n, q, np.int64(n), reduce=False)
 
+    def negatives(self, q, n: int):
+        return self._cp.nonzero(q < 0.0)[0]
+
     def update_gap(self, gap, w, tau: float, clip_gap, n: int) -> float:
         if clip_gap is None:
             self._launch("update_gap", n, w, gap, np.float64(tau), np.int64(n))
