@@ -158,6 +158,20 @@ def test_size_rule_takes_the_nearest_meshed_pillar_everywhere():
         assert geo.size_at(x, y, z) == min(g.size_at(x, y, z) for g in alone), (x, y, z)
 
 
+def test_skfem_form_numbers_facets_and_edges_as_skfem_does(lattice_mesh):
+    """The keyed facets and edges (one int64 key per entity) are scikit-fem's own arrays, on
+    the mesh and on the copies scaled() and with_boundaries() make."""
+    from skfem import MeshTet
+
+    sk = lattice_mesh.to_skfem()
+    plain = MeshTet(sk.p, sk.t)
+    for copy in (sk, sk.scaled([2.0] * 3), sk.with_boundaries({"x": np.arange(3)})):
+        assert type(copy) is type(sk)
+        for name in ("facets", "t2f", "edges", "t2e", "f2t"):
+            a, b = getattr(copy, name), getattr(plain, name)
+            assert a.dtype == b.dtype and np.array_equal(a, b), name
+
+
 def test_flat_sector_and_rigid_bodies():
     a = 2.45e-5
     flat = build_wedge_mesh(WedgeGeometry(a, 1e3 * a, contact_radius_m=1.5 * a, mesh_size=2.0,
