@@ -6,7 +6,7 @@ STAMP  := $(VENV)/.installed
 OUT    ?= out
 
 .PHONY: demo study-gecit study-lattice study-floor figures test test-slow bench-bem bench-fft bench-gpu bench-fem3d \
-	bench-elastic bench-fem3d-floor bench-fem3d-floor-levels bench-engine bench-figures bench-startup bench-force \
+	bench-elastic bench-fem3d-floor bench-fem3d-floor-levels bench-mesh3d-ab bench-engine bench-figures bench-startup bench-force \
 	bench-floor bench-floor-gap bench-sweep bench-threads bench-planner-threads clean calibrate validate-planner extremes \
 	regimes docs lint reproduce lent-kit
 
@@ -159,6 +159,14 @@ bench-fem3d-floor-levels: $(STAMP)
 	$(if $(BASELINE),,$(error BASELINE=DIR: a checkout of the code to compare against))
 	$(PY) -m validation.bench.ab --baseline $(BASELINE) --out $(OUT)/bench-fem3d-floor-levels \
 		--repeats 1 $(foreach p,0.2 0.4,$(foreach m,2.83 2 1.41,--case floor3d:$(p):$(m)))
+
+# fem-3d's mesh phase alone (gmsh and the scikit-fem mesh) at the lattice study's levels
+# 2.83 and 2 on Phi = 0.2 and 0.82, this checkout against BASELINE (as above): CPU and wall
+# medians of 4 interleaved runs, elements, quality and whether both made the same mesh (a
+# few minutes).
+bench-mesh3d-ab: $(STAMP)
+	$(if $(BASELINE),,$(error BASELINE=DIR: a checkout of the code to compare against))
+	$(PY) -m validation.bench.mesh3d_ab --baseline $(BASELINE) --out $(OUT)/bench-mesh3d-ab
 
 # Thread scaling: bem-fft at 1e6 cells and the dense BEM on 1 up to the CPUs this process may
 # use (fresh interpreters, medians of 3 interleaved runs, answers compared with 1 thread's),

@@ -3,6 +3,8 @@ solving."""
 
 from __future__ import annotations
 
+import argparse
+
 import pytest
 
 from validation.bench import ab
@@ -81,3 +83,25 @@ def test_floor3d_cases_are_the_floor_validations_lattices_with_elements_and_area
            "elements": 1234, "floor_area_m2": 650.4e-12}
     rows = ab.summarise(case, {"baseline": [run], "this": [run]})
     assert "| 1.50 | 1234 | 650.4 |" in ab.table(rows)
+
+
+def test_mesh_phase_rows_say_whether_both_sides_made_the_same_mesh():
+    from validation.bench import mesh3d_ab
+
+    case = mesh3d_ab.parse_case("0.82:2")
+    assert case["mesh_size"] == 2.0 and case["overrides"] == ["pillars.surface_fraction=0.82"]
+
+    def run(cpu, digest):
+        return {"wall_s": cpu + 0.1, "cpu_s": cpu, "nodes": 10, "elements": 20,
+                "min_quality": 0.25, "mean_quality": 0.7, "sha256": digest}
+
+    for digest, same in (("a", True), ("b", False)):
+        runs = {"baseline": [run(4.0, "a"), run(6.0, "a")], "this": [run(2.0, digest),
+                                                                       run(3.0, digest)]}
+        base, this = mesh3d_ab.summarise(case, runs)
+        assert base["cpu_median_s"] == 5.0 and this["cpu_speed-up"] == 2.0
+        assert this["same_mesh"] is same
+        assert f"| 0.82:2 | this | 2.600 | 2.500 | 2.00 | 10 | 20 | 0.2500 / 0.7000 | {same} |" \
+            in mesh3d_ab.table([base, this])
+    with pytest.raises(argparse.ArgumentTypeError, match="PHI:MESH_SIZE"):
+        mesh3d_ab.parse_case("0.82")

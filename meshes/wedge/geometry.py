@@ -181,14 +181,13 @@ class WedgeGeometry:
 
     def size_callback(self):
         """The size rule of :meth:`size_at` as gmsh's size callback ``f(dim, tag, x, y, z,
-        lc)``, its constants bound once and the meshed centres near each rounded lattice
-        point looked up once (gmsh calls it ~5e5 times a mesh, mostly to integrate the size
-        along the curves near the pillars): 1.5-2x faster per call than reading them from
-        the geometry at every call, to the same values (bitwise)."""
+        lc)``, its constants bound once and the centres that can be nearest to a point found
+        once per cell of a grid (:class:`_CellGrid`): gmsh calls it ~5e5 times a mesh, mostly
+        to integrate the size along the curves near the pillars."""
         cached = self.__dict__.get("_size_callback")
         if cached is not None:
             return cached
-        hypot, inf = math.hypot, math.inf
+        hypot, inf, floor, frexp, ldexp = math.hypot, math.inf, math.floor, math.frexp, math.ldexp
         h_c = 1.0 / self.elements_across_contact
         h_e = self.edge_ratio * h_c
         g = self.growth
@@ -208,7 +207,6 @@ class WedgeGeometry:
         h_0 = self.centre_ratio * h_c
         centred = self.centre_ratio < 1.0
         table, e = self._lattice
-        row = SQRT3 * e
         centres = list(table.values())
         # With a floor the rule is the same at z and -h - z (the floor's faces and their
         # copies on the lens, the pillars' tops and bases get the same curves' nodes).
@@ -221,31 +219,41 @@ class WedgeGeometry:
         fine = self.floor_fine_radius_m
         c_f = (fine or self.floor_radius_m or 0.0) / self.focus_radius_m
         h_fl = h_c if fine is None else self.floor_ratio * h_c
-        around = [(dn, dm) for dn in (-1, 0, 1) for dm in (-1, 0, 1)]
-        near = {}  # rounded lattice indices -> the meshed centres among their 3 x 3 block
+        only = centres[0] if len(centres) == 1 else None
+        cell_of = _CellGrid(centres, e)
+        cells = {}  # cell key -> the centres that can be nearest to a point of the cell
+        w0, inv0, R, invR = cell_of.w0, 1.0 / cell_of.w0, cell_of.R, 1.0 / cell_of.R
 
         def size(dim, tag, x, y, z, lc):
-            # The nearest meshed pillar: the lattice point found by rounding the lattice
-            # coordinates, checked with its eight index neighbours, or a scan of all pillars
-            # when none of those is meshed.  Only the nearest pillar matters: pillars do not
-            # overlap, so the nearest centre is also nearest to every top, rim and base
-            # feature (and each size grows with distance).  Comparisons spell out min, max
-            # and abs (the first of equal values wins, as with them), and hypot takes signed
-            # arguments: the same values, without the builtins' calls.
-            candidates = centres
-            if e > 0.0:
-                m0 = round(2.0 * y / row)
-                n0 = round((2.0 * x / e + m0) / 2.0)
-                candidates = near.get((n0, m0))
+            # The nearest meshed pillar: among the centres that can be nearest anywhere in
+            # the point's cell (one, but near the cells' Voronoi edges; the cell's key inlined
+            # from _CellGrid.key, as gmsh calls this ~5e5 times a mesh).  Only the nearest
+            # pillar matters: pillars do not overlap, so the nearest centre is also nearest
+            # to every top, rim and base feature (and each size grows with distance).
+            # Comparisons spell out min, max and abs (the first of equal values wins, as with
+            # them), and hypot takes signed arguments: the same values, without the
+            # builtins' calls.
+            if only is None:
+                a, b = (x if x >= 0.0 else -x), (y if y >= 0.0 else -y)
+                if (a if a > b else b) < R:
+                    key = (0, floor(x * inv0), floor(y * inv0))
+                else:
+                    level = frexp((a if a > b else b) * invR)[1]
+                    w = ldexp(w0, level)
+                    key = (level, floor(x / w), floor(y / w))
+                candidates = cells.get(key)
                 if candidates is None:
-                    candidates = [table[k] for k in ((n0 + dn, m0 + dm) for dn, dm in around)
-                                  if k in table] or centres
-                    near[(n0, m0)] = candidates
-            best = inf
-            for p in candidates:
-                d2 = (p[0] - x) ** 2 + (p[1] - y) ** 2
-                if d2 < best:
-                    best, (cx, cy) = d2, p
+                    candidates = cells[key] = cell_of.candidates(key)
+                if len(candidates) == 1:
+                    cx, cy = candidates[0]
+                else:
+                    best = inf
+                    for p in candidates:
+                        d2 = (p[0] - x) ** 2 + (p[1] - y) ** 2
+                        if d2 < best:
+                            best, (cx, cy) = d2, p
+            else:
+                cx, cy = only
             rim = hypot(x - cx, y - cy) - 1.0
             s = cap
             top, base = (z if z >= 0.0 else -z), (z + H if z + H >= 0.0 else -(z + H))
@@ -287,6 +295,50 @@ class WedgeGeometry:
             cached = (table, e)
             object.__setattr__(self, "_lattice_cache", cached)
         return cached
+
+
+class _CellGrid:
+    """Square cells (focus units) that hold the answer to "which meshed centre is nearest":
+    a quarter pitch wide within ``R`` of the axis (the pillars' region and a pitch around
+    it), doubling in width with each doubling of the distance beyond (far out, where the
+    sizes are large and gmsh integrates them along the block's long edges, a few hundred
+    cells).  A cell's candidates are the centres that can be nearest to one of its points:
+    those no farther from the cell than the farthest point of the cell is from the centre
+    nearest to that far point (one centre, but near the Voronoi edges), in the centres'
+    order, so that the first of equally near centres wins as in a scan of them all."""
+
+    def __init__(self, centres, pitch: float):
+        self.centres = list(centres)
+        self.w0 = 0.25 * pitch if pitch > 0.0 else 1.0
+        self.R = max(math.hypot(cx, cy) for cx, cy in self.centres) + max(pitch, 2.0)
+
+    def key(self, x: float, y: float) -> tuple:
+        """The cell holding (x, y): (level, i, j), the cell [i, i + 1] x [j, j + 1] times its
+        width w0 2^level (level 0 within R of the axis in the max norm)."""
+        far = max(abs(x), abs(y))
+        if far < self.R:
+            return (0, math.floor(x / self.w0), math.floor(y / self.w0))
+        level = math.frexp(far / self.R)[1]
+        w = math.ldexp(self.w0, level)
+        return (level, math.floor(x / w), math.floor(y / w))
+
+    def candidates(self, key: tuple) -> tuple:
+        """The centres that can be nearest to a point of cell ``key``; the cell is widened
+        by 1e-9 of its width, for a point that rounding put in a neighbour's key."""
+        level, i, j = key
+        w = math.ldexp(self.w0, level)
+        pad = 1e-9 * w
+        x0, x1, y0, y1 = i * w - pad, (i + 1) * w + pad, j * w - pad, (j + 1) * w + pad
+
+        def farthest(c):
+            return math.hypot(max(abs(x0 - c[0]), abs(x1 - c[0])),
+                              max(abs(y0 - c[1]), abs(y1 - c[1])))
+
+        def nearest(c):
+            return math.hypot(max(x0 - c[0], 0.0, c[0] - x1), max(y0 - c[1], 0.0, c[1] - y1))
+
+        bound = min(farthest(c) for c in self.centres) * (1.0 + 1e-12)
+        return tuple(c for c in self.centres if nearest(c) <= bound)
 
 
 def sector_pillars(pitch_m: float, diameter_m: float, reach_m: float,

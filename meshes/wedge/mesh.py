@@ -121,11 +121,12 @@ class WedgeMesh:
                            if k in ("lens", "pillar", "substrate")}}
 
     def to_skfem(self):
-        """scikit-fem ``MeshTet`` with the same named subdomains and boundaries (cached)."""
+        """scikit-fem ``MeshTet`` with the same named subdomains and boundaries (cached); its
+        facets and edges numbered through integer keys (:class:`._skfem.KeyedMeshTet`)."""
         if self._skfem is None:
-            from skfem import MeshTet
+            from ._skfem import KeyedMeshTet
 
-            m = MeshTet(np.ascontiguousarray(self.points, dtype=float),
+            m = KeyedMeshTet(np.ascontiguousarray(self.points, dtype=float),
                         np.ascontiguousarray(self.tets, dtype=np.int64))
             n = np.int64(m.p.shape[1])
             fk = _keys(m.facets, n)

@@ -156,11 +156,37 @@ def _parse_fem3d(text: str) -> dict:
     return case
 
 
-def run_once(root: Path, case: dict, warm: bool) -> dict:
+def run_once(root: Path, case: dict, warm: bool, worker: str = WORKER) -> dict:
+    """One run of ``worker`` (this module's solve by default) on ``case`` in a fresh
+    interpreter whose PYTHONPATH is the checkout ``root``: its JSON line."""
     env = {**os.environ, "PYTHONPATH": str(root)}
-    out = subprocess.run([sys.executable, "-c", WORKER, json.dumps(case), "1" if warm else "0"],
+    out = subprocess.run([sys.executable, "-c", worker, json.dumps(case), "1" if warm else "0"],
                          env=env, cwd=root, capture_output=True, text=True, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def interleaved(cases, sides: dict, repeats: int, summarise, *, warm: bool = False,
+                worker: str = WORKER) -> tuple[list, dict, list]:
+    """Run each case ``repeats`` times a side, the sides alternating (ABBA): (the rows of
+    ``summarise(case, runs)``, the runs by case label, the load averages before and after
+    each case)."""
+    load = [os.getloadavg()]
+    rows, raw = [], {}
+    for case in cases:
+        runs = {"baseline": [], "this": []}
+        for k in range(repeats):
+            order = ("baseline", "this") if k % 2 == 0 else ("this", "baseline")
+            for side in order:
+                runs[side].append(run_once(sides[side], case, warm, worker))
+        raw[case["label"]] = runs
+        rows += summarise(case, runs)
+        load.append(os.getloadavg())
+    return rows, raw, load
+
+
+def load_text(load: list) -> str:
+    return ("load average (1, 5, 15 min) before and after each case: "
+            + ", ".join("(" + ", ".join(f"{x:.2f}" for x in la) + ")" for la in load))
 
 
 def _rel(a, b):
@@ -219,13 +245,18 @@ def table(rows) -> str:
     return "\n".join(lines)
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def side_arguments(ap: argparse.ArgumentParser, files: str) -> None:
+    """--baseline, --this and --out (the folder for ``files``) of an A/B benchmark."""
     ap.add_argument("--baseline", type=Path, required=True,
                     help="checkout of the old code (its root: bem_solver/, pillar_xval/, ...)")
     ap.add_argument("--this", type=Path, default=ROOT,
                     help="checkout of the new code (default: this one)")
-    ap.add_argument("--out", type=Path, required=True, help="folder for bench_ab.md/.json")
+    ap.add_argument("--out", type=Path, required=True, help=f"folder for {files}")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    side_arguments(ap, "bench_ab.md/.json")
     ap.add_argument("--case", type=parse_case, action="append",
                     help="dense, fft:N, elastic-fft:N, optionally @tol, or "
                          "fem3d:PHI:MESH_SIZE (repeatable; default: dense)")
@@ -234,21 +265,10 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     cases = args.case or [parse_case("dense")]
     sides = {"baseline": args.baseline.resolve(), "this": args.this.resolve()}
-    load = [os.getloadavg()]
-    rows, raw = [], {}
-    for case in cases:
-        runs = {"baseline": [], "this": []}
-        for k in range(args.repeats):
-            order = ("baseline", "this") if k % 2 == 0 else ("this", "baseline")
-            for side in order:
-                runs[side].append(run_once(sides[side], case, args.warm))
-        raw[case["label"]] = runs
-        rows += summarise(case, runs)
-        load.append(os.getloadavg())
+    rows, raw, load = interleaved(cases, sides, args.repeats, summarise, warm=args.warm)
     text = (table(rows) + f"\n\nrepeats {args.repeats} per side (interleaved ABBA), "
             f"{'second (warm)' if args.warm else 'first (cold)'} solve per interpreter; "
-            "load average (1, 5, 15 min) before and after each case: "
-            + ", ".join("(" + ", ".join(f"{x:.2f}" for x in la) + ")" for la in load) + "\n")
+            + load_text(load) + "\n")
     print(text)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "bench_ab.md").write_text(text)

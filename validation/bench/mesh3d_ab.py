@@ -1,0 +1,105 @@
+"""Interleaved before/after timing of fem-3d's mesh phase alone against another checkout:
+``python -m validation.bench.mesh3d_ab --baseline DIR --out DIR [--case 0.82:2] ...``.
+
+Each run meshes fem-3d's sector of the A/B benchmark's scene (:data:`.ab.FEM3D_SCENE` at
+surface fraction PHI, ``--case PHI:MESH_SIZE``) in a fresh interpreter whose ``PYTHONPATH`` is
+the checkout, as a solve's mesh phase does (gmsh's mesh and its scikit-fem form, imports
+excluded); the sides alternate (ABBA, :func:`.ab.interleaved`), so that the load of a shared
+machine weighs on both alike.  Per case and side: the medians of the wall and CPU time (all
+threads), the nodes, the tetrahedra and their mean-ratio quality (min, mean), and whether
+the two sides made the same mesh (SHA-256 of the points and the tetrahedra).  Prints the
+table and writes it with the runs and the load averages to ``DIR/bench_mesh3d_ab.md`` and
+``.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+
+from .ab import FEM3D_SCENE, interleaved, load_text, side_arguments
+
+WORKER = r"""
+import hashlib, json, math, sys, time
+import numpy as np
+case = json.loads(sys.argv[1])
+from pillar_xval.scenes import load_scene
+from fem_reference.solid3d.driver import BLOCK_FACTOR, _setup
+from meshes import build_wedge_mesh
+scene = load_scene(case["scene"], case["overrides"])
+geo = _setup(scene, case["mesh_size"], math.pi / 6, BLOCK_FACTOR, 1.0, {})["geometry"]
+t, c = time.perf_counter(), time.process_time()
+mesh = build_wedge_mesh(geo)
+mesh.to_skfem()
+wall, cpu = time.perf_counter() - t, time.process_time() - c
+q = mesh.quality()
+digest = hashlib.sha256(np.ascontiguousarray(mesh.points).tobytes()
+                        + np.ascontiguousarray(mesh.tets, dtype=np.int64).tobytes()).hexdigest()
+print(json.dumps({"wall_s": wall, "cpu_s": cpu, "nodes": int(mesh.points.shape[1]),
+                  "elements": int(mesh.nelements), "min_quality": float(q.min()),
+                  "mean_quality": float(q.mean()), "sha256": digest}))
+"""
+
+
+def parse_case(text: str) -> dict:
+    try:
+        phi, mesh_size = (float(v) for v in text.split(":"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected PHI:MESH_SIZE, e.g. 0.82:2") \
+            from None
+    return {"label": text, "scene": FEM3D_SCENE, "mesh_size": mesh_size,
+            "overrides": [f"pillars.surface_fraction={phi}"]}
+
+
+def summarise(case: dict, runs: dict) -> list[dict]:
+    rows = []
+    for side in ("baseline", "this"):
+        rs = runs[side]
+        rows.append({"case": case["label"], "side": side, "repeats": len(rs),
+                     "wall_median_s": statistics.median(r["wall_s"] for r in rs),
+                     "cpu_median_s": statistics.median(r["cpu_s"] for r in rs),
+                     **{k: rs[-1][k] for k in ("nodes", "elements", "min_quality",
+                                               "mean_quality", "sha256")}})
+    base, this = rows
+    this["cpu_speed-up"] = base["cpu_median_s"] / this["cpu_median_s"]
+    this["same_mesh"] = base["sha256"] == this["sha256"]
+    return rows
+
+
+def table(rows: list[dict]) -> str:
+    lines = ["| case | side | wall median s | CPU median s | CPU speed-up | nodes | elements | "
+             "quality min / mean | same mesh |", "|" + "---|" * 9]
+    for r in rows:
+        lines.append(f"| {r['case']} | {r['side']} | {r['wall_median_s']:.3f} | "
+                     f"{r['cpu_median_s']:.3f} | {r.get('cpu_speed-up', float('nan')):.2f} | "
+                     f"{r['nodes']} | {r['elements']} | {r['min_quality']:.4f} / "
+                     f"{r['mean_quality']:.4f} | {r.get('same_mesh', '')} |")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    side_arguments(ap, "bench_mesh3d_ab.md/.json")
+    ap.add_argument("--case", type=parse_case, action="append",
+                    help="PHI:MESH_SIZE (repeatable; default: the lattice study's levels at "
+                         "Phi = 0.2 and 0.82 but 1.41)")
+    ap.add_argument("--repeats", type=int, default=4, help="runs per side and case (4)")
+    args = ap.parse_args(argv)
+    cases = args.case or [parse_case(f"{phi}:{h}") for phi in (0.2, 0.82) for h in (2.83, 2)]
+    sides = {"baseline": args.baseline.resolve(), "this": args.this.resolve()}
+    rows, raw, load = interleaved(cases, sides, args.repeats, summarise, worker=WORKER)
+    text = (table(rows) + f"\n\nrepeats {args.repeats} per side (interleaved ABBA); "
+            + load_text(load) + "\n")
+    print(text)
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "bench_mesh3d_ab.md").write_text(text)
+    (args.out / "bench_mesh3d_ab.json").write_text(json.dumps(
+        {"baseline": str(sides["baseline"]), "this": str(sides["this"]), "rows": rows,
+         "runs": raw, "load_average": load}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
