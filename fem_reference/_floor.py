@@ -34,6 +34,16 @@ FLOOR_MARGIN = 1.25
 # with a band of fine elements around it.
 FINE_MARGIN = 1.25
 FINE_EDGE = 0.9
+# Elements of the fine floor across a floor patch's width (:func:`floor_patch_width`) at the
+# coarsest mesh_size, 4, where the contact element size is the pillar radius a: the floor's
+# element is then at most width / FLOOR_ACROSS there and (mesh_size / 4) of it below, a
+# fixed ratio to the contact size on every level of a ladder, so the ladder refines the
+# floor as it refines the rest.  On Phi = 0.4 (d = 4 um) the width is 1.48 um and the floor's
+# element 0.185 a at mesh_size 4 to 0.093 a at 2 (0.37 to 0.19 um), against the contact-size
+# rule's 0.5 a to 0.25 a;
+# from Phi ~0.15 down the contact-size rule is the finer one.  Measured: PHYSICS.md, "The
+# floor between the pillars" (`python -m validation.bench.floor_gap --only rule`).
+FLOOR_ACROSS = 4.0
 # The depth of the overlap with a side wall is small next to h below this share.  Measured
 # on one pillar (h/d = 0.5, mesh_size 2): 0.4 % of h at zeta = 0.15 h, 4.5 % at 0.75 h, the
 # range where the paper's model (the lens on the pillar tops alone, no walls) was
@@ -48,6 +58,22 @@ def floor_candidate(scene, indentation_m: float) -> float | None:
     if not floor_reachable(scene, indentation_m):
         return None
     return FLOOR_MARGIN * floor_reach(scene, indentation_m)
+
+
+def floor_patch_width(pitch_m: float, diameter_m: float) -> float:
+    """Width (m) of the floor's narrowest patch between pillars: the radius of the largest
+    circle in a hollow of three neighbouring pillars, p / sqrt(3) - d / 2, at most the gap
+    between two of them, p - d (the gap is the narrower from Phi ~0.65, close packing)."""
+    return min(pitch_m / np.sqrt(3.0) - 0.5 * diameter_m, pitch_m - diameter_m)
+
+
+def patch_floor_ratio(pitch_m: float, diameter_m: float, contact_ratio: float) -> float:
+    """The fine floor's element size over the contact element size: ``contact_ratio`` (the
+    contact-size rule), or finer where a floor patch would be crossed by fewer than
+    :data:`FLOOR_ACROSS` elements at mesh_size 4 (the contact size there is the pillar
+    radius, ``diameter_m`` / 2)."""
+    return float(min(contact_ratio, floor_patch_width(pitch_m, diameter_m)
+                     / (FLOOR_ACROSS * 0.5 * diameter_m)))
 
 
 def fine_floor_radius(contact_radius_m: float, candidate_m: float) -> float | None:

@@ -294,3 +294,50 @@ def test_floor_benchmark_table():
     assert rows[-2].startswith("| mixed / suspended | 2.00 |")  # medians: 4 / 2
     assert rows[-1].startswith("| mixed / suspended-h2 | 1.00 |")
     assert "| 0.300 |" in rows[4]
+
+
+@pytest.mark.parametrize("phi", [0.03, 0.2, 0.4, 0.8])
+def test_the_floor_patch_width_is_the_hollows_inscribed_circle_or_the_gap(phi):
+    # Independent of the closed form: the largest distance from the rims over a fine grid of
+    # the triangle of three neighbouring pillars (the hollow's inscribed circle), and the
+    # gap between two of them along their centre line; the width is the smaller.
+    from fem_reference._floor import FLOOR_ACROSS, floor_patch_width, patch_floor_ratio
+
+    d = 4e-6
+    p = d * math.sqrt(math.pi / (2.0 * math.sqrt(3.0) * phi))
+    centres = np.array([[0.0, 0.0], [p, 0.0], [0.5 * p, 0.5 * math.sqrt(3.0) * p]])
+    # 600 steps: the grid holds the centroid, where the distance to the rims peaks (a kink,
+    # so a grid missing it would be first-order wrong: 0.7 % at 400 steps)
+    s, t = np.meshgrid(np.linspace(0, 1, 601), np.linspace(0, 1, 601))
+    inside = s + t <= 1.0
+    pts = (centres[0] + s[inside, None] * (centres[1] - centres[0])
+           + t[inside, None] * (centres[2] - centres[0]))
+    rim = np.min(np.hypot(*(pts[:, None, :] - centres[None]).transpose(2, 0, 1)), axis=1)
+    inscribed = np.max(rim) - 0.5 * d
+    width = floor_patch_width(p, d)
+    assert width == pytest.approx(min(inscribed, p - d), rel=1e-9)
+    assert (width < inscribed) == (phi > 0.65)  # the gap is the narrower near close packing
+    # the floor's element at mesh_size 4 (contact size d/2 there): width / FLOOR_ACROSS at
+    # most, and never coarser than the contact-size rule's
+    ratio = patch_floor_ratio(p, d, 0.5)
+    assert ratio * 0.5 * d <= width / FLOOR_ACROSS * (1 + 1e-12)
+    assert ratio == (0.5 if width / (FLOOR_ACROSS * 0.5 * d) >= 0.5 else pytest.approx(
+        width / (FLOOR_ACROSS * 0.5 * d)))
+
+
+def test_fem3d_sizes_its_fine_floor_by_the_patches_on_dense_lattices():
+    # The driver's geometry takes the patch rule's ratio: finer than the contact-size rule on
+    # Phi = 0.4, the contact-size rule on Phi = 0.03; a grading given by the caller wins.
+    from fem_reference._floor import patch_floor_ratio
+    from fem_reference.solid3d import driver
+    from validation.studies.floor_check import FloorPoint
+
+    options = (math.pi / 6.0, driver.BLOCK_FACTOR, 1.0)
+    for point, finer in ((FloorPoint(0.4, 0.1, 7.0), True), (FloorPoint(0.03, 1e6, 2.0), False)):
+        scene = point.scene()
+        p = scene.pillars
+        geo = driver._setup(scene, 4.0, *options, {})["geometry"]
+        assert geo.floor_ratio == patch_floor_ratio(p.pitch_m, p.diameter_m, driver.FLOOR_RATIO)
+        assert (geo.floor_ratio < driver.FLOOR_RATIO) == finer
+        given = driver._setup(scene, 4.0, *options, {"floor_ratio": 0.3})["geometry"]
+        assert given.floor_ratio == 0.3
