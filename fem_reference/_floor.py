@@ -99,6 +99,68 @@ def outgrown_floor(contact_radius_m: float, fine_m: float | None,
     return min(FINE_MARGIN * max(contact_radius_m, fine_m), candidate_m)
 
 
+def floor_contact_area(vertex_points, triangles, floor_vertices, lam, points, w) -> float:
+    """Contact area (face units) of the floor's faces, read from the P2 points' gaps.
+
+    The multiplier's own measure, the dual areas of the vertices with lam > 0, falls short
+    by a fraction of an element along every contact edge: a mortar vertex closes only where
+    the gap weighted over its whole hat does, so a vertex whose hat crosses the edge stays
+    open.  On a dense lattice the floor's contact is many small patches, their edge
+    1.5 um per um^2 of area (Phi = 0.4), and that deficit was most of fem-3d's gap to the
+    BEM (PHYSICS.md).  Here the same dual measure is taken on the P2 points, twice as
+    dense: each face splits into its four P2 sub-triangles, and a third of each goes to
+    every corner in contact: a point of a floor face whose three vertices hold lam > 0, or
+    one whose pointwise gap is at most the closed gaps' own scatter (the 99th percentile
+    of |w| on those faces' points; 0 where there is none).
+
+    Parameters
+    ----------
+    vertex_points : array (2, n_v)
+        The contact faces' vertices (x, y), tops and floor (each its own vertices).
+    triangles : array (3, m)
+        The faces' vertex indices, as the P2 points were numbered from them.
+    floor_vertices : bool array (n_v,)
+        Which vertices lie on the floor.
+    lam : array (n_v,)
+        The vertices' multipliers.
+    points, w : array (2, n_points), array (n_points,)
+        The P2 points (x, y) and their pointwise gaps, numbered as skfem's P2 basis on this
+        face mesh numbers them (the vertices, then the edges; checked).
+
+    Returns
+    -------
+    float
+        The floor's contact area, in face units squared.
+    """
+    from skfem import Basis, ElementTriP2, MeshTri
+
+    if not np.any(floor_vertices):
+        return 0.0
+    triangles = np.asarray(triangles)
+    face = MeshTri(np.ascontiguousarray(vertex_points, dtype=float),
+                   np.ascontiguousarray(triangles))
+    basis = Basis(face, ElementTriP2(), intorder=2)
+    w, xy = np.asarray(w, dtype=float), basis.doflocs
+    if len(w) != basis.N or not np.allclose(xy, points, rtol=0.0,
+                                            atol=1e-9 * max(1.0, np.max(np.abs(xy)))):
+        raise ValueError(f"the {len(w)} gaps are not at the faces' {basis.N} P2 points")
+    on = np.all(np.asarray(floor_vertices)[triangles], axis=0)
+    dofs = basis.element_dofs[:, on]
+    closed = np.all(np.asarray(lam)[triangles[:, on]] > 0.0, axis=0)
+    level = float(np.quantile(np.abs(w[dofs[:, closed]]), 0.99)) if closed.any() else 0.0
+    shut = w <= level
+    shut[dofs[:, closed]] = True  # the multiplier's own contact, whatever its scatter
+    shut = shut.astype(float)
+    # skfem's P2 triangle: vertices 0, 1, 2, then the midpoints of edges 01, 12, 02
+    v0, v1, v2, m01, m12, m02 = dofs
+    total = 0.0
+    for a, b, c in ((v0, m01, m02), (v1, m12, m01), (v2, m02, m12), (m01, m12, m02)):
+        area = 0.5 * np.abs((xy[0, b] - xy[0, a]) * (xy[1, c] - xy[1, a])
+                            - (xy[0, c] - xy[0, a]) * (xy[1, b] - xy[1, a]))
+        total += float(np.sum(area * (shut[a] + shut[b] + shut[c]) / 3.0))
+    return total
+
+
 def side_wall_overlap(lens_r, lens_z, pillar_top_z: float, wall_r,
                       wall_z) -> tuple[float, float]:
     """How far (m) the deformed lens surface lies inside a pillar's deformed side wall.

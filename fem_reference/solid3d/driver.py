@@ -42,7 +42,8 @@ from pillar_xval.scenes.lattice import lattice_indices
 from .._driver import (RTOL_COMPLEMENTARITY, PhaseClock, contact_radius, fem_result,
                        flat_candidate, refuse_rigid_pair, scaled_materials, verdict)
 from .._floor import (FINE_EDGE, FLOOR_MARGIN, fine_floor_radius, floor_candidate,
-                      outgrown_floor, patch_floor_ratio, side_wall_diagnostics)
+                      floor_contact_area, outgrown_floor, patch_floor_ratio,
+                      side_wall_diagnostics)
 from .contact import contact_area_share, contact_faces, line_profile
 from .half_space import HalfSpaceModel, serial_dense_algebra
 from .fields import cell_stresses, lens_in_side_walls, write_vtu3d
@@ -548,16 +549,18 @@ def _result(scene: Scene, setup: dict, mesh, system, faces, contact: dict, mesh_
         r0, p0, r1, p1 = r0[keep0], p0[keep0], r1[keep1], p1[keep1]
         touching = lam > 0
         a = float(np.max(np.hypot(vx, vy)[touching])) * ell if touching.any() else 0.0
-        area = mult * contact_area_share(faces.weights, lam) * ell**2
+        area = mult * contact_area_share(faces.weights[tops], lam[tops]) * ell**2
         reaches_end = False
         pillar_forces, per_sector_pillar = _pillar_forces(scene, geo, faces, f_vertex,
                                                           unit_force, sector_angle)
         on_floor = touching & faces.floor_vertices
         floor = {"floor_force_N": mult * float(np.sum(f_vertex[faces.floor_vertices]))
                  * unit_force,
-                 "floor_contact_area_m2": mult * contact_area_share(
-                     faces.weights[faces.floor_vertices], lam[faces.floor_vertices]) * ell**2,
+                 "floor_contact_area_m2": mult * floor_contact_area(
+                     faces.vertex_points, faces.triangles, faces.floor_vertices, lam,
+                     faces.points, w) * ell**2,
                  "floor_contact_radius_m": _floor_radius(faces, lam) * ell}
+        area += floor["floor_contact_area_m2"]
         if on_floor.any() and floor["floor_contact_radius_m"] >= 0.98 * geo.floor_radius_m:
             reaches_end = True
     end = "contact reached the end of the candidate zone" if reaches_end else ""

@@ -48,9 +48,9 @@ FEM_LEVELS = ((2.83, 0.5), (2.83, 0.25), (2.83, 0.125), (2.0, 0.5))
 # area was level-converged from 2.83 to 2 and 3.3 % below the BEM's.
 FEM_SCENES = SCENES + ((0.1, 0.1, 4.0),)
 # The patch rule's ladders on the floor-check's two dense lattices (both E_p/E_l = 0.1):
-# Phi = 0.4 stops at mesh_size 2 (its memory), Phi = 0.2 goes two levels further.
+# Phi = 0.4 stops at mesh_size 2 (9.2 GiB), Phi = 0.2 goes a level further.
 RULE_SCENES = ((0.2, 0.1, 3.5), (0.4, 0.1, 7.0))
-RULE_LEVELS = {RULE_SCENES[0]: (4.0, 2.83, 2.0, 1.41, 1.0), RULE_SCENES[1]: (4.0, 2.83, 2.0)}
+RULE_LEVELS = {RULE_SCENES[0]: (4.0, 2.83, 2.0, 1.41), RULE_SCENES[1]: (4.0, 2.83, 2.0)}
 COLUMN_RATIOS = (0.1, 1.0)       # E_p / E_s, at h / a = 0.5 (the floor-check's h/d = 0.25)
 TABLE_RHO = (1.0, 1.05, 1.1, 1.2, 1.35, 1.5, 2.0, 2.5, 3.0)
 
