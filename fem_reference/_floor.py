@@ -34,15 +34,15 @@ FLOOR_MARGIN = 1.25
 # with a band of fine elements around it.
 FINE_MARGIN = 1.25
 FINE_EDGE = 0.9
-# Elements of the fine floor across a floor patch's width (:func:`floor_patch_width`) at the
-# coarsest mesh_size, 4, where the contact element size is the pillar radius a: the floor's
-# element is then at most width / FLOOR_ACROSS there and (mesh_size / 4) of it below, a
-# fixed ratio to the contact size on every level of a ladder, so the ladder refines the
-# floor as it refines the rest.  On Phi = 0.4 (d = 4 um) the width is 1.48 um and the floor's
-# element 0.185 a at mesh_size 4 to 0.093 a at 2 (0.37 to 0.19 um), against the contact-size
-# rule's 0.5 a to 0.25 a;
-# from Phi ~0.15 down the contact-size rule is the finer one.  Measured: PHYSICS.md, "The
-# floor between the pillars" (`python -m validation.bench.floor_gap --only rule`).
+# A fine floor sized by the floor's patches as well as the contact size: at most
+# width / FLOOR_ACROSS at mesh_size 4 (the contact element size there is the pillar radius
+# a) and (mesh_size / 4) of it below, a fixed ratio to the contact size on every level.  On
+# Phi = 0.4 (d = 4 um, width 1.48 um) 0.37 to 0.18 um at mesh_size 4 to 2, against 1 to
+# 0.5 um at half the contact size (the driver's FLOOR_RATIO).  Measured, and not the
+# driver's rule (`python -m validation.bench.floor_gap --only rule,contact`, PHYSICS.md):
+# with the floor's area from its P2 gaps the contact-size floor met the BEM on both dense
+# floor-check scenes, while this one made the ladder oscillate (Phi = 0.4: 627.6, 660.3,
+# 609.1 um^2 at 4, 2.83, 2, the BEM 650.4) for twice the memory (9.2 against 4.9 GiB at 2).
 FLOOR_ACROSS = 4.0
 # The depth of the overlap with a side wall is small next to h below this share.  Measured
 # on one pillar (h/d = 0.5, mesh_size 2): 0.4 % of h at zeta = 0.15 h, 4.5 % at 0.75 h, the

@@ -325,24 +325,6 @@ def test_the_floor_patch_width_is_the_hollows_inscribed_circle_or_the_gap(phi):
         width / (FLOOR_ACROSS * 0.5 * d)))
 
 
-def test_fem3d_sizes_its_fine_floor_by_the_patches_on_dense_lattices():
-    # The driver's geometry takes the patch rule's ratio: finer than the contact-size rule on
-    # Phi = 0.4, the contact-size rule on Phi = 0.03; a grading given by the caller wins.
-    from fem_reference._floor import patch_floor_ratio
-    from fem_reference.solid3d import driver
-    from validation.studies.floor_check import FloorPoint
-
-    options = (math.pi / 6.0, driver.BLOCK_FACTOR, 1.0)
-    for point, finer in ((FloorPoint(0.4, 0.1, 7.0), True), (FloorPoint(0.03, 1e6, 2.0), False)):
-        scene = point.scene()
-        p = scene.pillars
-        geo = driver._setup(scene, 4.0, *options, {})["geometry"]
-        assert geo.floor_ratio == patch_floor_ratio(p.pitch_m, p.diameter_m, driver.FLOOR_RATIO)
-        assert (geo.floor_ratio < driver.FLOOR_RATIO) == finer
-        given = driver._setup(scene, 4.0, *options, {"floor_ratio": 0.3})["geometry"]
-        assert given.floor_ratio == 0.3
-
-
 def _disk_contact(k: int, r0: float, noise: float = 0.0):
     """A P2 face mesh of [-1, 1]^2 (refined k times) closed on the disk r < r0: the gap
     (r - r0)^(3/2) outside (a smooth contact edge), scatter of +-``noise`` inside; the

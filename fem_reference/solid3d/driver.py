@@ -42,8 +42,7 @@ from pillar_xval.scenes.lattice import lattice_indices
 from .._driver import (RTOL_COMPLEMENTARITY, PhaseClock, contact_radius, fem_result,
                        flat_candidate, refuse_rigid_pair, scaled_materials, verdict)
 from .._floor import (FINE_EDGE, FLOOR_MARGIN, fine_floor_radius, floor_candidate,
-                      floor_contact_area, outgrown_floor, patch_floor_ratio,
-                      side_wall_diagnostics)
+                      floor_contact_area, outgrown_floor, side_wall_diagnostics)
 from .contact import contact_area_share, contact_faces, line_profile
 from .half_space import HalfSpaceModel, serial_dense_algebra
 from .fields import cell_stresses, lens_in_side_walls, write_vtu3d
@@ -90,8 +89,9 @@ CENTRE_RATIO = 0.25
 # 2-3 times wider on the dense lattices, whose elements the finer size is paid from (Phi =
 # 0.4 at mesh_size 2.83-1.41: the floor area 492, 540, 546 um^2, monotone, against 466, 523,
 # 534 at the contact size; a quarter of it at 2.83, 514: the elements across the gaps are no
-# longer what limits it, PHYSICS.md).  Finer where a floor patch is narrow
-# (:func:`.._floor.patch_floor_ratio`).
+# longer what limits it, PHYSICS.md).  With the floor's area read from the P2 gaps
+# (:func:`.._floor.floor_contact_area`) this size meets the BEM on Phi = 0.2 and 0.4; a floor
+# sized by its patches (:func:`.._floor.patch_floor_ratio`) made that ladder oscillate.
 FLOOR_RATIO = 0.5
 # Smallest gap between neighbouring pillars, in diameters: at Phi = 0.9 (gap 0.0038 d) the
 # mesh still passes its quality check (q_min 0.047), at Phi = 0.9068 (5.5e-5 d) it fails.
@@ -656,8 +656,7 @@ def _setup(scene: Scene, mesh_size, sector_angle, block_factor, reach_factor, gr
         # its P1 multiplier's centre value moved 6-11 % between mesh levels (Phi = 0.2,
         # E_p = 10 E_l: 21.3, 19.1, 20.5 kPa at mesh_size 2.83, 2, 1.41); at a quarter of it,
         # 20.02, 20.12, 20.12 kPa, and 12.33, 12.32, 12.33 kPa for rigid pillars at Phi = 0.4.
-        grading = {"centre_ratio": CENTRE_RATIO, "floor_ratio": patch_floor_ratio(
-            p.pitch_m, p.diameter_m, FLOOR_RATIO), **grading}
+        grading = {"centre_ratio": CENTRE_RATIO, "floor_ratio": FLOOR_RATIO, **grading}
         fine = None if floor is None or floor_fine is None else min(floor_fine, floor)
         geo = WedgeGeometry(ell, block_factor * ell, pillars=pillars,
                             pillar_height_m=p.height_m, floor_radius_m=floor,

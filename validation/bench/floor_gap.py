@@ -1,6 +1,6 @@
 """Where the elastic BEM's floor contact area parts from fem-3d on dense lattices.
 
-``python -m validation.bench.floor_gap --out DIR [--only bem,column,coupled,fem,rule]
+``python -m validation.bench.floor_gap --out DIR [--only bem,column,coupled,fem,rule,contact]
 [--phi 0.2,0.4]``
 
 The floor-check scene that fails (Phi = 0.4, E_p/E_l = 0.1, zeta = 7 um; PHYSICS.md, "The
@@ -19,10 +19,12 @@ E_p = E_l, zeta = 10 um), each measured by parts:
   also on Phi = 0.1, E_p/E_l = 0.1, 4 um (the floor one patch).  The 1/8 floor takes 3-6
   minutes and 6-11 GiB a solve.
 - rule: fem-3d's ladder with the fine floor sized by the floor patches' width as well as the
-  contact size (:func:`fem_reference._floor.patch_floor_ratio`, the driver's default) on the
+  contact size (:func:`fem_reference._floor.patch_floor_ratio`, not the driver's rule) on the
   floor-check scenes Phi = 0.2 and 0.4 (E_p/E_l = 0.1), mesh_size 4 to 2 or 1: each level's
   values, time and peak memory, the observed order and GCI, each level written as it ends,
   and the elastic bem-fft's ladder judged against it as the floor-check judges.
+- contact: the same ladders with the fine floor at half the contact size (the driver's
+  FLOOR_RATIO): what the patch rule changes.
 
 Writes ``bench_floor_gap.json`` and ``.md`` in DIR (each part as it finishes).
 """
@@ -37,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-PARTS = ("bem", "column", "coupled", "fem", "rule")
+PARTS = ("bem", "column", "coupled", "fem", "rule", "contact")
 # (Phi, E_p/E_l, zeta um): the failing floor-check scene, and stiffer pillars on a lattice
 # whose floor carries the same share (~7.5 %), the floor out of reach at Phi = 0.4 (below).
 SCENES = ((0.4, 0.1, 7.0), (0.2, 1.0, 10.0))
@@ -47,7 +49,7 @@ FEM_LEVELS = ((2.83, 0.5), (2.83, 0.25), (2.83, 0.125), (2.0, 0.5))
 # fem-3d also where the floor is one patch with holes (Phi = 0.1, E_p/E_l = 0.1, 4 um): its
 # area was level-converged from 2.83 to 2 and 3.3 % below the BEM's.
 FEM_SCENES = SCENES + ((0.1, 0.1, 4.0),)
-# The patch rule's ladders on the floor-check's two dense lattices (both E_p/E_l = 0.1):
+# The floor rules' ladders on the floor-check's two dense lattices (both E_p/E_l = 0.1):
 # Phi = 0.4 stops at mesh_size 2 (9.2 GiB), Phi = 0.2 goes a level further.
 RULE_SCENES = ((0.2, 0.1, 3.5), (0.4, 0.1, 7.0))
 RULE_LEVELS = {RULE_SCENES[0]: (4.0, 2.83, 2.0, 1.41), RULE_SCENES[1]: (4.0, 2.83, 2.0)}
@@ -279,17 +281,19 @@ def _fem_row(point, mesh_size: float, grading=None) -> dict:
             "load_average": os.getloadavg()[0]}
 
 
-def rule(scenes=RULE_SCENES, out: Path | None = None) -> dict:
-    """fem-3d's :data:`RULE_LEVELS` with the driver's fine floor (the patch rule), the
-    elastic bem-fft on the floor-check's ladder, and the floor-check's verdicts on F_T, the
-    floor's share and area.  Each level is written to ``out`` as it ends, and levels found
-    there (the same mesh_size and floor ratio) are not solved again."""
+def rule(scenes=RULE_SCENES, out: Path | None = None, contact_size: bool = False) -> dict:
+    """fem-3d's :data:`RULE_LEVELS` with the fine floor of the patch rule (with
+    ``contact_size``, the driver's own: half the contact size), the elastic bem-fft on the
+    floor-check's ladder, and the floor-check's verdicts on F_T, the floor's share and area.
+    Each level is written to ``out`` as it ends, and levels found there (the same mesh_size
+    and floor ratio) are not solved again."""
     from fem_reference._floor import floor_patch_width, patch_floor_ratio
     from fem_reference.solid3d.driver import FLOOR_RATIO
     from pillar_xval.outcome import write_atomic
     from validation.studies import floor_check as fc
 
-    partial = None if out is None else out / "bench_floor_gap_rule_partial.json"
+    name = "contact" if contact_size else "rule"
+    partial = None if out is None else out / f"bench_floor_gap_{name}_partial.json"
     report = json.loads(partial.read_text()) if partial is not None and partial.exists() else {}
 
     def save():
@@ -298,7 +302,8 @@ def rule(scenes=RULE_SCENES, out: Path | None = None) -> dict:
 
     for point in scenes:
         p = _scene(point).pillars
-        ratio = patch_floor_ratio(p.pitch_m, p.diameter_m, FLOOR_RATIO)
+        ratio = FLOOR_RATIO if contact_size else patch_floor_ratio(p.pitch_m, p.diameter_m,
+                                                                    FLOOR_RATIO)
         done = {(r["mesh_size"], r["floor_ratio"]): r
                 for r in report.get(str(point), {}).get("levels", [])}
         entry = report[str(point)] = {
@@ -306,7 +311,7 @@ def rule(scenes=RULE_SCENES, out: Path | None = None) -> dict:
             "floor_ratio": ratio, "levels": []}
         for mesh_size in RULE_LEVELS[point]:
             row = done.get((mesh_size, ratio)) or {
-                **_fem_row(point, mesh_size), "floor_ratio": ratio,
+                **_fem_row(point, mesh_size, {"floor_ratio": ratio}), "floor_ratio": ratio,
                 "floor_element_um": 1e6 * ratio * mesh_size / 4.0 * 0.5 * p.diameter_m}
             entry["levels"].append(row)
             print(json.dumps(row), flush=True)
@@ -343,7 +348,8 @@ def main(argv=None) -> int:
     ap.add_argument("--only", default=",".join(PARTS),
                     help=f"comma-separated parts of {', '.join(PARTS)}")
     ap.add_argument("--phi", default=None,
-                    help="rule: comma-separated surface fractions of its scenes (default all)")
+                    help="rule, contact: comma-separated surface fractions of their scenes "
+                         "(default all)")
     args = ap.parse_args(argv)
     parts = [p for p in args.only.split(",") if p]
     unknown = sorted(set(parts) - set(PARTS))
@@ -355,10 +361,10 @@ def main(argv=None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     report: dict = {}
     for part in parts:
-        if part == "rule":
+        if part in ("rule", "contact"):
             phis = None if args.phi is None else {float(v) for v in args.phi.split(",")}
             report[part] = rule([s for s in RULE_SCENES if phis is None or s[0] in phis],
-                                args.out)
+                                args.out, contact_size=part == "contact")
         else:
             report[part] = {"bem": bem, "column": column, "coupled": coupled,
                             "fem": fem}[part]()
