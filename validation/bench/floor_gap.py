@@ -24,7 +24,8 @@ E_p = E_l, zeta = 10 um), each measured by parts:
   values, time and peak memory, the observed order and GCI, each level written as it ends,
   and the elastic bem-fft's ladder judged against it as the floor-check judges.
 - contact: the same ladders with the fine floor at half the contact size (the driver's
-  FLOOR_RATIO): what the patch rule changes.
+  FLOOR_RATIO): what the patch rule changes; also the floor-check's sparser lattices (Phi =
+  0.03 and 0.1) at its ladder there, mesh_size 2.83, 2, 1.41.
 
 Writes ``bench_floor_gap.json`` and ``.md`` in DIR (each part as it finishes).
 """
@@ -53,6 +54,9 @@ FEM_SCENES = SCENES + ((0.1, 0.1, 4.0),)
 # Phi = 0.4 stops at mesh_size 2 (9.2 GiB), Phi = 0.2 goes a level further.
 RULE_SCENES = ((0.2, 0.1, 3.5), (0.4, 0.1, 7.0))
 RULE_LEVELS = {RULE_SCENES[0]: (4.0, 2.83, 2.0, 1.41), RULE_SCENES[1]: (4.0, 2.83, 2.0)}
+# contact also on the floor-check's sparser lattices, at the study's ladder there.
+SPARSE_SCENES = ((0.03, 1e6, 2.0), (0.1, 1.0, 4.0))
+RULE_LEVELS.update(dict.fromkeys(SPARSE_SCENES, (2.83, 2.0, 1.41)))
 COLUMN_RATIOS = (0.1, 1.0)       # E_p / E_s, at h / a = 0.5 (the floor-check's h/d = 0.25)
 TABLE_RHO = (1.0, 1.05, 1.1, 1.2, 1.35, 1.5, 2.0, 2.5, 3.0)
 
@@ -363,7 +367,8 @@ def main(argv=None) -> int:
     for part in parts:
         if part in ("rule", "contact"):
             phis = None if args.phi is None else {float(v) for v in args.phi.split(",")}
-            report[part] = rule([s for s in RULE_SCENES if phis is None or s[0] in phis],
+            scenes = RULE_SCENES + (SPARSE_SCENES if part == "contact" else ())
+            report[part] = rule([s for s in scenes if phis is None or s[0] in phis],
                                 args.out, contact_size=part == "contact")
         else:
             report[part] = {"bem": bem, "column": column, "coupled": coupled,
