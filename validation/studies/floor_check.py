@@ -66,8 +66,8 @@ AXISYM_LEVELS, AXISYM_ONSET_LEVELS = (2.0, 1.0, 0.5), (4.0, 2.0, 1.0)
 # onset's bisections stop at 2.83.
 FEM3D_LEVELS, FEM3D_ONSET_LEVELS = (2.83, 2.0, 1.41), (4.0, 2.83)
 # Phi = 0.4 a level coarser: with its floor area from the P2 gaps, 759.9, 659.2, 653.3 um^2
-# at 4, 2.83, 2 against the BEM's 650.4 (122, 149, 181 s and 2.7, 2.7, 4.9 GiB at a load of
-# 5-6; 1.41 took 12 GiB in the last run).
+# at 4, 2.83, 2 against the BEM's 650.4 (122, 149, 181 s at a load of 5-6; peak 4.9 GiB at 2,
+# at most 2.7 below; 1.41 took 12 GiB in the last run).
 FEM3D_DENSE_LEVELS = (4.0, 2.83, 2.0)
 QUICK = {"bem": (8, 16), "bem_onset": (8, 16), "fem-axisym": (4.0, 2.0),
          "fem-axisym_onset": (4.0, 2.0), "fem-3d": (4.0, 2.83), "fem-3d_onset": (4.0,)}
