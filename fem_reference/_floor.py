@@ -34,6 +34,16 @@ FLOOR_MARGIN = 1.25
 # with a band of fine elements around it.
 FINE_MARGIN = 1.25
 FINE_EDGE = 0.9
+# A fine floor sized by the floor's patches as well as the contact size: at most
+# width / FLOOR_ACROSS at mesh_size 4 (the contact element size there is the pillar radius
+# a) and (mesh_size / 4) of it below, a fixed ratio to the contact size on every level.  On
+# Phi = 0.4 (d = 4 um, width 1.48 um) 0.37 to 0.18 um at mesh_size 4 to 2, against 1 to
+# 0.5 um at half the contact size (the driver's FLOOR_RATIO).  Measured, and not the
+# driver's rule (`python -m validation.bench.floor_gap --only rule,contact`, PHYSICS.md):
+# with the floor's area from its P2 gaps the contact-size floor met the BEM on both dense
+# floor-check scenes, while this one made the ladder oscillate (Phi = 0.4: 627.6, 660.3,
+# 609.1 um^2 at 4, 2.83, 2, the BEM 650.4) for twice the memory (9.2 against 4.9 GiB at 2).
+FLOOR_ACROSS = 4.0
 # The depth of the overlap with a side wall is small next to h below this share.  Measured
 # on one pillar (h/d = 0.5, mesh_size 2): 0.4 % of h at zeta = 0.15 h, 4.5 % at 0.75 h, the
 # range where the paper's model (the lens on the pillar tops alone, no walls) was
@@ -48,6 +58,22 @@ def floor_candidate(scene, indentation_m: float) -> float | None:
     if not floor_reachable(scene, indentation_m):
         return None
     return FLOOR_MARGIN * floor_reach(scene, indentation_m)
+
+
+def floor_patch_width(pitch_m: float, diameter_m: float) -> float:
+    """Width (m) of the floor's narrowest patch between pillars: the radius of the largest
+    circle in a hollow of three neighbouring pillars, p / sqrt(3) - d / 2, at most the gap
+    between two of them, p - d (the gap is the narrower from Phi ~0.65, close packing)."""
+    return min(pitch_m / np.sqrt(3.0) - 0.5 * diameter_m, pitch_m - diameter_m)
+
+
+def patch_floor_ratio(pitch_m: float, diameter_m: float, contact_ratio: float) -> float:
+    """The fine floor's element size over the contact element size: ``contact_ratio`` (the
+    contact-size rule), or finer where a floor patch would be crossed by fewer than
+    :data:`FLOOR_ACROSS` elements at mesh_size 4 (the contact size there is the pillar
+    radius, ``diameter_m`` / 2)."""
+    return float(min(contact_ratio, floor_patch_width(pitch_m, diameter_m)
+                     / (FLOOR_ACROSS * 0.5 * diameter_m)))
 
 
 def fine_floor_radius(contact_radius_m: float, candidate_m: float) -> float | None:
@@ -71,6 +97,68 @@ def outgrown_floor(contact_radius_m: float, fine_m: float | None,
     if fine_m is None or fine_m >= candidate_m or contact_radius_m <= FINE_EDGE * fine_m:
         return None
     return min(FINE_MARGIN * max(contact_radius_m, fine_m), candidate_m)
+
+
+def floor_contact_area(vertex_points, triangles, floor_vertices, lam, points, w) -> float:
+    """Contact area (face units) of the floor's faces, read from the P2 points' gaps.
+
+    The multiplier's own measure, the dual areas of the vertices with lam > 0, falls short
+    by a fraction of an element along every contact edge: a mortar vertex closes only where
+    the gap weighted over its whole hat does, so a vertex whose hat crosses the edge stays
+    open.  On a dense lattice the floor's contact is many small patches, their edge
+    1.5 um per um^2 of area (Phi = 0.4), and that deficit was most of fem-3d's gap to the
+    BEM (PHYSICS.md).  Here the same dual measure is taken on the P2 points, twice as
+    dense: each face splits into its four P2 sub-triangles, and a third of each goes to
+    every corner in contact: a point of a floor face whose three vertices hold lam > 0, or
+    one whose pointwise gap is at most the closed gaps' own scatter (the 99th percentile
+    of |w| on those faces' points; 0 where there is none).
+
+    Parameters
+    ----------
+    vertex_points : array (2, n_v)
+        The contact faces' vertices (x, y), tops and floor (each its own vertices).
+    triangles : array (3, m)
+        The faces' vertex indices, as the P2 points were numbered from them.
+    floor_vertices : bool array (n_v,)
+        Which vertices lie on the floor.
+    lam : array (n_v,)
+        The vertices' multipliers.
+    points, w : array (2, n_points), array (n_points,)
+        The P2 points (x, y) and their pointwise gaps, numbered as skfem's P2 basis on this
+        face mesh numbers them (the vertices, then the edges; checked).
+
+    Returns
+    -------
+    float
+        The floor's contact area, in face units squared.
+    """
+    from skfem import Basis, ElementTriP2, MeshTri
+
+    if not np.any(floor_vertices):
+        return 0.0
+    triangles = np.asarray(triangles)
+    face = MeshTri(np.ascontiguousarray(vertex_points, dtype=float),
+                   np.ascontiguousarray(triangles))
+    basis = Basis(face, ElementTriP2(), intorder=2)
+    w, xy = np.asarray(w, dtype=float), basis.doflocs
+    if len(w) != basis.N or not np.allclose(xy, points, rtol=0.0,
+                                            atol=1e-9 * max(1.0, np.max(np.abs(xy)))):
+        raise ValueError(f"the {len(w)} gaps are not at the faces' {basis.N} P2 points")
+    on = np.all(np.asarray(floor_vertices)[triangles], axis=0)
+    dofs = basis.element_dofs[:, on]
+    closed = np.all(np.asarray(lam)[triangles[:, on]] > 0.0, axis=0)
+    level = float(np.quantile(np.abs(w[dofs[:, closed]]), 0.99)) if closed.any() else 0.0
+    shut = w <= level
+    shut[dofs[:, closed]] = True  # the multiplier's own contact, whatever its scatter
+    shut = shut.astype(float)
+    # skfem's P2 triangle: vertices 0, 1, 2, then the midpoints of edges 01, 12, 02
+    v0, v1, v2, m01, m12, m02 = dofs
+    total = 0.0
+    for a, b, c in ((v0, m01, m02), (v1, m12, m01), (v2, m02, m12), (m01, m12, m02)):
+        area = 0.5 * np.abs((xy[0, b] - xy[0, a]) * (xy[1, c] - xy[1, a])
+                            - (xy[0, c] - xy[0, a]) * (xy[1, b] - xy[1, a]))
+        total += float(np.sum(area * (shut[a] + shut[b] + shut[c]) / 3.0))
+    return total
 
 
 def side_wall_overlap(lens_r, lens_z, pillar_top_z: float, wall_r,

@@ -101,3 +101,17 @@ def test_a_lattice_floor_map_is_drawn(tmp_path):
     path = floor_map(point, 8, 4.0, tmp_path / "maps" / name)
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert [p.name for p in tmp_path.rglob("*") if p.is_file()] == [name]  # no temporary left
+
+
+def test_the_dense_lattice_takes_its_own_fem_ladder_and_the_rest_the_default():
+    from validation.studies.floor_check import (BEM_LEVELS, FEM3D_DENSE_LEVELS, FEM3D_LEVELS,
+                                                FEM3D_ONSET_LEVELS, _levels, levels_of)
+
+    dense = [p for p in POINTS if p.fem_levels is not None]
+    assert [p.surface_fraction for p in dense] == [0.4]
+    assert levels_of("fem", dense[0]) == FEM3D_DENSE_LEVELS
+    assert levels_of("bem", dense[0]) == BEM_LEVELS
+    assert _levels("fem-3d", dense[0], False, onset=True) == FEM3D_ONSET_LEVELS
+    assert levels_of("fem", dense[0], quick=True) == levels_of("fem", POINTS[3], quick=True)
+    assert all(levels_of("fem", p) == FEM3D_LEVELS for p in POINTS
+               if p.fem == "fem-3d" and p.fem_levels is None)

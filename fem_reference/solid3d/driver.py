@@ -42,7 +42,7 @@ from pillar_xval.scenes.lattice import lattice_indices
 from .._driver import (RTOL_COMPLEMENTARITY, PhaseClock, contact_radius, fem_result,
                        flat_candidate, refuse_rigid_pair, scaled_materials, verdict)
 from .._floor import (FINE_EDGE, FLOOR_MARGIN, fine_floor_radius, floor_candidate,
-                      outgrown_floor, side_wall_diagnostics)
+                      floor_contact_area, outgrown_floor, side_wall_diagnostics)
 from .contact import contact_area_share, contact_faces, line_profile
 from .half_space import HalfSpaceModel, serial_dense_algebra
 from .fields import cell_stresses, lens_in_side_walls, write_vtu3d
@@ -89,7 +89,9 @@ CENTRE_RATIO = 0.25
 # 2-3 times wider on the dense lattices, whose elements the finer size is paid from (Phi =
 # 0.4 at mesh_size 2.83-1.41: the floor area 492, 540, 546 um^2, monotone, against 466, 523,
 # 534 at the contact size; a quarter of it at 2.83, 514: the elements across the gaps are no
-# longer what limits it, PHYSICS.md).
+# longer what limits it, PHYSICS.md).  With the floor's area read from the P2 gaps
+# (:func:`.._floor.floor_contact_area`) this size meets the BEM on Phi = 0.2 and 0.4; a floor
+# sized by its patches (:func:`.._floor.patch_floor_ratio`) made that ladder oscillate.
 FLOOR_RATIO = 0.5
 # Smallest gap between neighbouring pillars, in diameters: at Phi = 0.9 (gap 0.0038 d) the
 # mesh still passes its quality check (q_min 0.047), at Phi = 0.9068 (5.5e-5 d) it fails.
@@ -547,16 +549,18 @@ def _result(scene: Scene, setup: dict, mesh, system, faces, contact: dict, mesh_
         r0, p0, r1, p1 = r0[keep0], p0[keep0], r1[keep1], p1[keep1]
         touching = lam > 0
         a = float(np.max(np.hypot(vx, vy)[touching])) * ell if touching.any() else 0.0
-        area = mult * contact_area_share(faces.weights, lam) * ell**2
+        area = mult * contact_area_share(faces.weights[tops], lam[tops]) * ell**2
         reaches_end = False
         pillar_forces, per_sector_pillar = _pillar_forces(scene, geo, faces, f_vertex,
                                                           unit_force, sector_angle)
         on_floor = touching & faces.floor_vertices
         floor = {"floor_force_N": mult * float(np.sum(f_vertex[faces.floor_vertices]))
                  * unit_force,
-                 "floor_contact_area_m2": mult * contact_area_share(
-                     faces.weights[faces.floor_vertices], lam[faces.floor_vertices]) * ell**2,
+                 "floor_contact_area_m2": mult * floor_contact_area(
+                     faces.vertex_points, faces.triangles, faces.floor_vertices, lam,
+                     faces.points, w) * ell**2,
                  "floor_contact_radius_m": _floor_radius(faces, lam) * ell}
+        area += floor["floor_contact_area_m2"]
         if on_floor.any() and floor["floor_contact_radius_m"] >= 0.98 * geo.floor_radius_m:
             reaches_end = True
     end = "contact reached the end of the candidate zone" if reaches_end else ""

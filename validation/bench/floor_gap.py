@@ -1,6 +1,7 @@
 """Where the elastic BEM's floor contact area parts from fem-3d on dense lattices.
 
-``python -m validation.bench.floor_gap --out DIR [--only bem,column,coupled,fem]``
+``python -m validation.bench.floor_gap --out DIR [--only bem,column,coupled,fem,rule,contact]
+[--phi 0.2,0.4]``
 
 The floor-check scene that fails (Phi = 0.4, E_p/E_l = 0.1, zeta = 7 um; PHYSICS.md, "The
 floor between the pillars") and a stiff-pillar one at the same floor share (Phi = 0.2,
@@ -17,6 +18,14 @@ E_p = E_l, zeta = 10 um), each measured by parts:
   contact element size, and at mesh_size 2 (1/2): the floor's own mesh against the rest;
   also on Phi = 0.1, E_p/E_l = 0.1, 4 um (the floor one patch).  The 1/8 floor takes 3-6
   minutes and 6-11 GiB a solve.
+- rule: fem-3d's ladder with the fine floor sized by the floor patches' width as well as the
+  contact size (:func:`fem_reference._floor.patch_floor_ratio`, not the driver's rule) on the
+  floor-check scenes Phi = 0.2 and 0.4 (E_p/E_l = 0.1), mesh_size 4 to 2 or 1: each level's
+  values, time and peak memory, the observed order and GCI, each level written as it ends,
+  and the elastic bem-fft's ladder judged against it as the floor-check judges.
+- contact: the same ladders with the fine floor at half the contact size (the driver's
+  FLOOR_RATIO): what the patch rule changes; also the floor-check's sparser lattices (Phi =
+  0.03 and 0.1) at its ladder there, mesh_size 2.83, 2, 1.41.
 
 Writes ``bench_floor_gap.json`` and ``.md`` in DIR (each part as it finishes).
 """
@@ -31,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-PARTS = ("bem", "column", "coupled", "fem")
+PARTS = ("bem", "column", "coupled", "fem", "rule", "contact")
 # (Phi, E_p/E_l, zeta um): the failing floor-check scene, and stiffer pillars on a lattice
 # whose floor carries the same share (~7.5 %), the floor out of reach at Phi = 0.4 (below).
 SCENES = ((0.4, 0.1, 7.0), (0.2, 1.0, 10.0))
@@ -41,6 +50,13 @@ FEM_LEVELS = ((2.83, 0.5), (2.83, 0.25), (2.83, 0.125), (2.0, 0.5))
 # fem-3d also where the floor is one patch with holes (Phi = 0.1, E_p/E_l = 0.1, 4 um): its
 # area was level-converged from 2.83 to 2 and 3.3 % below the BEM's.
 FEM_SCENES = SCENES + ((0.1, 0.1, 4.0),)
+# The floor rules' ladders on the floor-check's two dense lattices (both E_p/E_l = 0.1):
+# Phi = 0.4 stops at mesh_size 2 (9.2 GiB), Phi = 0.2 goes a level further.
+RULE_SCENES = ((0.2, 0.1, 3.5), (0.4, 0.1, 7.0))
+RULE_LEVELS = {RULE_SCENES[0]: (4.0, 2.83, 2.0, 1.41), RULE_SCENES[1]: (4.0, 2.83, 2.0)}
+# contact also on the floor-check's sparser lattices, at the study's ladder there.
+SPARSE_SCENES = ((0.03, 1e6, 2.0), (0.1, 1.0, 4.0))
+RULE_LEVELS.update(dict.fromkeys(SPARSE_SCENES, (2.83, 2.0, 1.41)))
 COLUMN_RATIOS = (0.1, 1.0)       # E_p / E_s, at h / a = 0.5 (the floor-check's h/d = 0.25)
 TABLE_RHO = (1.0, 1.05, 1.1, 1.2, 1.35, 1.5, 2.0, 2.5, 3.0)
 
@@ -248,20 +264,79 @@ def coupled() -> dict:
 
 
 def fem() -> dict:
-    from fem_reference.solid3d.driver import solve
-
     out = {}
     for point in FEM_SCENES:
-        rows = []
-        for mesh_size, floor_ratio in FEM_LEVELS:
-            start = time.perf_counter()
-            r = solve(_scene(point), mesh_size, grading={"floor_ratio": floor_ratio})
-            rows.append({"mesh_size": mesh_size, "floor_ratio": floor_ratio, **_row(r),
-                         "wall_s": time.perf_counter() - start,
-                         "peak_rss_GiB": r.diagnostics["peak_rss_GiB"],
-                         "load_average": os.getloadavg()[0]})
-        out[str(point)] = rows
+        out[str(point)] = [{"floor_ratio": floor_ratio,
+                            **_fem_row(point, mesh_size, {"floor_ratio": floor_ratio})}
+                           for mesh_size, floor_ratio in FEM_LEVELS]
     return out
+
+
+def _fem_row(point, mesh_size: float, grading=None) -> dict:
+    """fem-3d at ``mesh_size`` (``grading``: the driver's default where None): the floor
+    quantities, the floor's element ratio, wall time, peak memory and the load average."""
+    from fem_reference.solid3d.driver import solve
+
+    start = time.perf_counter()
+    r = solve(_scene(point), mesh_size, grading=grading)
+    return {"mesh_size": mesh_size, **_row(r), "wall_s": time.perf_counter() - start,
+            "peak_rss_GiB": r.diagnostics["peak_rss_GiB"],
+            "floor_fine_radius_um": 1e6 * (r.diagnostics.get("floor_fine_radius_m") or 0.0),
+            "load_average": os.getloadavg()[0]}
+
+
+def rule(scenes=RULE_SCENES, out: Path | None = None, contact_size: bool = False) -> dict:
+    """fem-3d's :data:`RULE_LEVELS` with the fine floor of the patch rule (with
+    ``contact_size``, the driver's own: half the contact size), the elastic bem-fft on the
+    floor-check's ladder, and the floor-check's verdicts on F_T, the floor's share and area.
+    Each level is written to ``out`` as it ends, and levels found there (the same mesh_size
+    and floor ratio) are not solved again."""
+    from fem_reference._floor import floor_patch_width, patch_floor_ratio
+    from fem_reference.solid3d.driver import FLOOR_RATIO
+    from pillar_xval.outcome import write_atomic
+    from validation.studies import floor_check as fc
+
+    name = "contact" if contact_size else "rule"
+    partial = None if out is None else out / f"bench_floor_gap_{name}_partial.json"
+    report = json.loads(partial.read_text()) if partial is not None and partial.exists() else {}
+
+    def save():
+        if partial is not None:
+            write_atomic(partial, json.dumps(report, indent=2))
+
+    for point in scenes:
+        p = _scene(point).pillars
+        ratio = FLOOR_RATIO if contact_size else patch_floor_ratio(p.pitch_m, p.diameter_m,
+                                                                    FLOOR_RATIO)
+        done = {(r["mesh_size"], r["floor_ratio"]): r
+                for r in report.get(str(point), {}).get("levels", [])}
+        entry = report[str(point)] = {
+            "patch_width_um": 1e6 * floor_patch_width(p.pitch_m, p.diameter_m),
+            "floor_ratio": ratio, "levels": []}
+        for mesh_size in RULE_LEVELS[point]:
+            row = done.get((mesh_size, ratio)) or {
+                **_fem_row(point, mesh_size, {"floor_ratio": ratio}), "floor_ratio": ratio,
+                "floor_element_um": 1e6 * ratio * mesh_size / 4.0 * 0.5 * p.diameter_m}
+            entry["levels"].append(row)
+            print(json.dumps(row), flush=True)
+            save()
+        done = {r["N"]: r for r in report.get("bem " + str(point), [])}
+        bem_rows = [done.get(n) or _fft(point, n) for n in fc.BEM_LEVELS]
+        report["bem " + str(point)] = bem_rows
+        ladders = {name: fc._ladder(model, levels, [
+            {"F_T": r["F_T"], "floor_share": r["floor_share"],
+             "floor_area": r["floor_area_um2"] * 1e-12} for r in rows])
+            for name, model, levels, rows in (
+                ("fem", "fem-3d", RULE_LEVELS[point], entry["levels"]),
+                ("bem", fc.BEM_MODEL, fc.BEM_LEVELS, bem_rows))}
+        entry["studies"] = {k: {q: st["gci"][q] for q in ("order", "gci_fine", "f_exact",
+                                                          "status")}
+                            for k, st in ladders["fem"].items()}
+        entry["compared"] = {k: fc._compare(k, ladders["fem"][k], ladders["bem"][k])
+                             for k in ("F_T", "floor_share", "floor_area")}
+        print(json.dumps({str(point): entry["compared"]}), flush=True)
+        save()
+    return report
 
 
 def _markdown(report: dict) -> str:
@@ -276,6 +351,9 @@ def main(argv=None) -> int:
     ap.add_argument("--out", required=True, type=Path)
     ap.add_argument("--only", default=",".join(PARTS),
                     help=f"comma-separated parts of {', '.join(PARTS)}")
+    ap.add_argument("--phi", default=None,
+                    help="rule, contact: comma-separated surface fractions of their scenes "
+                         "(default all)")
     args = ap.parse_args(argv)
     parts = [p for p in args.only.split(",") if p]
     unknown = sorted(set(parts) - set(PARTS))
@@ -287,7 +365,14 @@ def main(argv=None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     report: dict = {}
     for part in parts:
-        report[part] = {"bem": bem, "column": column, "coupled": coupled, "fem": fem}[part]()
+        if part in ("rule", "contact"):
+            phis = None if args.phi is None else {float(v) for v in args.phi.split(",")}
+            scenes = RULE_SCENES + (SPARSE_SCENES if part == "contact" else ())
+            report[part] = rule([s for s in scenes if phis is None or s[0] in phis],
+                                args.out, contact_size=part == "contact")
+        else:
+            report[part] = {"bem": bem, "column": column, "coupled": coupled,
+                            "fem": fem}[part]()
         print(json.dumps({part: report[part]}, indent=1), flush=True)
         write_atomic(args.out / "bench_floor_gap.json", json.dumps(report, indent=2))
         write_atomic(args.out / "bench_floor_gap.md", _markdown(report))

@@ -65,6 +65,10 @@ AXISYM_LEVELS, AXISYM_ONSET_LEVELS = (2.0, 1.0, 0.5), (4.0, 2.0, 1.0)
 # the BEM's 691), and 1.41 takes 4 minutes and 12 GiB on the Phi = 0.4 scene, so the
 # onset's bisections stop at 2.83.
 FEM3D_LEVELS, FEM3D_ONSET_LEVELS = (2.83, 2.0, 1.41), (4.0, 2.83)
+# Phi = 0.4 a level coarser: with its floor area from the P2 gaps, 759.9, 659.2, 653.3 um^2
+# at 4, 2.83, 2 against the BEM's 650.4 (122, 149, 181 s at a load of 5-6; peak 4.9 GiB at 2,
+# at most 2.7 below; 1.41 took 12 GiB in the last run).
+FEM3D_DENSE_LEVELS = (4.0, 2.83, 2.0)
 QUICK = {"bem": (8, 16), "bem_onset": (8, 16), "fem-axisym": (4.0, 2.0),
          "fem-axisym_onset": (4.0, 2.0), "fem-3d": (4.0, 2.83), "fem-3d_onset": (4.0,)}
 ONSET_RTOL = 2e-3  # the bisection's bracket, a tenth of the onset's target
@@ -78,6 +82,7 @@ class FloorPoint:
     surface_fraction: float
     ratio: float
     zeta_um: float
+    fem_levels: tuple | None = None  # the FEM's ladder where not the default
 
     @property
     def single(self) -> bool:
@@ -115,7 +120,7 @@ class FloorPoint:
 # the floor to a pillar through the substrate (a column) against the exact axisymmetric one.
 POINTS = (FloorPoint(2.3e-3, 1.0, 1.6), FloorPoint(2.3e-3, 0.1, 4.0), FloorPoint(2.3e-3, 1e6, 4.0),
           FloorPoint(0.03, 1e6, 2.0), FloorPoint(0.1, 1.0, 4.0), FloorPoint(0.2, 0.1, 3.5),
-          FloorPoint(0.4, 0.1, 7.0))
+          FloorPoint(0.4, 0.1, 7.0, FEM3D_DENSE_LEVELS))
 
 
 def judge_points(value, band, reference, reference_band, target: float) -> dict:
@@ -134,6 +139,8 @@ def _levels(kind: str, point: FloorPoint, quick: bool, onset: bool) -> tuple:
     key = ("bem" if kind == BEM_MODEL else point.fem) + ("_onset" if onset else "")
     if quick:
         return QUICK[key]
+    if point.fem_levels is not None and kind != BEM_MODEL and not onset:
+        return point.fem_levels
     return {"bem": BEM_LEVELS, "bem_onset": BEM_ONSET_LEVELS,
             "fem-axisym": AXISYM_LEVELS, "fem-axisym_onset": AXISYM_ONSET_LEVELS,
             "fem-3d": FEM3D_LEVELS, "fem-3d_onset": FEM3D_ONSET_LEVELS}[key]
