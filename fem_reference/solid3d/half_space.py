@@ -19,10 +19,10 @@ mesh_size 2.83); with the near pieces, over a factor 5.4, as with the three-poin
 every pair (5.0).
 
 The preconditioner is (H_FF)^-1 on the CG's free set F (a float32 Cholesky factorisation of
-H_FF whenever F changes).  The CG starts from the solution of the contact problem with H in place
-of C (a dense problem, solved by the same CG): its contact set is close to the true one (1476
-of 1544 vertices agree there), which spares most of the iterations that would find it, each
-of which clips pressures and costs a second application of C.
+H_FF whenever F changes).  The CG starts from the solution of the contact problem with H in
+place of C (a dense problem, solved by the same CG): its contact set is close to the true one
+(1476 of 1544 vertices agree there), which spares most of the iterations that would find it,
+each of which clips pressures and costs a second application of C.
 """
 
 from __future__ import annotations
