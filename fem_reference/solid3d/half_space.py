@@ -18,15 +18,16 @@ modes of the faces and the CG's preconditioned spectrum spreads over a factor 25
 mesh_size 2.83); with the near pieces, over a factor 5.4, as with the three-point rule on
 every pair (5.0).
 
-The preconditioner is (H_FF)^-1 on the CG's free set F (a Cholesky factorisation of H_FF
-whenever F changes).  The CG starts from the solution of the contact problem with H in place
-of C (a dense problem, solved by the same CG): its contact set is close to the true one (1476
-of 1544 vertices agree there), which spares most of the iterations that would find it, each
-of which clips pressures and costs a second application of C.
+The preconditioner is (H_FF)^-1 on the CG's free set F (a float32 Cholesky factorisation of
+H_FF whenever F changes).  The CG starts from the solution of the contact problem with H in
+place of C (a dense problem, solved by the same CG): its contact set is close to the true one
+(1476 of 1544 vertices agree there), which spares most of the iterations that would find it,
+each of which clips pressures and costs a second application of C.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -66,42 +67,51 @@ class HalfSpaceModel:
         self.inverse_diagonal = 1.0 / np.diag(H).copy()
         self.H = H
         self.factorisations = 0
+        # H is factorised on the free sets the iterations ask for, never on all the
+        # vertices (that factorisation, of the largest set, was the model's costliest:
+        # 0.3 of 1.0 s at Phi = 0.82, mesh_size 2, 2,813 vertices); the first that is not
+        # positive definite turns the preconditioner to the diagonal.  The factors are
+        # float32: a preconditioner needs no more digits (the CG's iterations were the same,
+        # 19 and 14 at Phi = 0.82 and 0.2, mesh_size 2.83 and 2), and LAPACK's float32
+        # Cholesky took 0.53 against 0.84 CPU s for the 20 factorisations at Phi = 0.82,
+        # mesh_size 2 (load 5-6).
         self._free, self._factor = None, None
-        try:
-            self._factorise(np.ones(len(H), dtype=bool))
-            self.name = "half-space"
-        except np.linalg.LinAlgError:
-            self.name = "diagonal (the half-space model was not positive definite)"
+        self.name = "half-space"
 
-    def _factorise(self, free) -> None:
+    def _factorise(self, free) -> bool:
+        """H_FF's Cholesky factor on the free set ``free``; False (and the diagonal from
+        then on) where it is not positive definite."""
         idx = np.nonzero(free)[0]
-        self._factor = (idx, cho_factor(self.H[np.ix_(idx, idx)], lower=True,
-                                        check_finite=False))
+        try:
+            self._factor = (idx, cho_factor(self.H[np.ix_(idx, idx)].astype(np.float32),
+                                            lower=True, check_finite=False))
+        except np.linalg.LinAlgError:
+            self._factor = None
+            self.name = "diagonal (the half-space model was not positive definite)"
+            return False
         self._free = free.copy()
         self.factorisations += 1
+        return True
 
     def precondition(self, r, free):
         """(H_FF)^-1 r_F on the free set F, zero outside (H_FF factorised when F changes;
         the diagonal where H is not definite)."""
-        if self._free is None:
+        if self.name != "half-space" or (not np.array_equal(free, self._free)
+                                         and not self._factorise(free)):
             return free * r * self.inverse_diagonal
-        if not np.array_equal(free, self._free):
-            self._factorise(free)
         idx, factor = self._factor
         z = np.zeros_like(r)
-        z[idx] = cho_solve(factor, r[idx], check_finite=False)
+        z[idx] = cho_solve(factor, r[idx].astype(np.float32), check_finite=False)
         return z
 
     def warm_start(self, b, scale: float) -> np.ndarray:
         """The solution of gap = H p + b, p >= 0, gap >= 0, p gap = 0 (the contact problem
         with the model in place of C), to :data:`WARM_TOL`; zero where H is not definite."""
-        if self._free is None:
-            return np.zeros(len(b))
         H = self.H
         sol = constrained_cg(lambda p: H @ p, b, np.zeros(len(b)), scale=scale, tol=WARM_TOL,
                              max_iterations=1000, precondition=self.precondition,
                              weights=self.faces.weights)
-        return sol.pressure
+        return sol.pressure if self.name == "half-space" else np.zeros(len(b))
 
 
 def serial_dense_algebra():
@@ -139,15 +149,21 @@ def half_space_compliance(vertex_points, weights, triangles, compliance: float,
     S = np.zeros((n, n))
     merged = np.zeros(n)  # images of each vertex that fall on it (itself, its mirrors)
     images = [x @ g.T for g in group]
+    # The sum over the group is symmetric (the group holds each g's inverse): the blocks on
+    # and above the diagonal are computed, those below copied from them.  A pair within
+    # tol under g is one under g's inverse the other way round: the rows' counts, and the
+    # columns' beyond the diagonal block.
     for lo in range(0, n, ROWS):
-        rows = slice(lo, lo + ROWS)
+        hi = min(lo + ROWS, n)
         for gx in images:
-            d = cdist(x[rows], gx)
+            d = cdist(x[lo:hi], gx[lo:])
             same = d <= tol
-            merged[rows] += same.sum(axis=1)  # only the vertex itself can coincide
+            merged[lo:hi] += same.sum(axis=1)
+            merged[hi:] += same[:, hi - lo:].sum(axis=0)
             d[same] = np.inf
             np.reciprocal(d, out=d)
-            S[rows] += d
+            S[lo:hi, lo:] += d
+        S[lo:hi, :lo] = S[:lo, lo:hi].T
     S *= w[:, None]
     S *= w[None, :]
     # A vertex's coinciding images join its hat: a uniform disk of the whole hat's area
@@ -217,7 +233,7 @@ def _candidate_pairs(tree, image_tree, radius):
     def within(a, b, keep):  # the points of tree b within 4 r of each point of tree a
         found = b.query_ball_point(a.data, 4.0 * radius)
         i = np.repeat(np.arange(len(found)), [len(f) for f in found])
-        j = np.fromiter((k for f in found for k in f), dtype=np.int64, count=len(i))
+        j = np.fromiter(itertools.chain.from_iterable(found), dtype=np.int64, count=len(i))
         sel = keep(radius[i], radius[j])
         return i[sel], j[sel]
 
