@@ -177,7 +177,7 @@ def test_split_column_transforms_give_the_whole_transforms_answer(case):
     """The numpy path's default operator (its column transforms split in halves on a grid
     of 2 M rows) against the whole transforms on the generic path's grid: the same solution
     within the solver's tolerance (RTOL_SOLVER; the float32 steps round differently, so the
-    iterates differ by round-off that the CG's stopping test bounds: measured 6e-10 to 5e-9)."""
+    iterates differ by round-off that the CG's stopping test bounds: measured 4e-10 to 2.3e-9)."""
     name, overrides, n, options = case
     scene = load_scene(name, overrides)
     whole = solve_fft(scene, n, backend=UNSPLIT, **options)
