@@ -57,7 +57,7 @@ study-lattice: $(STAMP)
 # The floor between the pillars: the elastic-pillar bem-fft against fem-axisym (one pillar)
 # and fem-3d (four lattices, Phi 0.03 to 0.4, E_p/E_l 0.1, 1, 1e6) past the pillar tops, on
 # F_T, the floor's share, the floor area and the onset, targets judged; $(OUT)/floor-check/
-# floor_check.md (about 40 minutes and 12 GiB on 2 cores; resumes after an interruption).
+# floor_check.md (about 35 minutes on 2 cores, fem-3d at ~5 GiB on its largest case; resumes).
 study-floor: $(STAMP)
 	$(VENV)/bin/pillar-xval floor-check --out $(OUT)/floor-check
 
