@@ -132,6 +132,8 @@ class NumpyDevice(NumpyArrays):
                 sums[k] = np.einsum("i,i->", a[lo:lo + DOT_BLOCK], b[lo:lo + DOT_BLOCK])
 
         self.chunks(part, blocks, DOT_BLOCK)
+        if not np.all(np.isfinite(sums)):  # fsum raises on inf - inf: NaN or inf, as einsum
+            return float(np.sum(sums))
         return math.fsum(sums.tolist())
 
     def chunks(self, work, n: int, size: int = 1) -> None:

@@ -258,6 +258,12 @@ def test_the_numpy_paths_scalar_product_is_blocked_and_exact_to_rounding():
     assert abs(got[0] - exact) <= 1e-15 * exact
     short = a[:DOT_BLOCK]
     assert NumpyDevice(2).dot(short, short) == float(np.einsum("i,i->", short, short))
+    # overflow gives NaN or inf, as a whole product would, never an exception
+    a[0], a[-1] = np.inf, -np.inf
+    with np.errstate(invalid="ignore"):  # inf - inf, as numpy says of a whole product
+        assert np.isnan(NumpyDevice(2).dot(a, b))
+    a[-1] = 1.0
+    assert NumpyDevice(2).dot(a, b) == np.inf
 
 
 def test_the_correction_split_by_rows_is_the_whole_product(monkeypatch):
