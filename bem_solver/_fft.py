@@ -71,7 +71,9 @@ from ._fft_grid import (CellGrid, build_grid, candidate_side, check_grid_side,
                         estimate_host_memory, outer_radii, rim_radii)
 from ._elastic_pillar import (FFTPillarTerm, TopsOnlyTerm, check_pillars, operator_records,
                               pillar_record, scene_compliance, tops_grid, uses_elastic_block)
-from ._fft_operator import CirculantPreconditioner, CompliancePlan, near_field_correction
+from ._fft_operator import (CirculantPreconditioner, CompliancePlan, TransformWorkspace,
+                            near_field_correction)
+from ._fft_working_set import gap_left_out, left_out_floor, whole, working_grid
 from ._limits import PRECISIONS
 from ._xp import NumpyDevice, fft_point_limit, select_backend
 
@@ -212,26 +214,75 @@ def solve_fft(scene: Scene, cells_per_diameter: int = 32, *, tol: float = DEFAUL
 
         return solve_under_force(scene, cells_per_diameter, opts, be, start, _nested,
                                  _workspace)
-    setup = _prepare(scene, cells_per_diameter, opts, be, _workspace, start)
-    b = be.asarray(setup.grid.gap0, dtype=be.xp.float64)
     coarse = cells_per_diameter // 2
-    lap = time.perf_counter()
     if warm_start is True and be.device == "gpu":
         warm_start = GPU_WARM_START_LEVELS
-    if warm_start and coarse >= WARM_START_MIN_CELLS:
-        # Nested iteration: the solution at half the resolution, interpolated, brings the
-        # contact set nearly right, so the fine constrained CG restarts seldom.  The coarser
-        # levels transform in this plan's work arrays (made first, the largest).
-        rough = _coarser(scene, coarse, opts, be, setup.plan.workspace)
-        q0 = _interpolate(rough, setup.grid, be, slivers=edge_correction)
-        levels = warm_levels(rough, coarse)
-    else:
+    if not (warm_start and coarse >= WARM_START_MIN_CELLS):
+        setup = _prepare(scene, cells_per_diameter, opts, be, _workspace, start)
+        b = be.asarray(setup.grid.gap0, dtype=be.xp.float64)
+        lap = time.perf_counter()
         q0 = _initial_pressure(setup.plan, b, be)
-        levels = []
+        be.synchronize()
+        setup.timings["warm_start"] = time.perf_counter() - lap
+        outcome = run_cg(setup, b, q0, scene.indentation_m, opts, be)
+        return finish(scene, setup, outcome, cells_per_diameter, opts, be, [], start)
+    # Nested iteration: the solution at half the resolution, interpolated, brings the
+    # contact set nearly right, so the fine constrained CG restarts seldom; it also says
+    # which floor cells stay clear of the lens (bem_solver._fft_working_set).  The levels
+    # share one set of transform work arrays.
+    _refuse_grid(scene, cells_per_diameter, be, opts.elastic)
+    grid = _grid(scene, cells_per_diameter, opts, be)
+    built = time.perf_counter() - start
+    workspace = _workspace if _workspace is not None else TransformWorkspace()
+    lap = time.perf_counter()
+    rough = _coarser(scene, coarse, opts, be, workspace)
+    left_out = left_out_floor(rough, grid, scene.indentation_m)
+    warm = time.perf_counter() - lap
+    work, kept = (grid, None) if left_out is None else working_grid(grid, left_out)
+    setup = _prepare(scene, cells_per_diameter, opts, be, workspace, start, work)
+    if left_out is not None:  # the CG's last exact application gives the check its gaps
+        setup.plan.watch_at(be.asarray(grid.flat_index[left_out]))
+    setup.timings["grid"] = built
+    lap = time.perf_counter()
+    q0 = _interpolate(rough, work, be, slivers=edge_correction)
     be.synchronize()
-    setup.timings["warm_start"] = time.perf_counter() - lap
-    outcome = run_cg(setup, b, q0, scene.indentation_m, opts, be)
-    return finish(scene, setup, outcome, cells_per_diameter, opts, be, levels, start)
+    setup.timings["warm_start"] = warm + time.perf_counter() - lap
+    outcome = run_cg(setup, be.asarray(work.gap0, dtype=be.xp.float64), q0,
+                     scene.indentation_m, opts, be)
+    if left_out is not None:
+        setup, outcome = _check_left_out(scene, cells_per_diameter, opts, be, workspace,
+                                         start, grid, setup, outcome, kept, left_out)
+    return finish(scene, setup, outcome, cells_per_diameter, opts, be,
+                  warm_levels(rough, coarse), start)
+
+
+def _check_left_out(scene, cells_per_diameter, opts, be, workspace, start, grid, setup,
+                    outcome, kept, left_out):
+    """The solve on the working grid carried onto the whole ``grid``: accepted if no
+    left-out cell interpenetrates by more than the tolerance (``diagnostics`` say how
+    many were left out), else the whole grid solved from it
+    (:mod:`bem_solver._fft_working_set`)."""
+    lap = time.perf_counter()
+    gap_out = gap_left_out(setup.plan, grid, left_out, outcome.pressure, be)
+    worst = max(-float(gap_out.min()), 0.0) / scene.indentation_m
+    pressure = whole(grid, kept, left_out, outcome.pressure, 0.0)
+    record = {"left_out_floor_cells": int(left_out.size),
+              "left_out_worst_interpenetration": worst, "left_out_accepted": True}
+    if worst <= opts.tol:
+        outcome.pressure = pressure
+        outcome.gap = whole(grid, kept, left_out, outcome.gap, gap_out)
+        setup.grid = grid
+        setup.timings["solve"] += time.perf_counter() - lap
+    else:  # a left-out cell would touch the lens: the whole grid, from this answer
+        record["left_out_accepted"] = False
+        timings = setup.timings
+        setup = _prepare(scene, cells_per_diameter, opts, be, workspace, start, grid)
+        setup.timings = {**timings, "solve": timings["solve"] + time.perf_counter() - lap}
+        outcome = run_cg(setup, be.asarray(grid.gap0, dtype=be.xp.float64),
+                         be.asarray(pressure, dtype=be.xp.float64), scene.indentation_m,
+                         opts, be)
+    setup.working_set = record
+    return setup, outcome
 
 
 @dataclass(frozen=True)
@@ -253,26 +304,36 @@ class _Options:
 
 @dataclass
 class _Setup:
-    """The grid, its operator and preconditioner, and the timings so far."""
+    """The grid, its operator and preconditioner, the timings so far, and what the solve
+    left out of the grid (:func:`_check_left_out`)."""
 
     grid: CellGrid
     plan: CompliancePlan
     precondition: object
     timings: dict
+    working_set: dict | None = None
 
 
-def _prepare(scene: Scene, cells_per_diameter: int, opts: _Options, be, workspace,
-             start: float) -> _Setup:
-    """Grid, operator and preconditioner of ``scene`` (indentation-controlled: its
-    indentation sets the candidate region, and on a flat scene the cell size)."""
-    _refuse_grid(scene, cells_per_diameter, be, opts.elastic)
+def _grid(scene: Scene, cells_per_diameter: int, opts: _Options, be) -> CellGrid:
+    """The candidate cells of ``scene`` (built on the device from ``GPU_GRID_MIN_POINTS``
+    points of the candidate square on), collocated at the centres without the edge
+    correction."""
     xp = getattr(be, "numpy_like", np)
     if candidate_side(scene, cells_per_diameter) ** 2 < GPU_GRID_MIN_POINTS:
         xp = np  # a small grid is built faster on the host than by a device's launches
     grid = build_grid(scene, cells_per_diameter,
                       max_fft_points=fft_point_limit(be, opts.elastic), xp=xp)
-    if not opts.edge_correction:
-        grid = _plain_grid(grid, scene)
+    return grid if opts.edge_correction else _plain_grid(grid, scene)
+
+
+def _prepare(scene: Scene, cells_per_diameter: int, opts: _Options, be, workspace,
+             start: float, grid: CellGrid | None = None) -> _Setup:
+    """Grid (unless given), operator and preconditioner of ``scene``
+    (indentation-controlled: its indentation sets the candidate region, and on a flat scene
+    the cell size)."""
+    if grid is None:
+        _refuse_grid(scene, cells_per_diameter, be, opts.elastic)
+        grid = _grid(scene, cells_per_diameter, opts, be)
     L = grid.cell_size
     spring = 0.0 if grid.flat or opts.elastic else scene.pillar_spring_compliance
     timings = {"grid": time.perf_counter() - start}
@@ -386,6 +447,8 @@ def finish(scene: Scene, setup: _Setup, outcome, cells_per_diameter: int, opts: 
         result.diagnostics["operators"] = operator_records(opts.compliance.diagnostics)
         result.discretisation["pillars"] = "elastic"
     result.diagnostics["timings_s"] = setup.timings
+    if setup.working_set is not None:
+        result.diagnostics.update(setup.working_set)
     return result
 
 
@@ -507,13 +570,17 @@ def _interpolate_layer(f: dict, coarse, grid: CellGrid, cells, be, slivers: bool
     cy = be.asarray(grid.y[cells], dtype=xp.float64) / Lc - float(iy.min())
     cx = be.asarray(grid.x[cells], dtype=xp.float64) / Lc - float(ix.min())
     bulk = _bilinear(xp, be.asarray(smeared), cy, cx)
-    if not slivers:
-        return xp.maximum(bulk, 0.0)
-    num = _bilinear(xp, be.asarray(pressure), cy, cx)
-    den = _bilinear(xp, be.asarray(weight), cy, cx)
-    covered = be.asarray(grid.covered[cells], dtype=xp.float64)
-    sliver = xp.where(den > 1e-3, num / xp.maximum(den, 1e-3), 0.0) * covered
-    return xp.maximum(xp.where(covered >= 0.5, bulk, sliver), 0.0)
+    covered = grid.covered[cells]
+    thin = np.flatnonzero(covered < 0.5) if slivers else np.empty(0, dtype=np.int64)
+    if thin.size:  # the slivers, a few per cent of the cells (rims), interpolated apart
+        at_thin = be.asarray(thin)
+        ty, tx = xp.take(cy, at_thin), xp.take(cx, at_thin)
+        num = _bilinear(xp, be.asarray(pressure), ty, tx)
+        den = _bilinear(xp, be.asarray(weight), ty, tx)
+        sliver = xp.where(den > 1e-3, num / xp.maximum(den, 1e-3), 0.0) \
+            * be.asarray(covered[thin], dtype=xp.float64)
+        bulk = be.put(bulk, at_thin, sliver)
+    return xp.maximum(bulk, 0.0)
 
 
 def _bilinear(xp, values, cy, cx):

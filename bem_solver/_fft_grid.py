@@ -286,7 +286,7 @@ def _floor_cells(ax, L, r_floor, keep, tops, xp=np):
     the covered parts about the origin (m^3) on rim cells."""
     total, mx, my = tops
     side = ax.size
-    reach = xp.flatnonzero(xp.hypot(ax[None, :], ax[:, None]).ravel() <= r_floor)
+    reach = _disk_cells(ax, r_floor, xp)
     frac = 1.0 - xp.minimum(total[reach], 1.0)
     # A floor sliver is dropped like a top sliver (MIN_COVERED_FRACTION); its area, below
     # 1e-3 L^2, is lost from the floor.
@@ -417,22 +417,31 @@ def _fractions_windows(table, ax, L, rad, pitch, floor, xp):
     half = side // 2
     total_frac, best_frac, owner, moment_x, moment_y = _square_arrays(side, floor, xp)
     m = int(math.ceil(rad / L)) + 1
-    for k, (_, _, px, py) in enumerate(table):
+    windows = []
+    for _, _, px, py in table:
         ix0 = int(round(px / L)) + half
         iy0 = int(round(py / L)) + half
         cols = slice(max(ix0 - m, 0), min(ix0 + m + 1, side))
         rows = slice(max(iy0 - m, 0), min(iy0 + m + 1, side))
         cx, cy = ax[cols] - px, ax[rows] - py
-        frac, (ri, ci) = _cover(cx[None, :], cy[:, None], L, rad, xp)
-        rx, ry = cx[ci], cy[ri]
-        frac[ri, ci], centroid = _rim_parts(rx, ry, L, rad, floor)
+        windows.append((rows, cols, cx, cy, *_cover(cx[None, :], cy[:, None], L, rad, xp)))
+    # The rim cells' closed forms for all pillars at once (a few hundred cells each: per
+    # pillar, the calls' overhead was most of their time).
+    rims = [(cx[ci], cy[ri]) for _, _, cx, cy, _, (ri, ci) in windows]
+    rim_area, centroid = _rim_parts(xp.concatenate([rx for rx, _ in rims]),
+                                    xp.concatenate([ry for _, ry in rims]), L, rad, floor)
+    ends = np.cumsum([0] + [rx.size for rx, _ in rims])
+    for k, (rows, cols, cx, cy, frac, (ri, ci)) in enumerate(windows):
+        px, py = table[k][2], table[k][3]
+        lo, hi = int(ends[k]), int(ends[k + 1])
+        frac[ri, ci] = rim_area[lo:hi]
         total_frac[rows, cols] += frac
         if floor:  # the covered parts' moments, full cells' at their centres
             area = frac * (L * L)
             mx_, my_ = xp.broadcast_to(cx[None, :], area.shape).copy(), \
                 xp.broadcast_to(cy[:, None], area.shape).copy()
             if ri.size:
-                mx_[ri, ci], my_[ri, ci] = centroid
+                mx_[ri, ci], my_[ri, ci] = centroid[0][lo:hi], centroid[1][lo:hi]
             moment_x[rows, cols] += area * (mx_ + px)
             moment_y[rows, cols] += area * (my_ + py)
         # Views of the square, updated in place: the pillar of the larger share owns a cell.
@@ -496,6 +505,22 @@ def _fractions_dense(table, ax, L, rad, pitch, floor, xp):
         owner = xp.where(take, k, owner)
         best = xp.maximum(best, frac)
     return total_frac, owner, moment_x, moment_y
+
+
+def _disk_cells(ax, radius: float, xp=np):
+    """Flat indices, increasing, of the cells of the square ``ax`` x ``ax`` whose centres lie
+    within ``radius`` of the origin (``hypot(x, y) <= radius``); on numpy row by row from
+    :func:`_row_reach` (no distance per cell: 19 ms of a 1e6-cell floor's grid)."""
+    side = ax.size
+    if xp is not np:  # a device's library: one whole-array test (cupy repeats by a list)
+        return xp.flatnonzero(xp.hypot(ax[None, :], ax[:, None]).ravel() <= radius)
+    reach = _row_reach(ax, radius, xp)
+    counts = xp.where(reach >= 0, 2 * reach + 1, 0)
+    starts = xp.arange(side, dtype=xp.int64) * side + side // 2 - reach
+    ends = xp.cumsum(counts)
+    total = int(ends[-1]) if side else 0
+    within = xp.arange(total, dtype=xp.int64) - xp.repeat(ends - counts, counts)
+    return xp.repeat(starts, counts) + within
 
 
 def _row_reach(ax, radius: float, xp=np):

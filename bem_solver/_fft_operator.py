@@ -68,6 +68,10 @@ SINGLE_PRECISION_ERROR = 2e-6
 # 1/SPARSE_ROWS_FRACTION of all cells (a row slice of the sparse matrix), else its whole
 # product.
 SPARSE_ROWS_FRACTION = 16
+# The near-field correction's pairs are evaluated in blocks of this many.
+PAIR_BLOCK = 1 << 14
+
+
 def kernel_block(shape, cell_size: float, compliance: float, xp=np):
     """K(i L, j L) for 0 <= i < ny, 0 <= j < nx in m/Pa (rows = y offsets), built in the
     array namespace ``xp`` (on the device): the far form everywhere, the exact form in the
@@ -144,16 +148,31 @@ def near_field_correction(grid, compliance: float, width: int = NEAR_FIELD_CELLS
     cy = be.asarray(grid.colloc_y, dtype=xp.float64)
     side = xp.sqrt(phi) * L
     k = compliance / math.pi
-    dxc = xp.take(cx, i) - xp.take(cx, j)
-    dyc = xp.take(cy, i) - xp.take(cy, j)
-    phi_i, phi_j = xp.take(phi, i), xp.take(phi, j)
-    a_ij = k * love_square_everywhere(dxc, dyc, xp.take(side, j), xp) / phi_j
-    a_ji = k * love_square_everywhere(-dxc, -dyc, xp.take(side, i), xp) / phi_i
     # Grid coefficients of the pairs: a (width + 1)^2 table of integer offsets.
     table = xp.reshape(kernel_block((width + 1, width + 1), L, compliance, xp), (-1,))
-    fi, fj = xp.take(flat, i), xp.take(flat, j)
-    offset = xp.abs(fi // nx - fj // nx) * (width + 1) + xp.abs(fi % nx - fj % nx)
-    value = 0.5 * (a_ij + a_ji) - xp.take(table, offset)
+
+    def values(i, j):
+        dxc = xp.take(cx, i) - xp.take(cx, j)
+        dyc = xp.take(cy, i) - xp.take(cy, j)
+        a_ij = k * love_square_everywhere(dxc, dyc, xp.take(side, j), xp) / xp.take(phi, j)
+        a_ji = k * love_square_everywhere(-dxc, -dyc, xp.take(side, i), xp) / xp.take(phi, i)
+        fi, fj = xp.take(flat, i), xp.take(flat, j)
+        offset = xp.abs(fi // nx - fj // nx) * (width + 1) + xp.abs(fi % nx - fj % nx)
+        return 0.5 * (a_ij + a_ji) - xp.take(table, offset)
+
+    chunks = getattr(be, "chunks", None)
+    if chunks is None:
+        value = values(i, j)
+    else:  # elementwise per pair: blocks of pairs in the backend's chunks (the FFT threads)
+        value = xp.empty(i.shape, dtype=xp.float64)
+        m = int(i.shape[0])
+
+        def part(b0, b1):  # blocks small enough that the temporaries stay in the cache
+            for lo in range(b0 * PAIR_BLOCK, min(b1 * PAIR_BLOCK, m), PAIR_BLOCK):
+                hi = min(lo + PAIR_BLOCK, m)
+                value[lo:hi] = values(i[lo:hi], j[lo:hi])
+
+        chunks(part, -(-m // PAIR_BLOCK), PAIR_BLOCK)
     off = i != j
     rows = xp.concat([i, j[off]])
     cols = xp.concat([j, i[off]])
@@ -289,6 +308,19 @@ class PrunedConvolution:
             self._twiddles = (shift, np.conj(shift))
         for precision in precisions:  # made now, with the plan, not in the first solve's call
             self._state(precision)
+        # Cells of the box whose values every float64 call also gathers (watch_at).
+        self._watch, self.watched = None, None
+
+    def watch_at(self, flat_index) -> None:
+        """From now on, every float64 call also keeps its result at the cells
+        ``flat_index`` of the (ny, nx) box in ``watched`` (one gather more a call)."""
+        self._watch = self._padded(flat_index)
+        self.watched = None
+
+    def _padded(self, flat):
+        """Positions in the padded (my, mx) grid of the box's flat indices ``flat``."""
+        nx = self.shape[1]
+        return (flat // nx) * self.fft_shape[1] + flat % nx
 
     def _state(self, precision):
         """The kept scatter buffer, the spectrum (generic path) and the kept work arrays
@@ -327,10 +359,13 @@ class PrunedConvolution:
             self._arrays[precision] = state
         return state
 
-    def __call__(self, q, single: bool = False):
+    def __call__(self, q, single: bool = False, at=None):
+        """The convolution of ``q`` (on the candidate cells) on those cells, or with ``at``
+        (flat indices into the (ny, nx) box) on those cells of the box instead."""
         be = self.backend
         xp = be.xp
         key = "single" if single else "double"
+        out_index = self.padded_index if at is None else self._padded(at)
         buffer, spectrum, work = self._state(key)
         nu = self.n_unique
         shared = nu < self.padded_index.shape[0]
@@ -345,7 +380,7 @@ class PrunedConvolution:
             in_chunks(scatter, nu, self.backend.workers)
             if shared:  # the floor parts of rim cells add to their top part's position
                 buffer[self._extra_index] += q[nu:].astype(buffer.dtype, copy=False)
-            return self._numpy_call(buffer, work)
+            return self._numpy_call(buffer, work, out_index)
         else:
             ny = self.shape[0]
             my, mx = self.fft_shape
@@ -360,7 +395,10 @@ class PrunedConvolution:
             spec = be.fft(be.rfft(xp.reshape(buffer, (ny, mx)), axis=1), n=my, axis=0)
             spec *= spectrum
             rows = be.ifft(spec, axis=0)[:ny, :]
-            out = xp.take(xp.reshape(be.irfft(rows, n=mx, axis=1), (-1,)), self.padded_index)
+            field = xp.reshape(be.irfft(rows, n=mx, axis=1), (-1,))
+            if self._watch is not None and not single:
+                self.watched = xp.take(field, self._watch)
+            out = xp.take(field, out_index)
         return xp.astype(out, xp.float64) if single else out
 
     def few(self, index, values, single: bool = False):
@@ -382,11 +420,12 @@ class PrunedConvolution:
             buffer[self.padded_index[index]] = values.astype(buffer.dtype)
         return self._numpy_call(buffer, work)
 
-    def _numpy_call(self, buffer, work):
+    def _numpy_call(self, buffer, work, index=None):
         """The generic path's transforms (scipy.fft's rfft, fft, ifft, irfft are these
         pocketfft calls, with the default norm) of the scattered ``buffer`` into the kept
-        arrays, and the result on the candidate cells in float64; the elementwise work in
-        chunks on the transforms' threads (:func:`in_chunks`)."""
+        arrays, and the result on the candidate cells (or at the padded positions ``index``)
+        in float64; the elementwise work in chunks on the transforms' threads
+        (:func:`in_chunks`)."""
         ny = self.shape[0]
         my, mx = self.fft_shape
         spec, out, factor, twiddles = work
@@ -425,7 +464,10 @@ class PrunedConvolution:
 
             in_chunks(combined, ny, workers, row)
         _pocketfft.c2r(spec[:ny], (1,), mx, False, 2, out, workers)
-        flat, index = out.reshape(-1), self.padded_index
+        flat = out.reshape(-1)
+        index = self.padded_index if index is None else index
+        if self._watch is not None and out.dtype == np.float64:
+            self.watched = flat.take(self._watch)
         result = np.empty(index.shape[0])
 
         def gather(lo, hi):  # take, then widen (exact) into the float64 result
@@ -537,6 +579,7 @@ class CompliancePlan:
         self.pillar_spring = self.spring if self.pillar_weight is None else \
             self.spring * self.pillar_weight
         self.applications = 0
+        self._watched_q = None  # the last float64 application's q, while watching
         self.correction = correction
         self._correction_scratch = None  # numpy: _add_correction's rows, kept between calls
         diagonal = xp.full(flat.shape[0], self.self_coefficient, dtype=xp.float64)
@@ -574,7 +617,29 @@ class CompliancePlan:
     def half_space(self, q, single: bool = False):
         """K q on the candidate cells (m); ``single``: the transforms in float32."""
         self._count(single)
-        return self._convolution(q, single=single)
+        u = self._convolution(q, single=single)
+        if self._watched_q is not None and not single:
+            self._watched_q = self.backend.xp.asarray(q, copy=True)
+        return u
+
+    def watch_at(self, flat_index) -> None:
+        """From now on, every float64 application also keeps K q at the cells
+        ``flat_index`` of the plan's (ny, nx) box, candidates or not, with a copy of its q:
+        :meth:`half_space_at` then takes it instead of a convolution of its own."""
+        self._convolution.watch_at(flat_index)
+        self._watched_q = self.backend.xp.zeros(0)
+
+    def half_space_at(self, q, flat_index):
+        """K q (m, float64) at the cells ``flat_index`` of the plan's (ny, nx) box, candidates
+        or not: the half-space part alone (no near-field correction, no pillar term); the
+        watched values (:meth:`watch_at`, the same cells) where the last float64
+        application was of this ``q``."""
+        xp = self.backend.xp
+        kept = self._watched_q
+        if kept is not None and kept.shape == q.shape and bool(xp.all(kept == q)):
+            return self._convolution.watched
+        self._count(False)
+        return self._convolution(q, at=flat_index)
 
     def _count(self, single: bool) -> None:
         """One more convolution of the operator (``single``: in float32)."""

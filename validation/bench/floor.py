@@ -28,6 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
+from pillar_xval.outcome._files import write_atomic
+
 PARTS = ("perf", "convergence", "peer")
 # Rigid pillars on an elastic substrate and lens (the paper's moduli), d = 4 um.
 BASE = ["pillars.rigid=true", "substrate.E_Pa=1.6e6", "substrate.nu=0.5"]
@@ -81,6 +83,7 @@ def perf(repeats: int) -> dict:
                        "floor_cells": r.diagnostics.get("floor_cells", 0),
                        "floor_share": r.floor_force_N / r.total_force_N,
                        "converged": r.converged, "regime": r.regime,
+                       "left_out_floor_cells": r.diagnostics.get("left_out_floor_cells", 0),
                        "warm_start_iterations": sum(v["iterations"] for v in
                                                     r.diagnostics["warm_start_levels"])}
     mixed, suspended = PERF_HEIGHTS_UM
@@ -188,11 +191,12 @@ def markdown(doc: dict) -> str:
     if p:
         lines += [f"Cost on one grid (N = {p['cells_per_diameter']}, load average "
                   f"{p['load_average']:.1f}, medians of {p['repeats']} alternate runs):", "",
-                  "| solve | cells | floor cells | floor share | iterations | median |",
-                  "|---|---|---|---|---|---|"]
+                  "| solve | cells | floor cells | left out | floor share | iterations | "
+                  "median |", "|---|---|---|---|---|---|---|"]
         for k in ("mixed", "suspended"):
             r = p[k]
             lines.append(f"| {k} | {r['cells']} | {r['floor_cells']} | "
+                         f"{r.get('left_out_floor_cells', 0)} | "
                          f"{100 * r['floor_share']:.2f} % | {r['iterations']} | "
                          f"{r['median_s']:.3g} s |")
         per_iteration = (p["mixed"]["median_s"] / p["mixed"]["iterations"]) / (
@@ -242,6 +246,11 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=3)
     args = ap.parse_args(argv)
     parts = [p for p in args.only.split(",") if p]
+    unknown = [p for p in parts if p not in PARTS]
+    if unknown or not parts:
+        ap.error(f"--only = {args.only!r}: choose parts among {', '.join(PARTS)}")
+    if args.repeats < 1:
+        ap.error(f"--repeats = {args.repeats}: must be at least 1")
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / "bench_floor.json"
     doc = json.loads(path.read_text()) if path.exists() else {}
@@ -255,8 +264,8 @@ def main(argv=None) -> int:
                 continue
         doc[part] = {"perf": lambda: perf(args.repeats), "convergence": convergence,
                      "peer": peer}[part]()
-        path.write_text(json.dumps(doc, indent=2))
-        (args.out / "bench_floor.md").write_text(markdown(doc))
+        write_atomic(path, json.dumps(doc, indent=2))
+        write_atomic(args.out / "bench_floor.md", markdown(doc))
         print(markdown({part: doc[part]}))
     return 0
 
