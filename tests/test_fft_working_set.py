@@ -30,6 +30,19 @@ RTOL_SAME = 10 * TOL
 RTOL_ROUNDOFF = 1e-12
 
 
+@pytest.fixture(autouse=True)
+def _small_grids(monkeypatch):
+    # The working set pays from 1e5 cells; these grids are smaller, to keep the tests fast.
+    monkeypatch.setattr(working_set, "MIN_GRID_CELLS", 0)
+
+
+def test_small_grids_solve_whole(monkeypatch):
+    monkeypatch.setattr(working_set, "MIN_GRID_CELLS", 10**9)
+    result = solve_fft(load_scene("paper-fig3-sparse", MIXED), N, tol=TOL)
+    assert result.converged and result.regime == "mixed"
+    assert "left_out_floor_cells" not in result.diagnostics
+
+
 def _solve_both(monkeypatch, **kw):
     scene = load_scene("paper-fig3-sparse", MIXED)
     left = solve_fft(scene, N, tol=TOL, **kw)
