@@ -274,8 +274,9 @@ def _check_left_out(scene, cells_per_diameter, opts, be, workspace, start, grid,
         setup.grid = grid
         setup.timings["solve"] += time.perf_counter() - lap
     else:  # a left-out cell would touch the lens: the whole grid, from this answer
-        record["left_out_accepted"] = False
+        record.update(left_out_accepted=False, working_set_iterations=outcome.iterations)
         timings = setup.timings
+        setup.plan = setup.precondition = None  # freed before the whole grid's are made
         setup = _prepare(scene, cells_per_diameter, opts, be, workspace, start, grid)
         setup.timings = {**timings, "solve": timings["solve"] + time.perf_counter() - lap}
         outcome = run_cg(setup, be.asarray(grid.gap0, dtype=be.xp.float64),

@@ -95,6 +95,7 @@ def test_a_wrong_working_set_is_caught_and_the_whole_grid_solved(monkeypatch):
     scene, left, whole = _solve_both(monkeypatch)
     d = left.diagnostics
     assert not d["left_out_accepted"] and d["left_out_worst_interpenetration"] > TOL
+    assert d["working_set_iterations"] > 0
     _same_answer(left, whole)
 
 
