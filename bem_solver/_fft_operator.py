@@ -939,19 +939,22 @@ class CirculantPreconditioner:
         # vector is this call's own (products by 0 or 1 are exact: the same values).  The
         # elementwise passes run in the backend's chunks (the FFT threads on numpy: the same
         # bits in any split), into arrays kept between calls; the pillar sums run whole.
-        mask, rf = self._kept(r)
+        mask, rf, scaled = self._kept(r)
         scale = self.scale
 
-        def restriction(lo, hi):
-            return mask[lo:hi] if scale is None else mask[lo:hi] * scale[lo:hi]
+        def restriction(lo, hi):  # the indicator times S, made once a call
+            return mask[lo:hi] if scale is None else scaled[lo:hi]
 
         def restrict_input(lo, hi):
             m, v = mask[lo:hi], rf[lo:hi]
             m[...] = xp.astype(free[lo:hi], xp.float64)
             v[...] = r[lo:hi]
             v *= m
-            if not self.pillars and scale is not None:
-                v *= restriction(lo, hi)
+            if scale is not None:
+                w = scaled[lo:hi]
+                w[...] = m * scale[lo:hi]
+                if not self.pillars:
+                    v *= w
 
         chunks(restrict_input, n)
         weight = self.plan.pillar_weight
@@ -1002,10 +1005,12 @@ class CirculantPreconditioner:
         return z
 
     def _kept(self, r):
-        """The indicator of F and the restricted residual: arrays of ``r``'s shape kept
-        between calls (only this call reads them; z, returned, is the convolution's own)."""
+        """The indicator of F, the restricted residual and the indicator times S (None
+        without S): arrays of ``r``'s shape kept between calls (only this call reads them;
+        z, returned, is the convolution's own)."""
         kept = getattr(self, "_arrays", None)
         if kept is None or kept[0].shape != r.shape:
             xp = self.backend.xp
-            kept = self._arrays = (xp.empty_like(r), xp.empty_like(r))
+            kept = self._arrays = (xp.empty_like(r), xp.empty_like(r),
+                                   None if self.scale is None else xp.empty_like(r))
         return kept
