@@ -250,7 +250,7 @@ def assemble_sector(mesh, materials: dict, *, sector_angle: float, clamp_pillar_
     scale[is_u] = 1.0 / np.sqrt(diag[is_u])
     # Scaled in place: the solves use S K S alone (an unscaled copy would cost its 12 bytes
     # per entry, 0.3 GiB at mesh_size 2, through the whole solve).
-    Kr.data *= scale[np.repeat(np.arange(Kr.shape[0]), np.diff(Kr.indptr))]
+    Kr.data *= np.repeat(scale, np.diff(Kr.indptr))  # the rows' scales
     Kr.data *= scale[Kr.indices]
     nodes = _nodes_of(T, n_u, pressures, reduced_of, rigid)
     return SectorSystem(mesh, sb, pressures, Kr, T.tocsr(), scale, rigid, nodes)
