@@ -285,20 +285,20 @@ def assemble_blocks(mesh, sb, pressures: list):
         index = (where[sl, None, :] * 9 + np.arange(9)[:, None]).ravel()
         blocks += np.bincount(index, weights=V.ravel(), minlength=len(blocks))
         divergence[sl] = tet_p2.divergence_blocks(grad[sl], volume[sl])
-    del where, grad
+    del grad
     A = _vector_csr(row, col, blocks.reshape(-1, 3, 3), N)
+    del blocks
     B, M = [], []
     for k, ps in enumerate(pressures):
         sl = slice(first[k], first[k + 1])
-        nd, vals, n_p = nodes[sl], divergence[sl], len(ps.dofs)
-        row = np.searchsorted(ps.dofs, nd[:, :4])  # vertex q of each element, in the body's
-        rows = np.broadcast_to(row[:, :, None, None], vals.shape)
-        cols = np.broadcast_to(3 * nd[:, None, :, None] + np.arange(3), vals.shape)
-        B.append(sp.csr_matrix((vals.ravel(), (rows.ravel(), cols.ravel())),
-                               shape=(n_p, 3 * N)))
+        # the test vertices q < 4 of the pairs 10 q + s
+        B.append(_coupling_csr(row, col, where[sl, :40], divergence[sl], ps.dofs, N))
+        vertex = np.searchsorted(ps.dofs, nodes[sl, :4])  # vertex q of each element, the body's
         m = tet_p2.pressure_masses(volume[sl])
-        r, c = np.broadcast_to(row[:, :, None], m.shape), np.broadcast_to(row[:, None, :], m.shape)
-        M.append(sp.csr_matrix((m.ravel(), (r.ravel(), c.ravel())), shape=(n_p, n_p)))
+        r = np.broadcast_to(vertex[:, :, None], m.shape)
+        c = np.broadcast_to(vertex[:, None, :], m.shape)
+        M.append(sp.csr_matrix((m.ravel(), (r.ravel(), c.ravel())),
+                               shape=(len(ps.dofs), len(ps.dofs))))
     return A, B, M
 
 
@@ -318,6 +318,23 @@ def _pair_pattern(nodes: np.ndarray, N: int):
     pattern.data = np.arange(pattern.nnz, dtype=float)  # exact integers (< 2^53)
     where = pattern[np.repeat(nodes, k, axis=1).ravel(), np.tile(nodes, k).ravel()]
     return row, pattern.indices.astype(np.int64), np.asarray(where).astype(np.int64).reshape(E, -1)
+
+
+def _coupling_csr(row, col, where, values, dofs, N) -> sp.csr_matrix:
+    """One body's divergence coupling B (its vertices ``dofs`` x 3 N) from its elements'
+    integrals ``values[e, q, s, a]`` (test vertex q, trial node s, component a), summed on
+    the node pairs they touch (``where[e, 10 q + s]``, the pair's index in ``row``, ``col``:
+    :func:`_pair_pattern`), which are sorted by row, then column: laid out as CSR directly
+    (scipy's coordinate path sorts every row's duplicates)."""
+    sums = np.bincount((where[:, :, None] * 3 + np.arange(3)).ravel(), weights=values.ravel(),
+                       minlength=3 * len(row)).reshape(-1, 3)
+    pairs = np.nonzero(np.bincount(where.ravel(), minlength=len(row)))[0]
+    local = np.searchsorted(dofs, row[pairs])  # each pair's row among the body's vertices
+    indptr = 3 * np.searchsorted(local, np.arange(len(dofs) + 1))
+    indices = (3 * col[pairs][:, None] + np.arange(3)).ravel()
+    B = sp.csr_matrix((sums[pairs].ravel(), indices, indptr), shape=(len(dofs), 3 * N))
+    B.has_sorted_indices = True
+    return B
 
 
 def _vector_csr(row, col, blocks, N) -> sp.csr_matrix:
