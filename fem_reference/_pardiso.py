@@ -13,17 +13,16 @@ on every call.
 
 Ordering.  By default PARDISO orders the unknowns by METIS nested dissection after a
 symmetric weighted matching, which MKL advises for saddle points: the matching pairs each
-pressure, whose diagonal vanishes at nu = 1/2, with a displacement for a 2x2 pivot.  Given
-the mesh node of every unknown (``nodes``), the ordering is computed on the node graph
-instead (METIS through PARDISO's own analysis of a positive definite matrix with the node
-graph's pattern, a ninth of the unknowns' edges) and every node's unknowns are eliminated
-together, its displacements before its pressure: by then the pressure's pivot carries the
-Schur complement -B A^-1 B^T of the displacements eliminated with it, so no matching is
-needed.  On paper-fig3-sparse (Phi = 0.82, mesh_size 2.83, 179k unknowns; 2-core machine at
-a load average of 7-12) the ordering and analysis took 4.3-4.4 s against 7-15 s (the
-matching was its larger part), the factor had 2.6 % fewer non-zeros, no pivot was perturbed
-and the residual was the same (7.6e-15 against 7.8e-15).  Should a pivot still be perturbed,
-the matrix is factorised again the default way.
+pressure, whose diagonal vanishes at nu = 1/2, with a displacement for a 2x2 pivot.  A caller
+that knows its mesh may give the elimination order instead (``order``): the 3D model's
+(:func:`.solid3d.system.elimination_order`) follows METIS's nested dissection of the mesh's
+vertex graph (:func:`metis_positions`) and puts each pressure after the displacements around
+its vertex, so that its pivot carries the Schur complement -B A^-1 B^T of those
+displacements and no matching is needed.  Eliminating the unknowns mesh node by mesh node
+this way (paper-fig3-sparse, Phi = 0.82, mesh_size 2.83, 179k unknowns; load 7-12) took
+4.3-4.4 s with the analysis against 7-15 s for the matching's ordering, with 2.6 % fewer
+factor entries, no perturbed pivot and the same residual (7.6e-15 against 7.8e-15).  Should a
+pivot still be perturbed, the matrix is factorised again the default way.
 
 Precision.  ``single=True`` factorises and solves in float32 (MKL's iparm[27]): half the
 factor's memory, the numeric factorisation 1.55x and a solve 1.26x faster in CPU time at
@@ -62,18 +61,18 @@ _MATCHING = {10: 1, 12: 1}
 class Pardiso:
     """Factorisation of the symmetric indefinite ``A`` (its upper triangle is used);
     ``solve(b)`` for one or several right-hand sides (float64 in and out);
-    ``factor_nonzeros``, ``perturbed_pivots``, ``ordering`` ("nodes" or "matching") and
+    ``factor_nonzeros``, ``perturbed_pivots``, ``ordering`` ("given" or "matching") and
     ``single`` (the factor is float32) reported."""
 
-    def __init__(self, A: sp.csr_matrix, solver=None, nodes: np.ndarray | None = None,
+    def __init__(self, A: sp.csr_matrix, solver=None, order: np.ndarray | None = None,
                  single: bool = False):
         """``solver``: a :class:`PardisoHandle` to reuse; it then holds one
         factorisation at a time (default: a handle of its own, MKL found once per process).
-        ``nodes``: the mesh node of each unknown (any integer labels; unknowns of one node
-        are eliminated together, in their order in ``A``), for the node ordering of the
-        module docstring; None: METIS after a weighted matching.  ``single``: factorise and
-        solve in float32 (MKL's iparm[27]; half the factor's memory, its solves ~1e-6 of
-        the exact ones: the caller refines them against ``A``)."""
+        ``order``: the unknowns in the order they are eliminated (a permutation of
+        0..n-1; see the module docstring), factorised without a matching where no pivot is
+        perturbed, else as with None: METIS after a weighted matching.  ``single``:
+        factorise and solve in float32 (MKL's iparm[27]; half the factor's memory, its
+        solves ~1e-6 of the exact ones: the caller refines them against ``A``)."""
         self._solver = PardisoHandle() if solver is None else solver
         self._threads = limiter()  # MKL is loaded by now
         self._solver.msglvl = 0
@@ -84,16 +83,16 @@ class Pardiso:
         self._a = np.ascontiguousarray(upper.data, dtype=self._dtype)
         self._ia = (upper.indptr + 1).astype(np.int32)
         self._ja = (upper.indices + 1).astype(np.int32)
+        del upper  # PARDISO reads the copies: the float64 triangle goes before the factor comes
         self._perm = np.zeros(self.n, dtype=np.int32)
         self._mtype = -2
         self._factorised = False
         self.ordering = "matching"
-        if nodes is not None:
-            with self._threads():
-                self._perm = node_ordering(self._solver, upper, np.asarray(nodes))
+        if order is not None:
+            self._perm = (np.asarray(order) + 1).astype(np.int32)  # the k-th eliminated at k
             self._factorise(user_ordering=True)
             if self.perturbed_pivots == 0:
-                self.ordering = "nodes"
+                self.ordering = "given"
                 return
             self._release()
             self._perm = np.zeros(self.n, dtype=np.int32)
@@ -213,38 +212,33 @@ def upper_triangle(A: sp.csr_matrix) -> sp.csr_matrix:
     return upper
 
 
-def node_ordering(solver, upper: sp.csr_matrix, nodes: np.ndarray) -> np.ndarray:
-    """PARDISO's permutation (1-based, the unknown eliminated k-th at k) that eliminates the
-    unknowns node by node, the nodes in METIS's nested-dissection order of the node graph of
-    ``upper`` (the upper triangle of the matrix), each node's unknowns in their own order."""
-    labels, node = np.unique(nodes, return_inverse=True)
-    nn, n = len(labels), upper.shape[0]
-    # The node pairs of the entries, P^T |U| P with P the unknowns' node incidence, summed
-    # by scipy's sparse products (no sort of the entries: ~10 per node pair), made symmetric,
-    # the diagonal added (a node's lone unknown may have none: an incompressible pressure).
-    incidence = sp.csr_matrix((np.ones(n), (np.arange(n), node)), shape=(n, nn))
-    pattern = sp.csr_matrix((np.ones(upper.nnz), upper.indices, upper.indptr), shape=(n, n))
-    pairs = incidence.T.tocsr() @ (pattern @ incidence)
-    graph = sp.triu(pairs + pairs.T + sp.eye(nn, format="csr"), format="csr")
-    graph.sort_indices()
+def metis_positions(graph: sp.csr_matrix, solver=None) -> np.ndarray:
+    """The place of each vertex of ``graph`` (a symmetric pattern; any values, any
+    triangle) in METIS's nested-dissection order, as PARDISO's analysis computes it."""
+    solver = PardisoHandle() if solver is None else solver
+    nn = graph.shape[0]
+    pattern = sp.csr_matrix((np.ones(graph.nnz), graph.indices, graph.indptr), shape=(nn, nn))
+    # the upper triangle of the symmetric pattern, with the diagonal (a lone vertex has none)
+    upper = sp.triu(pattern + pattern.T + sp.eye(nn, format="csr"), format="csr")
+    upper.sort_indices()
     # Any positive definite values with this pattern: only the analysis runs.
-    graph.data[:] = -1.0 / nn
-    graph.setdiag(2.0)
-    a = np.ascontiguousarray(graph.data)
-    ia = (graph.indptr + 1).astype(np.int32)
-    ja = (graph.indices + 1).astype(np.int32)
+    upper.data[:] = -1.0 / nn
+    upper.setdiag(2.0)
+    a = np.ascontiguousarray(upper.data)
+    ia = (upper.indptr + 1).astype(np.int32)
+    ja = (upper.indices + 1).astype(np.int32)
     iparm = solver.iparm
     iparm[:] = 0
     for k, v in ((0, 1), (1, 2), (4, 2)):  # METIS, and return its permutation in perm
         iparm[k] = v
     perm = np.zeros(nn, dtype=np.int32)
     b = np.zeros((nn, 1), order="F")
-    _pardiso(solver, 2, 11, a, ia, ja, perm, b)
-    _pardiso(solver, 2, -1, a, ia, ja, perm, b)
+    with limiter()():
+        _pardiso(solver, 2, 11, a, ia, ja, perm, b)
+        _pardiso(solver, 2, -1, a, ia, ja, perm, b)
     position = np.empty(nn, dtype=np.int64)
     position[perm - 1] = np.arange(nn)
-    order = np.lexsort((np.arange(len(node)), position[node]))
-    return (order + 1).astype(np.int32)
+    return position
 
 
 def _pardiso(solver, mtype: int, phase: int, a, ia, ja, perm, b: np.ndarray) -> np.ndarray:

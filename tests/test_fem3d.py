@@ -174,7 +174,7 @@ def test_a_float32_factor_within_its_bound_refines_to_the_float64_answer(monkeyp
     scene = load_scene("single-pillar", [f"pillars.E_Pa={100 * 1.6e6}"])
     single = solid3d.solve(scene, 2.0)
     factor = single.diagnostics["factor"]
-    assert factor["precision"] == "single"
+    assert factor["precision"] == "single" and factor["ordering"] == "given"
     assert 1e-4 < factor["single_solve_error"] <= system.SINGLE_MAX_ERROR
     assert_verified(single)
     assert single.diagnostics["linear_residual"] < 1e-12
@@ -433,6 +433,47 @@ def test_closed_form_assembly_equals_the_forms():
     assert abs(A - A_ref).max() < 1e-14 * abs(A_ref).max()
     assert all(np.all(np.diff(A.indices[A.indptr[k]:A.indptr[k + 1]]) > 0)  # sorted, as said
                for k in range(A.shape[0]))
+
+
+def test_the_elimination_order_follows_the_vertices():
+    """system.elimination_order on a two-body mesh: every reduced unknown once; each edge
+    node's unknowns after the displacements of the edge's end ordered first and before that
+    vertex's pressure in each body (the order that adds no fill and gives every pressure
+    pivot its displacements' Schur complement); the vertices in METIS's order."""
+    from skfem import MeshTet
+
+    from fem_reference.forms.tet_p2 import EDGES
+    from fem_reference.solid3d.system import assemble_sector, elimination_order
+
+    mesh = MeshTet().refined(2)
+    low = mesh.p[2, mesh.t].mean(axis=0) < 0.5
+    mesh = mesh.with_subdomains({"a": np.nonzero(~low)[0], "b": np.nonzero(low)[0]})
+    mesh = mesh.with_boundaries({"far_substrate": lambda x: np.isclose(x[2], 0.0)})
+    system = assemble_sector(mesh, {"a": (1.0, 0.3), "b": (2.0, 0.45)},
+                             sector_angle=math.pi / 6, clamp_pillar_base=False,
+                             rigid_pillars=[])
+    n_p = sum(len(ps.dofs) for ps in system.pressures)
+    order = elimination_order(system.mesh, system.basis_s, system.nodes, n_p)
+    n = len(system.nodes)
+    assert np.array_equal(np.sort(order), np.arange(n))
+    place = np.empty(n, dtype=np.int64)
+    place[order] = np.arange(n)
+    pressure = np.arange(n) >= n - n_p
+    first_u = np.full(system.basis_s.N, n)  # each node's first and last place
+    last_u, last_p = np.full(system.basis_s.N, -1), np.full(system.basis_s.N, -1)
+    np.minimum.at(first_u, system.nodes[~pressure], place[~pressure])
+    np.maximum.at(last_u, system.nodes[~pressure], place[~pressure])
+    np.maximum.at(last_p, system.nodes[pressure], place[pressure])
+    first_p = np.full(system.basis_s.N, n)
+    np.minimum.at(first_p, system.nodes[pressure], place[pressure])
+    dofs = system.basis_s.element_dofs
+    assert np.array_equal(dofs[:4], mesh.t)  # the vertices are the first P2 nodes
+    for k, (i, j) in enumerate(EDGES):
+        early = np.where(first_u[dofs[i]] < first_u[dofs[j]], dofs[i], dofs[j])
+        assert np.all(first_u[dofs[4 + k]] > last_u[early])
+        assert np.all(last_u[dofs[4 + k]] < first_p[early])
+    vertex_order = np.argsort(first_u[:mesh.p.shape[1]])
+    assert np.all(np.diff(first_u[vertex_order]) > 0)
 
 
 @pytest.mark.slow
