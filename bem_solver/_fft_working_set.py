@@ -34,9 +34,10 @@ from ._fft_grid import CellGrid
 from ._fft_operator import NEAR_FIELD_CELLS
 
 # A floor cell is left out where the coarse level's gap there exceeds this fraction of the
-# indentation.  Measured at N = 36 from N = 18 (the scene above): every cell left out at
-# 0.03 zeta ended with a gap of at least 0.028 zeta; at 0.05, 0.047.  The check after the
-# solve makes any choice safe; this one makes the fallback rare.
+# indentation.  Measured on the scene above (N = 36 from N = 18, and N = 18 from N = 9):
+# every cell left out at 0.03 zeta ended with a gap of at least 0.031 zeta (6.2e5 cells
+# left out at N = 36), at 0.05 of at least 0.051 zeta (5.6e5).  The check after the solve
+# makes any choice safe; this one keeps the fallback rare.
 FLOOR_CLEARANCE = 0.05
 # Leaving out fewer than this share of the cells does not pay for the selection.
 MIN_LEFT_OUT_SHARE = 0.25
