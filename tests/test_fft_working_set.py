@@ -136,3 +136,17 @@ def test_disk_cells_are_the_cells_within_the_radius(side, radius):
     ax = (np.arange(side) - side // 2) * 0.5
     by_distance = np.flatnonzero(np.hypot(ax[None, :], ax[:, None]).ravel() <= radius * 0.5)
     assert np.array_equal(_disk_cells(ax, radius * 0.5), by_distance)
+
+
+def test_the_working_set_on_the_strict_namespace_gives_the_numpy_answer():
+    # The array-API stand-in (a device's path: no kept work arrays, generic gathers) takes
+    # the same working set and check, to round-off of the numpy path with whole transforms.
+    from test_bem_fft_devices import RTOL_ROUNDOFF as DEVICE_ROUNDOFF
+    from test_bem_fft_devices import UNSPLIT, StrictDevice, _agree
+
+    scene = load_scene("paper-fig3-sparse", MIXED)
+    ref = solve_fft(scene, N, tol=TOL, backend=UNSPLIT)
+    strict = solve_fft(scene, N, tol=TOL, backend=StrictDevice(numpy_primitives=True))
+    assert ref.diagnostics["left_out_accepted"] and strict.diagnostics["left_out_accepted"]
+    assert strict.diagnostics["left_out_floor_cells"] == ref.diagnostics["left_out_floor_cells"]
+    _agree(ref, strict, DEVICE_ROUNDOFF, scene.indentation_m)
