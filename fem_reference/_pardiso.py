@@ -29,7 +29,12 @@ factor's memory, the numeric factorisation 1.55x and a solve 1.26x faster in CPU
 mesh_size 2 (335k unknowns, medians of 3 interleaved); a solve is then accurate to ~1e-5,
 and the caller refines it against the float64 matrix (:mod:`.solid3d.system`).  Every call
 runs on :func:`pillar_xval.threads.thread_count` threads (MKL's, held through threadpoolctl
-once the library is loaded).
+once the library is loaded), but a back-substitution of at most :data:`SERIAL_SOLVE_COLUMNS`
+columns runs on one: it streams the factor once, bound by memory, and a second thread gained
+nothing (1, 3 and 32 columns at 6e4 unknowns, one solve after another), while holding MKL to
+two threads around each of the contact phase's back-substitutions (where OpenBLAS runs between
+them) made each 2.3x as long and as costly in CPU time on a shared 2-core machine
+(``validation/bench/measured/fem3d_ab.md``).
 """
 
 from __future__ import annotations
@@ -56,6 +61,8 @@ _IPARM = {0: 1,    # we supply iparm
           20: 1}   # Bunch-Kaufman 1x1 and 2x2 pivots
 # The default ordering's symmetric scaling and weighted matching (advised for saddle points).
 _MATCHING = {10: 1, 12: 1}
+# Back-substitutions of up to this many columns run on one thread (see the module docstring).
+SERIAL_SOLVE_COLUMNS = 32
 
 
 class Pardiso:
@@ -75,6 +82,7 @@ class Pardiso:
         solves ~1e-6 of the exact ones: the caller refines them against ``A``)."""
         self._solver = PardisoHandle() if solver is None else solver
         self._threads = limiter()  # MKL is loaded by now
+        self._serial = None  # limiter(1), made at the first few-column solve
         self._solver.msglvl = 0
         upper = upper_triangle(A)
         self.n = A.shape[0]
@@ -116,10 +124,13 @@ class Pardiso:
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         b2 = np.asfortranarray(b.reshape(self.n, -1), dtype=self._dtype)
-        return self._call(33, b2).astype(float, copy=False).reshape(b.shape)
+        serial = b2.shape[1] <= SERIAL_SOLVE_COLUMNS
+        if serial and self._serial is None:
+            self._serial = limiter(1)
+        return self._call(33, b2, serial).astype(float, copy=False).reshape(b.shape)
 
-    def _call(self, phase: int, b: np.ndarray) -> np.ndarray:
-        with self._threads():
+    def _call(self, phase: int, b: np.ndarray, serial: bool = False) -> np.ndarray:
+        with (self._serial if serial else self._threads)():
             return _pardiso(self._solver, self._mtype, phase, self._a, self._ia, self._ja,
                             self._perm, b)
 

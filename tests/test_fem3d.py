@@ -435,6 +435,38 @@ def test_closed_form_assembly_equals_the_forms():
                for k in range(A.shape[0]))
 
 
+def test_the_element_products_run_on_one_blas_thread(monkeypatch):
+    """assemble_blocks holds BLAS to one thread for the element blocks' products (bound by
+    memory: two threads cost more than they gained), inside a solve's count of two, which
+    comes back after it."""
+    from skfem import Basis, ElementTetP1, ElementTetP2, MeshTet
+    from threadpoolctl import ThreadpoolController
+
+    from fem_reference.forms import tet_p2
+    from fem_reference.solid3d.system import PressureSpace3D, assemble_blocks
+    from pillar_xval.threads import limited
+
+    def blas_threads():
+        return {c.num_threads for c in
+                ThreadpoolController().select(user_api="blas").lib_controllers}
+
+    seen = []
+    products = tet_p2.elasticity_blocks
+
+    def spy(*args):
+        seen.append(blas_threads())
+        return products(*args)
+
+    monkeypatch.setattr(tet_p2, "elasticity_blocks", spy)
+    mesh = MeshTet().refined(1)
+    space = PressureSpace3D("all", Basis(mesh, ElementTetP1(), intorder=2),
+                            np.arange(mesh.p.shape[1]), 1.0, 1.0, 0)
+    mesh = mesh.with_subdomains({"all": np.arange(mesh.t.shape[1])})
+    with limited(2):
+        assemble_blocks(mesh, Basis(mesh, ElementTetP2()), [space])
+        assert seen == [{1}] and blas_threads() == {2}
+
+
 def test_the_elimination_order_follows_the_vertices():
     """system.elimination_order on a two-body mesh: every reduced unknown once; each edge
     node's unknowns after the displacements of the edge's end ordered first and before that

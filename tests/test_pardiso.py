@@ -115,3 +115,27 @@ def test_metis_positions_are_a_nested_dissection():
     banded = _pardiso.Pardiso(grid, order=np.arange(m * m))
     assert nested.ordering == banded.ordering == "given"
     assert nested.factor_nonzeros < 0.5 * banded.factor_nonzeros
+
+
+def test_few_column_solves_run_on_one_thread(monkeypatch):
+    """A back-substitution of up to SERIAL_SOLVE_COLUMNS columns holds MKL to one thread; a
+    wider one, and the factorisation, to the toolkit's count (here 2, set)."""
+    from threadpoolctl import ThreadpoolController
+
+    monkeypatch.setenv("PILLAR_XVAL_THREADS", "2")
+    K, b = _saddle()
+    seen = []
+    call = _pardiso._pardiso
+
+    def spy(solver, mtype, phase, *rest):
+        mkl = ThreadpoolController().select(internal_api="mkl").lib_controllers
+        seen.append((phase, mkl[0].num_threads))
+        return call(solver, mtype, phase, *rest)
+
+    monkeypatch.setattr(_pardiso, "_pardiso", spy)
+    factor = _pardiso.Pardiso(K)
+    wide = _pardiso.SERIAL_SOLVE_COLUMNS + 1
+    factor.solve(b)
+    factor.solve(np.column_stack([b] * _pardiso.SERIAL_SOLVE_COLUMNS))
+    factor.solve(np.column_stack([b] * wide))
+    assert seen == [(12, 2), (33, 1), (33, 1), (33, 2)]
