@@ -105,3 +105,17 @@ def test_mesh_phase_rows_say_whether_both_sides_made_the_same_mesh():
             in mesh3d_ab.table([base, this])
     with pytest.raises(argparse.ArgumentTypeError, match="PHI:MESH_SIZE"):
         mesh3d_ab.parse_case("0.82")
+
+
+def test_results_are_written_whole_and_read_back(tmp_path):
+    import json
+
+    sides = {"baseline": tmp_path / "old", "this": tmp_path / "new"}
+    rows, raw = [{"case": "dense", "side": "this"}], [{"wall_s": 1.0}]
+    ab.write_results(tmp_path / "out", "bench_x", "table\n", sides, rows, raw, [0.5], warm=True)
+    assert (tmp_path / "out" / "bench_x.md").read_text() == "table\n"
+    doc = json.loads((tmp_path / "out" / "bench_x.json").read_text())
+    assert doc == {"baseline": str(sides["baseline"]), "this": str(sides["this"]),
+                   "rows": rows, "runs": raw, "load_average": [0.5], "warm": True}
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["bench_x.json",
+                                                                    "bench_x.md"]

@@ -254,6 +254,19 @@ def side_arguments(ap: argparse.ArgumentParser, files: str) -> None:
     ap.add_argument("--out", type=Path, required=True, help=f"folder for {files}")
 
 
+def write_results(out: Path, stem: str, text: str, sides: dict, rows: list, raw: list,
+                  load, **extra) -> None:
+    """An A/B benchmark's table ``text`` and its rows, runs and load averages as
+    ``out/stem.md`` and ``out/stem.json`` (each written whole, atomically)."""
+    from pillar_xval.outcome._files import write_atomic
+
+    out.mkdir(parents=True, exist_ok=True)
+    write_atomic(out / f"{stem}.md", text)
+    write_atomic(out / f"{stem}.json", json.dumps(
+        {"baseline": str(sides["baseline"]), "this": str(sides["this"]), "rows": rows,
+         "runs": raw, "load_average": load, **extra}, indent=1))
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     side_arguments(ap, "bench_ab.md/.json")
@@ -270,12 +283,7 @@ def main(argv=None) -> int:
             f"{'second (warm)' if args.warm else 'first (cold)'} solve per interpreter; "
             + load_text(load) + "\n")
     print(text)
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "bench_ab.md").write_text(text)
-    (args.out / "bench_ab.json").write_text(json.dumps(
-        {"baseline": str(sides["baseline"]), "this": str(sides["this"]), "rows": rows,
-         "runs": raw,
-         "load_average": load, "warm": args.warm}, indent=1))
+    write_results(args.out, "bench_ab", text, sides, rows, raw, load, warm=args.warm)
     return 0
 
 

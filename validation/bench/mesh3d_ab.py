@@ -15,11 +15,10 @@ table and writes it with the runs and the load averages to ``DIR/bench_mesh3d_ab
 from __future__ import annotations
 
 import argparse
-import json
 import statistics
 import sys
 
-from .ab import FEM3D_SCENE, interleaved, load_text, side_arguments
+from .ab import FEM3D_SCENE, interleaved, load_text, side_arguments, write_results
 
 WORKER = r"""
 import hashlib, json, math, sys, time
@@ -93,11 +92,7 @@ def main(argv=None) -> int:
     text = (table(rows) + f"\n\nrepeats {args.repeats} per side (interleaved ABBA); "
             + load_text(load) + "\n")
     print(text)
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "bench_mesh3d_ab.md").write_text(text)
-    (args.out / "bench_mesh3d_ab.json").write_text(json.dumps(
-        {"baseline": str(sides["baseline"]), "this": str(sides["this"]), "rows": rows,
-         "runs": raw, "load_average": load}, indent=1))
+    write_results(args.out, "bench_mesh3d_ab", text, sides, rows, raw, load)
     return 0
 
 
