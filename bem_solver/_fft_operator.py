@@ -308,12 +308,14 @@ class PrunedConvolution:
             self._twiddles = (shift, np.conj(shift))
         for precision in precisions:  # made now, with the plan, not in the first solve's call
             self._state(precision)
-        # Cells of the box whose values every float64 call also gathers (watch_at).
+        # Cells of the box whose values every float64 call also gathers (watch_at), and
+        # the last such call's (q, values).
         self._watch, self.watched = None, None
 
     def watch_at(self, flat_index) -> None:
-        """From now on, every float64 call also keeps its result at the cells
-        ``flat_index`` of the (ny, nx) box in ``watched`` (one gather more a call)."""
+        """From now on, every float64 call of this object also keeps a copy of its ``q``
+        and its result at the cells ``flat_index`` of the (ny, nx) box, as ``watched`` =
+        (q, values) (a copy and a gather more a call)."""
         self._watch = self._padded(flat_index)
         self.watched = None
 
@@ -380,10 +382,17 @@ class PrunedConvolution:
             in_chunks(scatter, nu, self.backend.workers)
             if shared:  # the floor parts of rim cells add to their top part's position
                 buffer[self._extra_index] += q[nu:].astype(buffer.dtype, copy=False)
-            return self._numpy_call(buffer, work, out_index)
+            watch = None if single else self._watch
+            result = self._numpy_call(buffer, work, out_index, watch)
+            if watch is None:
+                return result
+            result, values = result
+            self.watched = (q.copy(), values)
+            return result
         else:
             ny = self.shape[0]
             my, mx = self.fft_shape
+            given = q
             q = xp.astype(q, buffer.dtype)
             if shared:
                 buffer = be.put(buffer, self.padded_index[:nu], q[:nu])
@@ -397,7 +406,7 @@ class PrunedConvolution:
             rows = be.ifft(spec, axis=0)[:ny, :]
             field = xp.reshape(be.irfft(rows, n=mx, axis=1), (-1,))
             if self._watch is not None and not single:
-                self.watched = xp.take(field, self._watch)
+                self.watched = (xp.asarray(given, copy=True), xp.take(field, self._watch))
             out = xp.take(field, out_index)
         return xp.astype(out, xp.float64) if single else out
 
@@ -420,12 +429,13 @@ class PrunedConvolution:
             buffer[self.padded_index[index]] = values.astype(buffer.dtype)
         return self._numpy_call(buffer, work)
 
-    def _numpy_call(self, buffer, work, index=None):
+    def _numpy_call(self, buffer, work, index=None, watch=None):
         """The generic path's transforms (scipy.fft's rfft, fft, ifft, irfft are these
         pocketfft calls, with the default norm) of the scattered ``buffer`` into the kept
         arrays, and the result on the candidate cells (or at the padded positions ``index``)
         in float64; the elementwise work in chunks on the transforms' threads
-        (:func:`in_chunks`)."""
+        (:func:`in_chunks`).  With ``watch`` (padded positions): (result, the values
+        there)."""
         ny = self.shape[0]
         my, mx = self.fft_shape
         spec, out, factor, twiddles = work
@@ -466,15 +476,13 @@ class PrunedConvolution:
         _pocketfft.c2r(spec[:ny], (1,), mx, False, 2, out, workers)
         flat = out.reshape(-1)
         index = self.padded_index if index is None else index
-        if self._watch is not None and out.dtype == np.float64:
-            self.watched = flat.take(self._watch)
         result = np.empty(index.shape[0])
 
         def gather(lo, hi):  # take, then widen (exact) into the float64 result
             result[lo:hi] = flat.take(index[lo:hi])
 
         in_chunks(gather, index.shape[0], workers)
-        return result
+        return result if watch is None else (result, flat.take(watch))
 
 
 class CompliancePlan:
@@ -579,7 +587,6 @@ class CompliancePlan:
         self.pillar_spring = self.spring if self.pillar_weight is None else \
             self.spring * self.pillar_weight
         self.applications = 0
-        self._watched_q = None  # the last float64 application's q, while watching
         self.correction = correction
         self._correction_scratch = None  # numpy: _add_correction's rows, kept between calls
         diagonal = xp.full(flat.shape[0], self.self_coefficient, dtype=xp.float64)
@@ -617,17 +624,13 @@ class CompliancePlan:
     def half_space(self, q, single: bool = False):
         """K q on the candidate cells (m); ``single``: the transforms in float32."""
         self._count(single)
-        u = self._convolution(q, single=single)
-        if self._watched_q is not None and not single:
-            self._watched_q = self.backend.xp.asarray(q, copy=True)
-        return u
+        return self._convolution(q, single=single)
 
     def watch_at(self, flat_index) -> None:
         """From now on, every float64 application also keeps K q at the cells
         ``flat_index`` of the plan's (ny, nx) box, candidates or not, with a copy of its q:
         :meth:`half_space_at` then takes it instead of a convolution of its own."""
         self._convolution.watch_at(flat_index)
-        self._watched_q = self.backend.xp.zeros(0)
 
     def half_space_at(self, q, flat_index):
         """K q (m, float64) at the cells ``flat_index`` of the plan's (ny, nx) box, candidates
@@ -635,9 +638,10 @@ class CompliancePlan:
         watched values (:meth:`watch_at`, the same cells) where the last float64
         application was of this ``q``."""
         xp = self.backend.xp
-        kept = self._watched_q
-        if kept is not None and kept.shape == q.shape and bool(xp.all(kept == q)):
-            return self._convolution.watched
+        watched = self._convolution.watched
+        if watched is not None and watched[0].shape == q.shape \
+                and bool(xp.all(watched[0] == q)):
+            return watched[1]
         self._count(False)
         return self._convolution(q, at=flat_index)
 
