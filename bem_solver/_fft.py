@@ -554,22 +554,19 @@ def _interpolate_layer(f: dict, coarse, grid: CellGrid, cells, be, slivers: bool
     """:func:`_interpolate` from the coarse cells ``coarse`` (a mask, or None: all) onto the
     fine cells ``cells`` (indices on the host, or a slice): their values, in that order."""
     xp = be.xp
-    if coarse is not None:
-        f = {k: (v[coarse] if isinstance(v, np.ndarray) and v.shape == coarse.shape else v)
-             for k, v in f.items()}
     Lc = f["cell_size_m"]
-    solid = f["covered_fraction"] >= 0.5
-    ix = np.rint(f["x_m"] / Lc).astype(int)
-    iy = np.rint(f["y_m"] / Lc).astype(int)
-    shape = (iy.max() - iy.min() + 1, ix.max() - ix.min() + 1)
+    p, phi = f["pressure_Pa"], f["covered_fraction"]
+    if coarse is not None:
+        p, phi = p[coarse], phi[coarse]
+    solid = phi >= 0.5
     # The coarse grids (a quarter of the fine cells) are laid out on the host.
+    at, shape, (y0, x0) = coarse_layout(f, coarse)
     pressure, weight, smeared = np.zeros(shape), np.zeros(shape), np.zeros(shape)
-    at = (iy - iy.min(), ix - ix.min())
-    pressure[at] = np.where(solid, f["pressure_Pa"], 0.0)
+    pressure[at] = np.where(solid, p, 0.0)
     weight[at] = solid
-    smeared[at] = f["pressure_Pa"] * f["covered_fraction"]
-    cy = be.asarray(grid.y[cells], dtype=xp.float64) / Lc - float(iy.min())
-    cx = be.asarray(grid.x[cells], dtype=xp.float64) / Lc - float(ix.min())
+    smeared[at] = p * phi
+    cy = be.asarray(grid.y[cells], dtype=xp.float64) / Lc - float(y0)
+    cx = be.asarray(grid.x[cells], dtype=xp.float64) / Lc - float(x0)
     bulk = _bilinear(xp, be.asarray(smeared), cy, cx)
     covered = grid.covered[cells]
     thin = np.flatnonzero(covered < 0.5) if slivers else np.empty(0, dtype=np.int64)
@@ -582,6 +579,19 @@ def _interpolate_layer(f: dict, coarse, grid: CellGrid, cells, be, slivers: bool
             * be.asarray(covered[thin], dtype=xp.float64)
         bulk = be.put(bulk, at_thin, sliver)
     return xp.maximum(bulk, 0.0)
+
+
+def coarse_layout(f: dict, mask=None):
+    """Where a coarse result's cells (its ``fields`` ``f``; those of ``mask``, or all) sit
+    in their bounding box of cells: their (row, column) indices, the box's shape and the
+    (row, column) of its first cell on the grid of cell centres (multiples of the cell
+    size from the axis)."""
+    Lc = f["cell_size_m"]
+    x, y = (f["x_m"], f["y_m"]) if mask is None else (f["x_m"][mask], f["y_m"][mask])
+    ix = np.rint(x / Lc).astype(np.int64)
+    iy = np.rint(y / Lc).astype(np.int64)
+    x0, y0 = int(ix.min()), int(iy.min())
+    return (iy - y0, ix - x0), (int(iy.max()) - y0 + 1, int(ix.max()) - x0 + 1), (y0, x0)
 
 
 def _bilinear(xp, values, cy, cx):

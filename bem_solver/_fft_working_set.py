@@ -82,12 +82,12 @@ def _clear_of_coarse(f: dict, coarse_floor, x, y, clearance: float):
     a floor candidate counts as touching."""
     from scipy.ndimage import minimum_filter
 
+    from ._fft import coarse_layout
+
     Lc = f["cell_size_m"]
-    ix = np.rint(f["x_m"][coarse_floor] / Lc).astype(np.int64)
-    iy = np.rint(f["y_m"][coarse_floor] / Lc).astype(np.int64)
-    x0, y0 = int(ix.min()), int(iy.min())
-    image = np.full((int(iy.max()) - y0 + 1, int(ix.max()) - x0 + 1), -1.0)
-    image[iy - y0, ix - x0] = f["gap_m"][coarse_floor]
+    at, shape, (y0, x0) = coarse_layout(f, coarse_floor)
+    image = np.full(shape, -1.0)
+    image[at] = f["gap_m"][coarse_floor]
     clear = minimum_filter(image, size=3, mode="constant", cval=-1.0) > clearance
     jx = np.rint(x / Lc).astype(np.int64) - x0
     jy = np.rint(y / Lc).astype(np.int64) - y0
