@@ -588,7 +588,7 @@ class CompliancePlan:
             self.spring * self.pillar_weight
         self.applications = 0
         self.correction = correction
-        self._correction_scratch = None  # numpy: _add_correction's rows, kept between calls
+        self._correction_rows = None  # numpy: _add_correction's rows with entries, kept
         diagonal = xp.full(flat.shape[0], self.self_coefficient, dtype=xp.float64)
         if correction is not None:
             diagonal = diagonal + be.asarray(correction.diagonal())
@@ -674,28 +674,31 @@ class CompliancePlan:
         return u
 
     def _add_correction(self, u, q) -> None:
-        """u += C q for the near-field correction C.  On numpy, its rows in the backend's
-        chunks (scipy's CSR product releases the GIL): each chunk's rows summed from zero in
-        their stored order into a kept scratch, then added, as the whole product does, so
-        the bits are the whole product's in any split; elsewhere the whole product."""
+        """u += C q for the near-field correction C.  On numpy, only C's rows that hold
+        entries (the cells within its reach of a partly covered one: 9 % of the candidates
+        with the floor reached, R = 1 mm, Phi = 0.03, N = 36), in the backend's chunks
+        (scipy's CSR product releases the GIL): each row summed from zero in its stored
+        order, then added to its cell, as the whole product does, so the bits are the
+        whole product's in any split; elsewhere the whole product."""
         c = self.correction
         if _csr_matvec is None or not isinstance(self.backend, NumpyDevice):
             u += c @ q
             return
-        n = int(u.shape[0])
-        if self._correction_scratch is None:
-            self._correction_scratch = np.empty(n)
-        scratch = self._correction_scratch
+        if self._correction_rows is None:
+            rows = np.flatnonzero(np.diff(c.indptr))
+            # Row rows[i] ends where the next row with entries starts (empty rows between).
+            bounds = c.indptr[np.append(rows, c.shape[0])]
+            self._correction_rows = (rows, bounds, np.empty(rows.shape[0]))
+        rows, bounds, scratch = self._correction_rows
         x = np.ascontiguousarray(q, dtype=np.float64)
 
-        def rows(lo, hi):
+        def part(lo, hi):
             t = scratch[lo:hi]
             t.fill(0.0)
-            _csr_matvec(hi - lo, c.shape[1], c.indptr[lo:hi + 1], c.indices, c.data, x, t)
-            w = u[lo:hi]
-            w += t
+            _csr_matvec(hi - lo, c.shape[1], bounds[lo:hi + 1], c.indices, c.data, x, t)
+            u[rows[lo:hi]] += t
 
-        self.backend.chunks(rows, n, max(c.nnz // max(n, 1), 1))
+        self.backend.chunks(part, int(rows.shape[0]), max(c.nnz // max(rows.shape[0], 1), 1))
 
     def _add_per_cell(self, u, values) -> None:
         """u += ``values[pillar]`` in place, in the backend's chunks (the FFT threads on
