@@ -400,15 +400,21 @@ def test_unloaded_pillars_change_little():
     assert wide.total_force_N == pytest.approx(base.total_force_N, rel=2e-3)
 
 
-def test_closed_form_assembly_equals_the_forms():
+@pytest.mark.parametrize("chunk", [None, 7])
+def test_closed_form_assembly_equals_the_forms(chunk, monkeypatch):
     """The vectorised element integrals (forms.tet_p2) summed by the assembler equal skfem's
     assembly of the forms of forms.solid3d (shear stiffness, divergence coupling, pressure
     mass) on a distorted mesh of two bodies with their own moduli, to round-off (measured
-    7e-16 of the largest entry)."""
+    7e-16 of the largest entry); in one block of elements and in blocks of 7 (the reused
+    buffers, a partial last block)."""
     from skfem import Basis, ElementTetP1, ElementTetP2, ElementVector, MeshTet
 
     from fem_reference.forms.solid3d import divergence_coupling, pressure_mass, shear_stiffness
+    from fem_reference.solid3d import system
     from fem_reference.solid3d.system import PressureSpace3D, assemble_blocks
+
+    if chunk is not None:
+        monkeypatch.setattr(system, "CHUNK", chunk)
 
     mesh = MeshTet().refined(2)
     inner = (mesh.p > 0) & (mesh.p < 1)  # move the interior nodes: general tetrahedra
@@ -453,9 +459,9 @@ def test_the_element_products_run_on_one_blas_thread(monkeypatch):
     seen = []
     products = tet_p2.elasticity_blocks
 
-    def spy(*args):
+    def spy(*args, **kwargs):
         seen.append(blas_threads())
-        return products(*args)
+        return products(*args, **kwargs)
 
     monkeypatch.setattr(tet_p2, "elasticity_blocks", spy)
     mesh = MeshTet().refined(1)
