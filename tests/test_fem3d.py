@@ -473,6 +473,35 @@ def test_the_element_products_run_on_one_blas_thread(monkeypatch):
         assert seen == [{1}] and blas_threads() == {2}
 
 
+def test_stack_csr_writes_scipys_arrays(monkeypatch):
+    """system.stack_csr, the reduced matrix's block layout written once, gives the arrays of
+    scipy's vstack of hstacks bit for bit (data, indices, row pointers, dtypes), over several
+    passes of rows, with an empty row and an empty block."""
+    import scipy.sparse as sp
+
+    from fem_reference.solid3d import system
+
+    rng = np.random.default_rng(1)
+
+    def block(m, n, density):
+        return sp.random(m, n, density=density, format="csr", random_state=rng)
+
+    uu, up, pu = block(30, 30, 0.2), block(30, 7, 0.3), block(7, 30, 0.3)
+    uu = sp.csr_matrix(uu.multiply(np.arange(30)[:, None] != 4))  # row 4 empty on the left
+    uu.eliminate_zeros()
+    up = sp.csr_matrix(up.multiply(np.arange(30)[:, None] != 4))
+    up.eliminate_zeros()
+    pp = sp.csr_matrix((7, 7))
+    monkeypatch.setattr(system, "STACK_ROWS", 4)
+    got = system.stack_csr(((uu, up), (pu, pp)))
+    ref = sp.vstack([sp.hstack([uu, up], format="csr"), sp.hstack([pu, pp], format="csr")],
+                    format="csr")
+    assert got.shape == ref.shape and np.diff(got.indptr)[4] == 0
+    for name in ("data", "indices", "indptr"):
+        a, b = getattr(got, name), getattr(ref, name)
+        assert a.dtype == b.dtype and np.array_equal(a, b)
+
+
 def test_the_elimination_order_follows_the_vertices():
     """system.elimination_order on a two-body mesh: every reduced unknown once; each edge
     node's unknowns after the displacements of the edge's end ordered first and before that
