@@ -84,14 +84,17 @@ class Pardiso:
         self._threads = limiter()  # MKL is loaded by now
         self._serial = None  # limiter(1), made at the first few-column solve
         self._solver.msglvl = 0
-        upper = upper_triangle(A)
         self.n = A.shape[0]
         self.single = bool(single)
         self._dtype = np.float32 if self.single else np.float64
-        self._a = np.ascontiguousarray(upper.data, dtype=self._dtype)
-        self._ia = (upper.indptr + 1).astype(np.int32)
-        self._ja = (upper.indices + 1).astype(np.int32)
-        del upper  # PARDISO reads the copies: the float64 triangle goes before the factor comes
+        # PARDISO's arrays: the triangle's own, its indices 1-based in place
+        upper = upper_triangle(A, self._dtype)
+        self._a = np.ascontiguousarray(upper.data)
+        self._ia = upper.indptr.astype(np.int32)
+        self._ja = upper.indices.astype(np.int32, copy=False)
+        del upper
+        self._ia += 1
+        self._ja += 1
         self._perm = np.zeros(self.n, dtype=np.int32)
         self._mtype = -2
         self._factorised = False
@@ -207,18 +210,29 @@ _PT_TYPE = (ctypes.c_int64, np.int64) if ctypes.sizeof(ctypes.c_void_p) == 8 els
     (ctypes.c_int32, np.int32)
 
 
-def upper_triangle(A: sp.csr_matrix) -> sp.csr_matrix:
-    """The upper triangle of the CSR matrix ``A``, its rows' columns sorted: the entries kept
-    in place by one mask (scipy's ``triu`` goes through a coordinate copy)."""
+# Rows per pass of :func:`upper_triangle`.
+TRIANGLE_ROWS = 8192
+
+
+def upper_triangle(A: sp.csr_matrix, dtype=None) -> sp.csr_matrix:
+    """The upper triangle of the CSR matrix ``A``, its rows' columns sorted, its values cast
+    to ``dtype`` (default: A's): the entries picked by one mask built a few thousand rows at
+    a time (scipy's ``triu`` goes through a coordinate copy; arrays of A's entries' rows and
+    running counts were 0.3 GB of fresh pages at Phi = 0.2, mesh_size 1.41)."""
     A = sp.csr_matrix(A)
-    rows = np.repeat(np.arange(A.shape[0], dtype=A.indices.dtype), np.diff(A.indptr))
-    keep = A.indices >= rows
-    del rows
-    kept = np.zeros(A.nnz + 1, dtype=A.indptr.dtype)  # kept[k]: entries kept before k
-    np.cumsum(keep, out=kept[1:])
-    indptr = kept[A.indptr]
-    del kept
-    upper = sp.csr_matrix((A.data[keep], A.indices[keep], indptr), shape=A.shape)
+    n = A.shape[0]
+    keep = np.empty(A.nnz, dtype=bool)
+    counts = np.zeros(n, dtype=np.int64)  # entries kept in each row
+    for r0 in range(0, n, TRIANGLE_ROWS):
+        r1 = min(r0 + TRIANGLE_ROWS, n)
+        lo, hi = A.indptr[r0], A.indptr[r1]
+        rows = np.repeat(np.arange(r0, r1, dtype=A.indices.dtype), np.diff(A.indptr[r0:r1 + 1]))
+        np.greater_equal(A.indices[lo:hi], rows, out=keep[lo:hi])
+        counts[r0:r1] = np.bincount(rows[keep[lo:hi]] - r0, minlength=r1 - r0)
+    indptr = np.zeros(n + 1, dtype=A.indptr.dtype)
+    np.cumsum(counts, out=indptr[1:])
+    data = A.data[keep].astype(A.dtype if dtype is None else dtype, copy=False)
+    upper = sp.csr_matrix((data, A.indices[keep], indptr), shape=A.shape)
     upper.sort_indices()
     return upper
 

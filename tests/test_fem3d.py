@@ -400,15 +400,21 @@ def test_unloaded_pillars_change_little():
     assert wide.total_force_N == pytest.approx(base.total_force_N, rel=2e-3)
 
 
-def test_closed_form_assembly_equals_the_forms():
+@pytest.mark.parametrize("chunk", [None, 7])
+def test_closed_form_assembly_equals_the_forms(chunk, monkeypatch):
     """The vectorised element integrals (forms.tet_p2) summed by the assembler equal skfem's
     assembly of the forms of forms.solid3d (shear stiffness, divergence coupling, pressure
     mass) on a distorted mesh of two bodies with their own moduli, to round-off (measured
-    7e-16 of the largest entry)."""
+    7e-16 of the largest entry); in one block of elements and in blocks of 7 (the reused
+    buffers, a partial last block)."""
     from skfem import Basis, ElementTetP1, ElementTetP2, ElementVector, MeshTet
 
     from fem_reference.forms.solid3d import divergence_coupling, pressure_mass, shear_stiffness
+    from fem_reference.solid3d import system
     from fem_reference.solid3d.system import PressureSpace3D, assemble_blocks
+
+    if chunk is not None:
+        monkeypatch.setattr(system, "CHUNK", chunk)
 
     mesh = MeshTet().refined(2)
     inner = (mesh.p > 0) & (mesh.p < 1)  # move the interior nodes: general tetrahedra
@@ -453,9 +459,9 @@ def test_the_element_products_run_on_one_blas_thread(monkeypatch):
     seen = []
     products = tet_p2.elasticity_blocks
 
-    def spy(*args):
+    def spy(*args, **kwargs):
         seen.append(blas_threads())
-        return products(*args)
+        return products(*args, **kwargs)
 
     monkeypatch.setattr(tet_p2, "elasticity_blocks", spy)
     mesh = MeshTet().refined(1)
@@ -465,6 +471,35 @@ def test_the_element_products_run_on_one_blas_thread(monkeypatch):
     with limited(2):
         assemble_blocks(mesh, Basis(mesh, ElementTetP2()), [space])
         assert seen == [{1}] and blas_threads() == {2}
+
+
+def test_stack_csr_writes_scipys_arrays(monkeypatch):
+    """system.stack_csr, the reduced matrix's block layout written once, gives the arrays of
+    scipy's vstack of hstacks bit for bit (data, indices, row pointers, dtypes), over several
+    passes of rows, with an empty row and an empty block."""
+    import scipy.sparse as sp
+
+    from fem_reference.solid3d import system
+
+    rng = np.random.default_rng(1)
+
+    def block(m, n, density):
+        return sp.random(m, n, density=density, format="csr", random_state=rng)
+
+    uu, up, pu = block(30, 30, 0.2), block(30, 7, 0.3), block(7, 30, 0.3)
+    uu = sp.csr_matrix(uu.multiply(np.arange(30)[:, None] != 4))  # row 4 empty on the left
+    uu.eliminate_zeros()
+    up = sp.csr_matrix(up.multiply(np.arange(30)[:, None] != 4))
+    up.eliminate_zeros()
+    pp = sp.csr_matrix((7, 7))
+    monkeypatch.setattr(system, "STACK_ROWS", 4)
+    got = system.stack_csr(((uu, up), (pu, pp)))
+    ref = sp.vstack([sp.hstack([uu, up], format="csr"), sp.hstack([pu, pp], format="csr")],
+                    format="csr")
+    assert got.shape == ref.shape and np.diff(got.indptr)[4] == 0
+    for name in ("data", "indices", "indptr"):
+        a, b = getattr(got, name), getattr(ref, name)
+        assert a.dtype == b.dtype and np.array_equal(a, b)
 
 
 def test_the_elimination_order_follows_the_vertices():

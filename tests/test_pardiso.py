@@ -78,9 +78,13 @@ def test_a_solve_agrees_with_superlu(given):
     assert factor.ordering == ("given" if given else "matching")
 
 
-def test_the_upper_triangle_is_scipys():
+@pytest.mark.parametrize("rows", [None, 3])
+def test_the_upper_triangle_is_scipys(rows, monkeypatch):
     """The masked upper triangle equals scipy's triu, columns sorted, on a matrix with empty
-    rows, unsorted columns and an empty matrix."""
+    rows, unsorted columns and an empty matrix, in one pass of rows and in passes of 3; cast
+    to float32, its values are triu's cast."""
+    if rows is not None:
+        monkeypatch.setattr(_pardiso, "TRIANGLE_ROWS", rows)
     rng = np.random.default_rng(3)
     A = sp.random(40, 40, density=0.2, random_state=4, format="lil")
     A[7, :] = 0
@@ -97,6 +101,9 @@ def test_the_upper_triangle_is_scipys():
         assert U.has_sorted_indices and (U != sp.triu(M)).nnz == 0
         assert all(np.all(np.diff(U.indices[U.indptr[k]:U.indptr[k + 1]]) > 0)
                    for k in range(U.shape[0]))
+        single = _pardiso.upper_triangle(M, np.float32)
+        assert single.dtype == np.float32 and np.array_equal(single.indices, U.indices)
+        assert np.array_equal(single.data, U.data.astype(np.float32))
 
 
 def test_metis_positions_are_a_nested_dissection():

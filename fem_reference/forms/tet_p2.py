@@ -74,7 +74,8 @@ STIFFNESS = _stiffness_coefficients()
 DIVERGENCE = _divergence_coefficients()
 
 
-def elasticity_blocks(grad: np.ndarray, volume: np.ndarray, mu: np.ndarray) -> np.ndarray:
+def elasticity_blocks(grad: np.ndarray, volume: np.ndarray, mu: np.ndarray,
+                      out: np.ndarray | None = None) -> np.ndarray:
     """The 3 x 3 blocks of the shear stiffness A (:func:`.solid3d.shear_stiffness`) between
     the nodes of each element, V[e, 3 b + a, 10 t + s] = A[(t, b), (s, a)]: the row (test)
     node t, component b, the column (trial) node s, component a,
@@ -82,7 +83,8 @@ def elasticity_blocks(grad: np.ndarray, volume: np.ndarray, mu: np.ndarray) -> n
         A[(t, b), (s, a)] = mu (delta_ab sum_c Q[t, c, s, c] + Q[t, a, s, b]),
 
     Q[t, p, s, q] the integral of d_p phi_t d_q phi_s; from the barycentric gradients
-    ``grad`` (E, 3, 4), ``volume`` and ``mu`` (E,)."""
+    ``grad`` (E, 3, 4), ``volume`` and ``mu`` (E,); written into ``out`` (E, 9, 100)
+    when given (a buffer the caller reuses across blocks of elements)."""
     E = len(volume)
     # W[e, kl, b, a] = delta_ab (G^T G)[k, l] + G[a, k] G[b, l], times mu and the volume
     W = np.einsum("eak,ebl->eklba", grad, grad)
@@ -91,7 +93,10 @@ def elasticity_blocks(grad: np.ndarray, volume: np.ndarray, mu: np.ndarray) -> n
         W[:, :, :, b, b] += gram
     W *= (mu * volume)[:, None, None, None, None]
     W = np.ascontiguousarray(np.transpose(W.reshape(E, 16, 9), (0, 2, 1))).reshape(9 * E, 16)
-    return (W @ STIFFNESS.T).reshape(E, 9, 100)
+    if out is None:
+        return (W @ STIFFNESS.T).reshape(E, 9, 100)
+    np.matmul(W, STIFFNESS.T, out=out.reshape(9 * E, 100))
+    return out
 
 
 def divergence_blocks(grad: np.ndarray, volume: np.ndarray) -> np.ndarray:
