@@ -8,7 +8,9 @@ whole CPUs, at least one.  One override sets it: the environment variable
 study engine sets each worker's share).  Every threaded part of the toolkit reads
 :func:`thread_count`: scipy.fft's workers, the pillar boxes' transforms, the dense BEM's
 assembly threads, gmsh's meshing, and, through :func:`limited` (threadpoolctl), BLAS, MKL
-(PARDISO included) and the OpenMP runtimes.
+(PARDISO included) and the OpenMP runtimes.  A few memory-bound parts use fewer by
+measurement, never more: fem-3d's back-substitutions of few columns and its element blocks'
+products, and the half-space model's dense algebra, run on one thread.
 """
 
 from __future__ import annotations
