@@ -262,7 +262,8 @@ def assemble_sector(mesh, materials: dict, *, sector_angle: float, clamp_pillar_
     return SectorSystem(mesh, sb, pressures, Kr, T.tocsr(), scale, rigid, nodes)
 
 
-# Rows per pass of :func:`stack_csr`: its position arrays hold about this many rows' entries.
+# Rows per pass of :func:`stack_csr` and of the reduced matrix's scaling: their temporary
+# arrays hold about this many rows' entries.
 STACK_ROWS = 8192
 
 
