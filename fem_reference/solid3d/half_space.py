@@ -108,7 +108,13 @@ class HalfSpaceModel:
         """The solution of gap = H p + b, p >= 0, gap >= 0, p gap = 0 (the contact problem
         with the model in place of C), to :data:`WARM_TOL`; zero where H is not definite."""
         H = self.H
-        sol = constrained_cg(lambda p: H @ p, b, np.zeros(len(b)), scale=scale, tol=WARM_TOL,
+        q0 = np.zeros(len(b))
+        import os
+        if os.environ.get("WARM_FIND"):
+            q0 = constrained_cg(lambda p: H @ p, b, q0, scale=scale, tol=float(os.environ["WARM_FIND"]),
+                                max_iterations=1000, inverse_diagonal=self.inverse_diagonal,
+                                weights=self.faces.weights).pressure
+        sol = constrained_cg(lambda p: H @ p, b, q0, scale=scale, tol=WARM_TOL,
                              max_iterations=1000, precondition=self.precondition,
                              weights=self.faces.weights)
         return sol.pressure if self.name == "half-space" else np.zeros(len(b))
