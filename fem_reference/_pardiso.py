@@ -250,8 +250,13 @@ def metis_positions(graph: sp.csr_matrix) -> np.ndarray:
     each: Phi = 0.2 at mesh_size 2 and 1.41, 1.81e4 and 7.17e4 against 1.56e4 and 6.44e4;
     Phi = 0.82 at 2.83, 2 and 1.41, 4.66e4, 1.50e5 and 6.03e5 against 4.24e4, 1.33e5 and
     5.62e5) for 2-5 % more factor entries; METIS's default of one separator, 2-8 % more
-    than two, and three to five no fewer than two."""
-    import pymetis
+    than two, and three to five no fewer than two.  Where pymetis cannot be imported (a
+    lent machine's kit carries pure-Python packages only) PARDISO's analysis orders the
+    graph as before."""
+    try:
+        import pymetis
+    except ImportError:
+        return _analysis_positions(graph)
 
     nn = graph.shape[0]
     edges = sp.coo_matrix(graph)
@@ -266,6 +271,34 @@ def metis_positions(graph: sp.csr_matrix) -> np.ndarray:
                                         options=options)
     position = np.empty(nn, dtype=np.int64)
     position[np.asarray(perm, dtype=np.int64)] = np.arange(nn)
+    return position
+
+
+def _analysis_positions(graph: sp.csr_matrix) -> np.ndarray:
+    """:func:`metis_positions` from PARDISO's analysis (its METIS, one separator)."""
+    solver = PardisoHandle()
+    nn = graph.shape[0]
+    pattern = sp.csr_matrix((np.ones(graph.nnz), graph.indices, graph.indptr), shape=(nn, nn))
+    # the upper triangle of the symmetric pattern, with the diagonal (a lone vertex has none)
+    upper = sp.triu(pattern + pattern.T + sp.eye(nn, format="csr"), format="csr")
+    upper.sort_indices()
+    # Any positive definite values with this pattern: only the analysis runs.
+    upper.data[:] = -1.0 / nn
+    upper.setdiag(2.0)
+    a = np.ascontiguousarray(upper.data)
+    ia = (upper.indptr + 1).astype(np.int32)
+    ja = (upper.indices + 1).astype(np.int32)
+    iparm = solver.iparm
+    iparm[:] = 0
+    for k, v in ((0, 1), (1, 2), (4, 2)):  # METIS, and return its permutation in perm
+        iparm[k] = v
+    perm = np.zeros(nn, dtype=np.int32)
+    b = np.zeros((nn, 1), order="F")
+    with limiter()():
+        _pardiso(solver, 2, 11, a, ia, ja, perm, b)
+        _pardiso(solver, 2, -1, a, ia, ja, perm, b)
+    position = np.empty(nn, dtype=np.int64)
+    position[perm - 1] = np.arange(nn)
     return position
 
 

@@ -15,7 +15,8 @@ two xz archives under ``.lent/`` (ignored by git), each small enough for one cal
   beyond glibc (X11, GL, fontconfig, ``libgomp``: a compute node may lack them; ``unpack``
   keeps only those the machine cannot load itself), and MKL's AVX2 kernel and its generic
   one ``libmkl_def`` (the one MKL picks on this AMD EPYC, for all its AVX-512), each with
-  its vector-math library.
+  its vector-math library.  pymetis, compiled for this Python, is not carried: there fem-3d
+  orders its factorisation by PARDISO's analysis (:func:`fem_reference._pardiso.metis_positions`).
 
 ``unpack`` (there, stdlib only) extracts every archive found into one folder under /tmp,
 each once (a stamp holds the archive's size): two consecutive calls, each carrying one
