@@ -310,23 +310,28 @@ def test_the_correction_split_by_rows_is_the_whole_product(monkeypatch):
 def test_convolution_of_a_few_cells_is_the_whole_field_convolution():
     """``few(index, values)`` (the clipping update's convolution: the scatter buffer cleared
     and only the given cells put in it) equals the convolution of the whole field that is
-    ``values`` there and zero elsewhere, bit for bit, in both precisions and on both paths;
-    and it leaves nothing behind for the next whole call."""
+    ``values`` there and zero elsewhere, bit for bit, in both precisions and on both paths,
+    for cells spread over the grid and for cells in a few rows (whose other rows it leaves
+    untransformed); and it leaves nothing behind for the next whole call."""
     _, grid, plan = _small_plan("paper-fig3-dense", ["load.indentation_um=0.02"], 6)
     conv = plan._convolution
     rng = np.random.default_rng(11)
-    index = np.sort(rng.choice(grid.n_cells, 40, replace=False))
-    values = rng.random(40)
-    field = np.zeros(grid.n_cells)
-    field[index] = values
     q = rng.random(grid.n_cells)
-    for pocket in (True, False):
-        conv._pocket, conv._arrays = pocket, {}
-        for single in (False, True):
-            whole = conv(field, single).copy()
-            after = conv(q, single).copy()
-            assert np.array_equal(conv.few(index, values, single), whole)
-            assert np.array_equal(conv(q, single), after)
+    row = grid.flat_index // grid.shape[1]
+    band = np.flatnonzero((row >= grid.shape[0] // 2) & (row < grid.shape[0] // 2 + 3))
+    assert 0 < band.size < grid.n_cells // 4
+    for index in (np.sort(rng.choice(grid.n_cells, 40, replace=False)),
+                  np.sort(rng.choice(band, 12, replace=False))):
+        values = rng.random(index.size)
+        field = np.zeros(grid.n_cells)
+        field[index] = values
+        for pocket in (True, False):
+            conv._pocket, conv._arrays = pocket, {}
+            for single in (False, True):
+                whole = conv(field, single).copy()
+                after = conv(q, single).copy()
+                assert np.array_equal(conv.few(index, values, single), whole)
+                assert np.array_equal(conv(q, single), after)
     conv._pocket, conv._arrays = True, {}
 
 
