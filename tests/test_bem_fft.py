@@ -566,23 +566,38 @@ SOFT_CLOSE_PACKED = ["pillars.E_Pa=1600.0", "substrate.E_Pa=1.6e12",
                      "lens.radius_mm=100"]
 
 
-def test_soft_pillars_near_close_packing_converge():
+def test_soft_pillars_near_close_packing_converge(monkeypatch):
     """Before the constrained CG turned monotone on a stalled residual (contact._cg), this
     scene did not converge in 3000 iterations with either preconditioner (its residual grew
-    to ~50 zeta, hundreds of cells re-entering every other step); now in 51 (circulant) and
-    59 (Jacobi).  Converged means the min-map residual, the complementarity certificate of
-    the problem's unique solution, is within 1e-8 zeta; the two preconditioners take two
-    different paths to the same answer."""
+    to ~50 zeta, hundreds of cells re-entering every other step); with the safeguard, in 51
+    (circulant) and 59 (Jacobi) iterations, 102 and 114 steps shortened.  The FFT model's
+    directions are cut where they would take a zero pressure below zero
+    (``cut_outward``): then no step raises the energy (none shortened), in fewer operator
+    applications.  Converged means the min-map residual, the complementarity certificate of
+    the problem's unique solution, is within 1e-8 zeta; the two preconditioners, with and
+    without the cut, take four different paths to the same answer."""
+    import bem_solver._fft as fft_module
+
     scene = load_scene("paper-fig3-dense", SOFT_CLOSE_PACKED)
-    circulant = solve_fft(scene, 8, max_iterations=400)
-    jacobi = solve_fft(scene, 8, max_iterations=400, preconditioner="jacobi")
-    for res in (circulant, jacobi):
-        assert res.converged and res.diagnostics["contact_residual"] <= 1e-8
-        assert res.pillars_in_contact > 200
-        assert res.diagnostics["step_halvings"] > 0  # the safeguard acted
-    assert jacobi.total_force_N == pytest.approx(circulant.total_force_N, rel=RTOL_SOLVER)
-    assert jacobi.centre_pressure_Pa == pytest.approx(circulant.centre_pressure_Pa,
-                                                      rel=RTOL_SOLVER)
+    cut = {name: solve_fft(scene, 8, max_iterations=400, preconditioner=name)
+           for name in ("circulant", "jacobi")}
+    plain_cg = fft_module.constrained_cg
+    monkeypatch.setattr(fft_module, "constrained_cg",
+                        lambda *a, **k: plain_cg(*a, **{**k, "cut_outward": False}))
+    uncut = {name: solve_fft(scene, 8, max_iterations=400, preconditioner=name)
+             for name in ("circulant", "jacobi")}
+    reference = cut["circulant"]
+    for name, res_cut in cut.items():
+        for res in (res_cut, uncut[name]):
+            assert res.converged and res.diagnostics["contact_residual"] <= 1e-8
+            assert res.pillars_in_contact > 200
+            assert res.total_force_N == pytest.approx(reference.total_force_N, rel=RTOL_SOLVER)
+            assert res.centre_pressure_Pa == pytest.approx(reference.centre_pressure_Pa,
+                                                           rel=RTOL_SOLVER)
+        assert uncut[name].diagnostics["step_halvings"] > 0  # the safeguard acted
+        assert res_cut.diagnostics["step_halvings"] == 0
+        assert res_cut.diagnostics["operator_applications"] \
+            < uncut[name].diagnostics["operator_applications"]
 
 
 def test_unit_rescaling_invariance():
