@@ -7,7 +7,7 @@ OUT    ?= out
 
 .PHONY: demo study-gecit study-lattice study-floor figures test test-slow bench-bem bench-fft bench-gpu bench-fem3d \
 	bench-elastic bench-fem3d-floor bench-fem3d-floor-levels bench-mesh3d-ab bench-engine bench-figures bench-startup bench-force \
-	bench-floor bench-floor-gap bench-sweep bench-threads bench-planner-threads clean calibrate validate-planner extremes \
+	bench-floor bench-floor-ab bench-floor-gap bench-sweep bench-threads bench-planner-threads clean calibrate validate-planner extremes \
 	regimes docs lint reproduce lent-kit
 
 $(STAMP): pyproject.toml
@@ -160,6 +160,14 @@ bench-fem3d-floor-levels: $(STAMP)
 	$(if $(BASELINE),,$(error BASELINE=DIR: a checkout of the code to compare against))
 	$(PY) -m validation.bench.ab --baseline $(BASELINE) --out $(OUT)/bench-fem3d-floor-levels \
 		--repeats 1 $(foreach p,0.2 0.4,$(foreach m,2.83 2 1.41,--case floor3d:$(p):$(m)))
+
+# The floor benchmark's timed scene with the floor touched (floor:1) and suspended (floor:20),
+# this checkout against BASELINE (as above), in rounds of both: each side's ratio of their
+# medians, under one load (7 fresh interpreters a side and case, about 5 minutes on 2 cores).
+bench-floor-ab: $(STAMP)
+	$(if $(BASELINE),,$(error BASELINE=DIR: a checkout of the code to compare against))
+	$(PY) -m validation.bench.ab --baseline $(BASELINE) --out $(OUT)/bench-floor-ab \
+		--rounds --repeats 7 --case floor:1 --case floor:20
 
 # fem-3d's mesh phase alone (gmsh and the scikit-fem mesh) at the lattice study's levels
 # 2.83 and 2 on Phi = 0.2 and 0.82, this checkout against BASELINE (as above): CPU and wall

@@ -414,7 +414,8 @@ def run_cg(setup: _Setup, b, q0, scale: float, opts: _Options, be, force=None):
     lap = time.perf_counter()
     outcome = constrained_cg(setup.plan, b, q0, scale=scale, tol=opts.tol,
                              max_iterations=max_iterations, precondition=setup.precondition,
-                             callback=opts.progress, backend=be, force=force)
+                             callback=opts.progress, backend=be, force=force,
+                             cut_outward=True)
     outcome.pressure = be.to_numpy(outcome.pressure)
     outcome.gap = be.to_numpy(outcome.gap)
     setup.timings["solve"] = setup.timings.get("solve", 0.0) + time.perf_counter() - lap

@@ -421,27 +421,40 @@ class PrunedConvolution:
         if work is None:
             n = self.padded_index.shape[0]
             return self(be.put(xp.zeros(n, dtype=xp.float64), index, values), single)
-        # zero off the candidate cells already: the same buffer as a scatter
-        in_chunks(lambda lo, hi: _zero(buffer[lo:hi]), buffer.shape[0], be.workers)
+        # Only the rows that hold a given cell are cleared, filled and transformed along
+        # x: the others' transforms are zeros (written as such), and the whole calls that
+        # follow overwrite every candidate cell (elsewhere the buffer stays zero).
+        at = self.padded_index[index]
+        mx = self.fft_shape[1]
+        rows = (int(at.min()) // mx, int(at.max()) // mx + 1) if at.shape[0] else (0, 0)
+        held = buffer[rows[0] * mx:rows[1] * mx]
+        in_chunks(lambda lo, hi: _zero(held[lo:hi]), held.shape[0], be.workers)
         if self.n_unique < self.padded_index.shape[0]:  # two unknowns may share a position
-            np.add.at(buffer, self.padded_index[index], values.astype(buffer.dtype))
+            np.add.at(buffer, at, values.astype(buffer.dtype))
         else:
-            buffer[self.padded_index[index]] = values.astype(buffer.dtype)
-        return self._numpy_call(buffer, work)
+            buffer[at] = values.astype(buffer.dtype)
+        return self._numpy_call(buffer, work, rows=rows)
 
-    def _numpy_call(self, buffer, work, index=None, watch=None):
+    def _numpy_call(self, buffer, work, index=None, watch=None, rows=None):
         """The generic path's transforms (scipy.fft's rfft, fft, ifft, irfft are these
         pocketfft calls, with the default norm) of the scattered ``buffer`` into the kept
         arrays, and the result on the candidate cells (or at the padded positions ``index``)
         in float64; the elementwise work in chunks on the transforms' threads
         (:func:`in_chunks`).  With ``watch`` (padded positions): (result, the values
-        there)."""
+        there).  With ``rows`` = (r0, r1): the buffer is zero outside those rows, whose
+        transforms along x are then zeros, written without transforming."""
         ny = self.shape[0]
         my, mx = self.fft_shape
         spec, out, factor, twiddles = work
         workers = self.backend.workers
-        _pocketfft.r2c(buffer.reshape(ny, mx), (1,), True, 0, spec[:ny], workers)
         row = spec.shape[1]
+        r0, r1 = (0, ny) if rows is None else rows
+        if r1 > r0:
+            _pocketfft.r2c(buffer.reshape(ny, mx)[r0:r1], (1,), True, 0, spec[r0:r1],
+                           workers)
+        for lo, hi in ((0, r0), (max(r1, r0), ny)):
+            if hi > lo:
+                in_chunks(lambda a, b: _zero(spec[lo + a:lo + b]), hi - lo, workers, row)
         if twiddles is None:
             in_chunks(lambda lo, hi: _zero(spec[ny + lo:ny + hi]), my - ny, workers, row)
             columns, axis = spec, 0

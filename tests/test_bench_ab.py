@@ -119,3 +119,37 @@ def test_results_are_written_whole_and_read_back(tmp_path):
                    "rows": rows, "runs": raw, "load_average": [0.5], "warm": True}
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["bench_x.json",
                                                                     "bench_x.md"]
+
+
+def test_floor_cases_run_in_rounds_and_give_each_sides_ratio(monkeypatch):
+    """``floor:H`` is the floor benchmark's timed scene at pillar height H; in rounds every
+    case runs in each repeat, both sides ABBA, and the ratio of the two cases' medians is
+    each side's own."""
+    from validation.bench.floor import PERF_N
+
+    mixed, suspended = ab.parse_case("floor:1"), ab.parse_case("floor:20")
+    assert mixed["cells"] == PERF_N and "pillars.height_um=1" in mixed["overrides"]
+    assert "pillars.height_um=20" in suspended["overrides"]
+    with pytest.raises(argparse.ArgumentTypeError, match="floor:H"):
+        ab.parse_case("floor:tall")
+    order = []
+    walls = {("floor:1", "baseline"): 4.0, ("floor:20", "baseline"): 2.0,
+             ("floor:1", "this"): 3.0, ("floor:20", "this"): 2.0}
+
+    def fake(root, case, warm, worker):
+        order.append((case["label"], str(root)))
+        return {**_run(walls[case["label"], str(root)], 1.0, 1.0), "F_floor": 0.5,
+                "A_floor": 0.0}
+
+    monkeypatch.setattr(ab, "run_once", fake)
+    rows, raw, load = ab.interleaved([mixed, suspended], {"baseline": "baseline",
+                                                          "this": "this"}, 2, ab.summarise,
+                                     rounds=True)
+    assert order == [("floor:1", "baseline"), ("floor:1", "this"),
+                     ("floor:20", "baseline"), ("floor:20", "this"),
+                     ("floor:1", "this"), ("floor:1", "baseline"),
+                     ("floor:20", "this"), ("floor:20", "baseline")]
+    assert len(load) == 3 and len(raw["floor:1"]["this"]) == 2
+    assert ab.case_ratios(rows, "floor:1", "floor:20") == \
+        "baseline: floor:1 / floor:20 = 2.000; this: floor:1 / floor:20 = 1.500"
+    assert rows[1]["F_floor"] == 0.5 and rows[1]["max_rel_diff"] == 0.0

@@ -24,7 +24,10 @@ study's scene at zeta = 0.3 um), whose rows add the median time of each phase of
 the interpreter's peak RSS (its own, since each run is a fresh process);
 ``floor3d:PHI:MESH_SIZE`` (fem-3d on the floor validation's lattice of surface fraction PHI,
 its floor touched: :data:`validation.studies.floor_check.POINTS`), whose rows add the
-elements and the floor's contact area.
+elements and the floor's contact area; ``floor:H`` (the FFT BEM on the floor benchmark's
+timed scene with pillars H um tall: ``floor:1`` mixed, ``floor:20`` suspended).  ``--rounds``
+runs every case in each repeat, so that the ratio of two cases' medians (printed for two
+``floor:`` cases) is measured under one load.
 """
 
 from __future__ import annotations
@@ -47,6 +50,8 @@ FEM3D_PHASES = ("mesh", "assemble", "factorise", "contact", "post")
 PER_ITERATION = ("per_iteration_over_fft_pair", "per_iteration_over_2n1_pair",
                  "cpu_per_iteration_over_cpu_pair")
 ROOT = Path(__file__).resolve().parents[2]
+# The answers compared between the sides (the floor's two: 0 without a floor).
+ANSWERS = ("F_T", "sigma0", "a", "F_floor", "A_floor")
 
 WORKER = r"""
 import json, os, sys, time
@@ -78,7 +83,9 @@ for _ in range(2 if warm else 1):
     r = solve(scene, *args, **kw)
     wall, cpu = time.perf_counter() - t, time.process_time() - c
 out = {"wall_s": wall, "cpu_s": cpu, "iterations": r.iterations, "converged": r.converged,
-       "F_T": r.total_force_N, "sigma0": r.centre_pressure_Pa, "a": r.contact_radius_m}
+       "F_T": r.total_force_N, "sigma0": r.centre_pressure_Pa, "a": r.contact_radius_m,
+       "F_floor": getattr(r, "floor_force_N", 0.0),
+       "A_floor": getattr(r, "floor_contact_area_m2", 0.0)}
 if case["model"] == "fem3d":
     import resource
     out["elements"] = r.discretisation["elements"]
@@ -121,6 +128,8 @@ print(json.dumps(out))
 def parse_case(text: str) -> dict:
     if text.startswith(("fem3d:", "floor3d:")):
         return _parse_fem3d(text)
+    if text.startswith("floor:"):
+        return _parse_floor(text)
     name, _, tol = text.partition("@")
     model, _, cells = name.partition(":")
     if model not in ("dense", "fft", "elastic-fft") or (model != "dense") != bool(cells):
@@ -156,6 +165,21 @@ def _parse_fem3d(text: str) -> dict:
     return case
 
 
+def _parse_floor(text: str) -> dict:
+    """``floor:H``: the floor benchmark's timed scene (:mod:`validation.bench.floor`, rigid
+    pillars, 1e6 candidate cells) with pillars H um tall (1: the floor touched; 20: not)."""
+    from validation.bench.floor import PERF_N, PERF_SCENE, TOL
+
+    try:
+        height = float(text.split(":", 1)[1])
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected floor:H (pillar height in um, "
+                                         "e.g. floor:1 or floor:20)") from None
+    return {"label": text, "model": "fft", "pillars": "hooke", "cells": PERF_N,
+            "options": {"tol": TOL}, "scene": "paper-fig3-sparse",
+            "overrides": PERF_SCENE + [f"pillars.height_um={height:g}"]}
+
+
 def run_once(root: Path, case: dict, warm: bool, worker: str = WORKER) -> dict:
     """One run of ``worker`` (this module's solve by default) on ``case`` in a fresh
     interpreter whose PYTHONPATH is the checkout ``root``: its JSON line."""
@@ -166,22 +190,33 @@ def run_once(root: Path, case: dict, warm: bool, worker: str = WORKER) -> dict:
 
 
 def interleaved(cases, sides: dict, repeats: int, summarise, *, warm: bool = False,
-                worker: str = WORKER) -> tuple[list, dict, list]:
+                worker: str = WORKER, rounds: bool = False) -> tuple[list, dict, list]:
     """Run each case ``repeats`` times a side, the sides alternating (ABBA): (the rows of
     ``summarise(case, runs)``, the runs by case label, the load averages before and after
-    each case)."""
+    each case).  ``rounds``: every case in each repeat (ratios between cases then see the
+    same load), the load averages after each round."""
     load = [os.getloadavg()]
-    rows, raw = [], {}
-    for case in cases:
-        runs = {"baseline": [], "this": []}
-        for k in range(repeats):
-            order = ("baseline", "this") if k % 2 == 0 else ("this", "baseline")
-            for side in order:
-                runs[side].append(run_once(sides[side], case, warm, worker))
-        raw[case["label"]] = runs
-        rows += summarise(case, runs)
+    raw = {case["label"]: {"baseline": [], "this": []} for case in cases}
+
+    def one(case, k):
+        order = ("baseline", "this") if k % 2 == 0 else ("this", "baseline")
+        for side in order:
+            raw[case["label"]][side].append(run_once(sides[side], case, warm, worker))
+
+    for outer in (range(repeats) if rounds else cases):
+        for inner in (cases if rounds else range(repeats)):
+            one(*((inner, outer) if rounds else (outer, inner)))
         load.append(os.getloadavg())
+    rows = [row for case in cases for row in summarise(case, raw[case["label"]])]
     return rows, raw, load
+
+
+def case_ratios(rows, over: str, under: str) -> str:
+    """Each side's ratio of the median walls of the cases ``over`` and ``under``."""
+    wall = {(r["case"], r["side"]): r["wall_median_s"] for r in rows}
+    return "; ".join(f"{side}: {over} / {under} = "
+                     f"{wall[over, side] / wall[under, side]:.3f}"
+                     for side in ("baseline", "this"))
 
 
 def load_text(load: list) -> str:
@@ -203,7 +238,7 @@ def summarise(case, runs) -> list[dict]:
                      "wall_median_s": statistics.median(wall), "wall_min_s": min(wall),
                      "wall_max_s": max(wall), "cpu_median_s": statistics.median(cpu),
                      "iterations": rs[-1]["iterations"], "converged": rs[-1]["converged"],
-                     "F_T": rs[-1]["F_T"], "sigma0": rs[-1]["sigma0"], "a": rs[-1]["a"],
+                     **{q: rs[-1].get(q) for q in ANSWERS},
                      "applications": rs[-1].get("applications"),
                      **{key: statistics.median([r.get(key, float("nan")) for r in rs])
                         for key in PER_ITERATION}})
@@ -215,7 +250,9 @@ def summarise(case, runs) -> list[dict]:
             rows[-1]["floor_area_m2"] = rs[-1].get("floor_area_m2")
     base, this = rows
     this["speed-up"] = base["wall_median_s"] / this["wall_median_s"]
-    this["max_rel_diff"] = max(_rel(base[q], this[q]) for q in ("F_T", "sigma0", "a"))
+    # with the floor's force and area where both sides report them
+    this["max_rel_diff"] = max(_rel(base[q], this[q]) for q in ANSWERS
+                               if base.get(q) is not None and this.get(q) is not None)
     return rows
 
 
@@ -275,11 +312,18 @@ def main(argv=None) -> int:
                          "fem3d:PHI:MESH_SIZE (repeatable; default: dense)")
     ap.add_argument("--repeats", type=int, default=5, help="runs per side and case (5)")
     ap.add_argument("--warm", action="store_true", help="time a second solve per interpreter")
+    ap.add_argument("--rounds", action="store_true",
+                    help="every case in each repeat (the cases' ratios under one load); "
+                         "with two floor:H cases, each side's ratio of their medians")
     args = ap.parse_args(argv)
     cases = args.case or [parse_case("dense")]
     sides = {"baseline": args.baseline.resolve(), "this": args.this.resolve()}
-    rows, raw, load = interleaved(cases, sides, args.repeats, summarise, warm=args.warm)
-    text = (table(rows) + f"\n\nrepeats {args.repeats} per side (interleaved ABBA), "
+    rows, raw, load = interleaved(cases, sides, args.repeats, summarise, warm=args.warm,
+                                  rounds=args.rounds)
+    floors = [c["label"] for c in cases if c["label"].startswith("floor:")]
+    ratio = "" if len(floors) != 2 else "\n\n" + case_ratios(rows, *floors)
+    text = (table(rows) + ratio + f"\n\nrepeats {args.repeats} per side (interleaved ABBA"
+            f"{', in rounds of every case' if args.rounds else ''}), "
             f"{'second (warm)' if args.warm else 'first (cold)'} solve per interpreter; "
             + load_text(load) + "\n")
     print(text)
