@@ -496,7 +496,8 @@ def _contact(scene: Scene, setup: dict, system, faces, tol: float, clock: PhaseC
                              precondition=model.precondition,
                              inverse_diagonal=model.inverse_diagonal, weights=faces.weights,
                              callback=report, force=target,
-                             load=None if force is None else faces.weights)
+                             load=None if force is None else faces.weights,
+                             cut_outward=True)
     if force is not None:
         zeta = sol.approach * ell
         gap0 = (analytic.lens_gap(R, r_pts) - zeta) / ell + lift
