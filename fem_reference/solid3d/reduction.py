@@ -42,6 +42,15 @@ class NodeBases:
     bases: np.ndarray
 
     @property
+    def order(self) -> np.ndarray:
+        """Each basis's columns (kinds x 3) in the order scipy's product T_u^T (A T_u) lays
+        out a node's columns in a row: by their first nonzero component (the zero columns
+        last)."""
+        lead = np.argmax(self.bases != 0.0, axis=1)
+        lead[~np.any(self.bases != 0.0, axis=1)] = 3
+        return np.argsort(lead, axis=1, kind="stable")
+
+    @property
     def direct(self) -> bool:
         """Every node's unknowns are its own (no rigid pillar): :class:`ReducedStiffness`
         applies."""
@@ -55,21 +64,23 @@ class ReducedStiffness:
     entries written where the caller places its rows (:meth:`write`, :func:`.system.stack_csr`),
     or as a CSR matrix (:meth:`tocsr`).
 
-    The entries of scipy's product T_u^T (A T_u) bit for bit, each row's columns sorted,
-    exact zeros left in (the product drops them; ``eliminate_zeros`` does)."""
+    The arrays of scipy's product T_u^T (A T_u) bit for bit, in its order (the column nodes
+    ascending, a node's columns in :attr:`NodeBases.order`), but for exact zeros: left in
+    (the caller's ``eliminate_zeros`` drops them), where the product leaves them out, and
+    puts the columns of a row whose first term it left out first."""
 
     dtype = np.dtype(float)
 
     def __init__(self, row: np.ndarray, col: np.ndarray, blocks: np.ndarray,
                  nodes: NodeBases, n_reduced: int):
         first, count = nodes.first, nodes.count
-        _transform_blocks(row, col, blocks, nodes)
+        self.order = nodes.order
+        # the pairs whose row node mixes components in a column (the skew mirror), and where
+        # the product first meets each of their entries (below)
+        self.mixed, self.meets = _transform_blocks(row, col, blocks, nodes, self.order)
         self.row, self.col, self.blocks, self.nodes = row, col, blocks, nodes
         self.shape = (n_reduced, n_reduced)
-        # Each row's pairs in the order of their columns' reduced unknowns: T numbers them
-        # kind by kind (the bases are listed in that order), each kind's nodes ascending.
-        self.sequence = np.argsort(row * len(nodes.bases) + nodes.kind[col], kind="stable")
-        self.width = count[col[self.sequence]]  # each pair's entries in a row
+        self.width = count[col]  # each pair's entries in a row
         self.before = np.zeros(len(col) + 1, dtype=np.int64)  # the entries before each pair
         np.cumsum(self.width, out=self.before[1:])
         N = len(first)
@@ -86,6 +97,7 @@ class ReducedStiffness:
         ``shift`` into ``indices``; both arrays hold :data:`SPARE` slots past the matrix's
         entries, which take the writes of the rows a node does not keep."""
         dump = len(data) - SPARE
+        order = self.order.astype(indices.dtype)
         column = (self.nodes.first + shift).astype(indices.dtype)
         # A pair's three entries in one of its rows, one item each: an item is copied whole
         # (a third of the index work of one entry at a time: 0.18 against 1.1-1.3 s for
@@ -93,33 +105,53 @@ class ReducedStiffness:
         data3, indices3 = _triples(data), _triples(indices)
         for lo in range(0, len(self.row), PAIRS):
             pairs = slice(lo, min(lo + PAIRS, len(self.row)))
-            at, values, columns = self._rows(pairs, start, column, dump)
+            at, columns = self._rows(pairs, start, column, order, dump)
             at[self.width[pairs] < 3] = dump  # their entries one at a time below
-            data3[at] = _items(values).reshape(at.shape)
+            data3[at] = _items(self.blocks[pairs]).reshape(at.shape)
             indices3[at] = _items(columns)[:, None]
         # the pairs whose column node keeps fewer components
         partial = np.nonzero(self.width < 3)[0]
         for lo in range(0, len(partial), PAIRS):
             pairs = partial[lo:lo + PAIRS]
-            at, values, columns = self._rows(pairs, start, column, dump)
+            at, columns = self._rows(pairs, start, column, order, dump)
             kept = (np.arange(3) < self.width[pairs, None])[:, None, :]
             at = np.where(kept, at[:, :, None] + np.arange(3), dump)
-            data[at] = values
+            data[at] = self.blocks[pairs]
             indices[at] = columns[:, None, :]
+        self._reorder_mixed(data, indices, start, column, order, dump)
 
-    def _rows(self, pairs: np.ndarray, start: np.ndarray, column: np.ndarray, dump: int):
-        """Of the pairs ``pairs`` (a slice or indices) in the sequence: where each of their rows' entries
-        start (n, 3; ``dump`` for the rows a node does not keep), their blocks (n, 3, 3) and
-        their columns (n, 3)."""
+    def _reorder_mixed(self, data, indices, start, column, order, dump) -> None:
+        """The rows of a node whose basis column mixes components (b_0 < b_1 < ...): the
+        product meets an entry at the first b whose (A Q) term is not an exact zero, and lays
+        out the entries met at a later b first, the latest first (each group in the order of
+        the others)."""
+        if not len(self.mixed):
+            return
+        at, _ = self._rows(self.mixed, start, column, order, dump)
+        kept = (np.arange(3) < self.width[self.mixed, None])[:, None, :]
+        at = np.where(kept, at[:, :, None] + np.arange(3), dump).ravel()
+        meets = self.meets.ravel()
+        rows = np.repeat(np.minimum(self.nodes.first[self.row[self.mixed]][:, None]
+                                    + np.arange(3), self.shape[0] - 1), 3, axis=1).ravel()
+        keep = at < dump  # a row a node does not keep went to the spare slots
+        at, meets, rows = at[keep], meets[keep], rows[keep]
+        new = at[np.lexsort((at, -meets, rows))]  # by row, the latest met first, then in place
+        slots = np.sort(at)  # the same places, row by row
+        data[slots] = data[new]
+        indices[slots] = indices[new]
+
+    def _rows(self, pairs, start: np.ndarray, column: np.ndarray, order: np.ndarray,
+              dump: int):
+        """Of the pairs ``pairs`` (a slice or indices): where each of their rows' entries
+        start (n, 3; ``dump`` for the rows a node does not keep), and their columns (n, 3)."""
         first, count = self.nodes.first, self.nodes.count
         three = np.arange(3)
-        k = self.sequence[pairs]
-        s, t = self.row[pairs], self.col[k]  # the sequence keeps the rows
+        s, t = self.row[pairs], self.col[pairs]
         # a row's start, past the row's pairs before this one
         at = start[np.minimum(first[s][:, None] + three, self.shape[0] - 1)]
         at += (self.before[pairs] - self.before[self.ptr[s]])[:, None]
         at[three >= count[s][:, None]] = dump
-        return at, self.blocks[k], column[t][:, None] + three.astype(column.dtype)
+        return at, column[t][:, None] + order[self.nodes.kind[t]]
 
     def tocsr(self) -> sp.csr_matrix:
         indptr = np.zeros(self.shape[0] + 1, dtype=np.int64)
@@ -130,7 +162,6 @@ class ReducedStiffness:
         self.write(data, indices, indptr[:-1])
         K = sp.csr_matrix((data[:-SPARE], indices[:-SPARE], indptr.astype(index_dtype)),
                           shape=self.shape)
-        K.has_sorted_indices = True
         return K
 
 
@@ -146,18 +177,21 @@ def _items(a: np.ndarray) -> np.ndarray:
     return a.view(np.dtype((np.void, 3 * a.itemsize))).reshape(a.shape[:-1])
 
 
-def _transform_blocks(row, col, blocks, nodes: NodeBases) -> None:
+def _transform_blocks(row, col, blocks, nodes: NodeBases, order: np.ndarray) -> None:
     """Q_s^T A_st Q_t in place for the pairs that touch a node whose basis is not the
-    identity, summed as scipy's products sum them: (A Q)[b, j] over the components c in
-    turn, then Q^T (A Q)[j', j] over b in turn (a zero of Q adds a signed zero: the same
-    sum)."""
+    identity, its columns in ``order`` (kinds x 3), summed as scipy's products sum them:
+    (A Q)[b, j] over the components c in turn, then Q^T (A Q)[j', j] over b in turn (a
+    zero of Q adds a signed zero: the same sum)."""
     identity = np.array([np.array_equal(Q, np.eye(3)) for Q in nodes.bases])
     plain = identity[nodes.kind] | (nodes.count == 0)  # clamped nodes are masked, not mixed
     pairs = np.nonzero(~(plain[row] & plain[col]))[0]
+    ordered = np.take_along_axis(nodes.bases, order[:, None, :], axis=2)
+    mixing = np.any(np.sum(nodes.bases != 0.0, axis=1) > 1, axis=1)  # per kind
+    mixed, meets = [], []
     for lo in range(0, len(pairs), PAIRS):
         k = pairs[lo:lo + PAIRS]
         A = blocks[k]
-        Qs, Qt = nodes.bases[nodes.kind[row[k]]], nodes.bases[nodes.kind[col[k]]]
+        Qs, Qt = nodes.bases[nodes.kind[row[k]]], ordered[nodes.kind[col[k]]]
         AQ = A[:, :, 0, None] * Qt[:, None, 0, :]
         for c in (1, 2):
             AQ = AQ + A[:, :, c, None] * Qt[:, None, c, :]
@@ -165,3 +199,16 @@ def _transform_blocks(row, col, blocks, nodes: NodeBases) -> None:
         for b in (1, 2):
             R = R + Qs[:, b, :, None] * AQ[:, b, None, :]
         blocks[k] = R
+        m = mixing[nodes.kind[row[k]]]
+        if m.any():
+            # b of row j' where the product first meets entry i: the first b with
+            # Q_s[b, j'] and (A Q)[b, i] both nonzero; counted among Q_s[:, j']'s nonzeros
+            nz = Qs[m] != 0.0  # (n, b, j')
+            hit = nz[:, :, :, None] & (AQ[m] != 0.0)[:, :, None, :]  # (n, b, j', i)
+            first_b = np.argmax(hit, axis=1)  # (n, j', i)
+            earlier = np.cumsum(nz, axis=1) - nz  # nonzeros of Q_s[:, j'] before b
+            meets.append(np.take_along_axis(earlier[:, :, :, None], first_b[:, None], axis=1)[:, 0])
+            mixed.append(k[m])
+    if not mixed:
+        return np.zeros(0, dtype=np.int64), np.zeros((0, 3, 3), dtype=np.int64)
+    return np.concatenate(mixed), np.concatenate(meets)
