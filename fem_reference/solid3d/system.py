@@ -402,11 +402,15 @@ def _pair_pattern(nodes: np.ndarray, N: int):
     pattern.data = np.arange(pattern.nnz, dtype=float)  # exact integers (< 2^53)
     mirror = pattern.T.tocsr()  # the same pattern: at pair (b, a), the index of (a, b)
     mirror.sort_indices()
-    t, s = np.triu_indices(k)
-    where = np.empty((E, k, k), dtype=np.int64)
-    where[:, t, s] = np.asarray(pattern[nodes[:, t].ravel(), nodes[:, s].ravel()]).reshape(E, -1)
-    where[:, s, t] = mirror.data.astype(np.int64)[where[:, t, s]]
-    return row, pattern.indices.astype(np.int64), where.reshape(E, -1)
+    t, s = np.triu_indices(k)  # the diagonal's k pairs, then t < s, row by row
+    upper = np.asarray(pattern[nodes[:, t].ravel(), nodes[:, s].ravel()]).reshape(E, -1)
+    upper = upper.astype(np.int64)
+    strict = np.nonzero(t < s)[0]
+    found = np.concatenate([upper, mirror.data.astype(np.int64)[upper[:, strict]]], axis=1)
+    place = np.empty((k, k), dtype=np.int64)  # where local pair (t, s) lies in ``found``
+    place[t, s] = np.arange(len(t))
+    place[s[strict], t[strict]] = len(t) + np.arange(len(strict))
+    return row, pattern.indices.astype(np.int64), np.take(found, place.ravel(), axis=1)
 
 
 def _coupling_csr(row, col, where, values, dofs, N) -> sp.csr_matrix:
