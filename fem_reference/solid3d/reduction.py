@@ -97,15 +97,14 @@ class ReducedStiffness:
         ``shift`` into ``indices``; both arrays hold :data:`SPARE` slots past the matrix's
         entries, which take the writes of the rows a node does not keep."""
         dump = len(data) - SPARE
-        order = self.order.astype(indices.dtype)
-        column = (self.nodes.first + shift).astype(indices.dtype)
+        rows = self._node_rows(start, shift, indices.dtype, dump)
         # A pair's three entries in one of its rows, one item each: an item is copied whole
         # (a third of the index work of one entry at a time: 0.18 against 1.1-1.3 s for
         # 5.8e7 entries)
         data3, indices3 = _triples(data), _triples(indices)
         for lo in range(0, len(self.row), PAIRS):
             pairs = slice(lo, min(lo + PAIRS, len(self.row)))
-            at, columns = self._rows(pairs, start, column, order, dump)
+            at, columns = self._rows(pairs, rows, dump)
             at[self.width[pairs] < 3] = dump  # their entries one at a time below
             data3[at] = _items(self.blocks[pairs]).reshape(at.shape)
             indices3[at] = _items(columns)[:, None]
@@ -113,45 +112,54 @@ class ReducedStiffness:
         partial = np.nonzero(self.width < 3)[0]
         for lo in range(0, len(partial), PAIRS):
             pairs = partial[lo:lo + PAIRS]
-            at, columns = self._rows(pairs, start, column, order, dump)
-            kept = (np.arange(3) < self.width[pairs, None])[:, None, :]
-            at = np.where(kept, at[:, :, None] + np.arange(3), dump)
+            at, columns = self._rows(pairs, rows, dump)
+            at = self._entries(pairs, at, dump)
             data[at] = self.blocks[pairs]
             indices[at] = columns[:, None, :]
-        self._reorder_mixed(data, indices, start, column, order, dump)
+        self._reorder_mixed(data, indices, rows, dump)
 
-    def _reorder_mixed(self, data, indices, start, column, order, dump) -> None:
+    def _reorder_mixed(self, data, indices, rows, dump: int) -> None:
         """The rows of a node whose basis column mixes components (b_0 < b_1 < ...): the
         product meets an entry at the first b whose (A Q) term is not an exact zero, and lays
         out the entries met at a later b first, the latest first (each group in the order of
         the others)."""
         if not len(self.mixed):
             return
-        at, _ = self._rows(self.mixed, start, column, order, dump)
-        kept = (np.arange(3) < self.width[self.mixed, None])[:, None, :]
-        at = np.where(kept, at[:, :, None] + np.arange(3), dump).ravel()
+        at = self._entries(self.mixed, self._rows(self.mixed, rows, dump)[0], dump).ravel()
         meets = self.meets.ravel()
-        rows = np.repeat(np.minimum(self.nodes.first[self.row[self.mixed]][:, None]
-                                    + np.arange(3), self.shape[0] - 1), 3, axis=1).ravel()
+        row = np.repeat(self.nodes.first[self.row[self.mixed]][:, None] + np.arange(3), 3,
+                        axis=1).ravel()
         keep = at < dump  # a row a node does not keep went to the spare slots
-        at, meets, rows = at[keep], meets[keep], rows[keep]
-        new = at[np.lexsort((at, -meets, rows))]  # by row, the latest met first, then in place
+        at, meets, row = at[keep], meets[keep], row[keep]
+        new = at[np.lexsort((at, -meets, row))]  # by row, the latest met first, then in place
         slots = np.sort(at)  # the same places, row by row
         data[slots] = data[new]
         indices[slots] = indices[new]
 
-    def _rows(self, pairs, start: np.ndarray, column: np.ndarray, order: np.ndarray,
-              dump: int):
-        """Of the pairs ``pairs`` (a slice or indices): where each of their rows' entries
-        start (n, 3; ``dump`` for the rows a node does not keep), and their columns (n, 3)."""
+    def _node_rows(self, start: np.ndarray, shift: int, index_dtype, dump: int):
+        """Per node: where its rows' entries start, less the entries of the row's pairs
+        before the node's first (N, 3; at least ``dump`` for the rows it does not keep),
+        and its columns plus ``shift`` in :attr:`order` (N, 3)."""
         first, count = self.nodes.first, self.nodes.count
         three = np.arange(3)
-        s, t = self.row[pairs], self.col[pairs]
-        # a row's start, past the row's pairs before this one
-        at = start[np.minimum(first[s][:, None] + three, self.shape[0] - 1)]
-        at += (self.before[pairs] - self.before[self.ptr[s]])[:, None]
-        at[three >= count[s][:, None]] = dump
-        return at, column[t][:, None] + order[self.nodes.kind[t]]
+        base = start[np.minimum(first[:, None] + three, self.shape[0] - 1)]
+        base -= self.before[self.ptr[:-1]][:, None]
+        base[three >= count[:, None]] = dump
+        columns = (first + shift)[:, None] + self.order[self.nodes.kind]
+        return base, columns.astype(index_dtype)
+
+    def _rows(self, pairs, rows, dump: int):
+        """Of the pairs ``pairs`` (a slice or indices): where each of their rows' entries
+        start (n, 3; ``dump`` for the rows a node does not keep), and their columns (n, 3)."""
+        base, columns = rows
+        at = base[self.row[pairs]] + self.before[pairs][:, None]
+        return np.minimum(at, dump, out=at), columns[self.col[pairs]]
+
+    def _entries(self, pairs, at: np.ndarray, dump: int) -> np.ndarray:
+        """Each entry's place (n, 3, 3) from its row's (``at``), ``dump`` for the components
+        the column node does not keep."""
+        kept = (np.arange(3) < self.width[pairs, None])[:, None, :]
+        return np.where(kept, at[:, :, None] + np.arange(3), dump)
 
     def tocsr(self) -> sp.csr_matrix:
         indptr = np.zeros(self.shape[0] + 1, dtype=np.int64)
