@@ -391,8 +391,7 @@ def _pair_pattern(nodes: np.ndarray, N: int):
 
     The pairs are the pattern of P^T P, P the elements' node incidence (scipy's sparse
     product finds them without sorting the elements' 100 pairs each), and ``where`` is read
-    from that pattern holding each pair's index: for t <= s only (55 of the 100 look-ups),
-    the others from the pattern's symmetry, the index of (b, a) from that of (a, b)."""
+    from that pattern holding each pair's index."""
     E, k = nodes.shape
     incidence = sp.csr_matrix((np.ones(nodes.size), nodes.ravel(),
                                np.arange(0, nodes.size + 1, k)), shape=(E, N))
@@ -400,17 +399,8 @@ def _pair_pattern(nodes: np.ndarray, N: int):
     pattern.sort_indices()
     row = np.repeat(np.arange(N, dtype=np.int64), np.diff(pattern.indptr))
     pattern.data = np.arange(pattern.nnz, dtype=float)  # exact integers (< 2^53)
-    mirror = pattern.T.tocsr()  # the same pattern: at pair (b, a), the index of (a, b)
-    mirror.sort_indices()
-    t, s = np.triu_indices(k)  # the diagonal's k pairs, then t < s, row by row
-    upper = np.asarray(pattern[nodes[:, t].ravel(), nodes[:, s].ravel()]).reshape(E, -1)
-    upper = upper.astype(np.int64)
-    strict = np.nonzero(t < s)[0]
-    found = np.concatenate([upper, mirror.data.astype(np.int64)[upper[:, strict]]], axis=1)
-    place = np.empty((k, k), dtype=np.int64)  # where local pair (t, s) lies in ``found``
-    place[t, s] = np.arange(len(t))
-    place[s[strict], t[strict]] = len(t) + np.arange(len(strict))
-    return row, pattern.indices.astype(np.int64), np.take(found, place.ravel(), axis=1)
+    where = pattern[np.repeat(nodes, k, axis=1).ravel(), np.tile(nodes, k).ravel()]
+    return row, pattern.indices.astype(np.int64), np.asarray(where).astype(np.int64).reshape(E, -1)
 
 
 def _coupling_csr(row, col, where, values, dofs, N) -> sp.csr_matrix:
