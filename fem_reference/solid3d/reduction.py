@@ -6,8 +6,10 @@ nodes, an orthonormal basis of 2 or 1 columns on the mirror planes and the far f
 where clamped.  The reduced block of a node pair (s, t) is then Q_s^T A_st Q_t, at the
 nodes' own reduced rows and columns, and K_uu is A's pattern of node pairs with a mask of
 the kept components.  Writing it from the blocks spares scipy's block-to-CSR copy of A and
-the two sparse products (at Phi = 0.82, mesh_size 1.41 on paper-fig3-sparse: 1.2 s and
-2.0 s of CPU time, and A and A T, 0.7 GB each, alive at once).
+the two sparse products: at Phi = 0.82, mesh_size 1.41 on paper-fig3-sparse their 0.74 s
+of user time, and A, A T_u and K_uu, 0.7 GB each of fresh pages, whose first touch cost
+1-2.5 s of system time on one core (the matrix is written where the factorised matrix
+holds it: no copy of its own).
 
 The sums are those of the products, in their order: the entries are the same bits
 (tested); a rigid pillar's base nodes share its motion columns, and keep the products.
@@ -64,10 +66,10 @@ class ReducedStiffness:
     entries written where the caller places its rows (:meth:`write`, :func:`.system.stack_csr`),
     or as a CSR matrix (:meth:`tocsr`).
 
-    The arrays of scipy's product T_u^T (A T_u) bit for bit, in its order (the column nodes
-    ascending, a node's columns in :attr:`NodeBases.order`), but for exact zeros: left in
-    (the caller's ``eliminate_zeros`` drops them), where the product leaves them out, and
-    puts the columns of a row whose first term it left out first."""
+    The arrays of scipy's product T_u^T (A T_u) bit for bit, in its order: the column nodes
+    ascending, a node's columns in :attr:`NodeBases.order`, the entries the product meets
+    late first (:meth:`_reorder_mixed`).  Exact zeros, which the product leaves out, are
+    written (the caller's ``eliminate_zeros`` drops them)."""
 
     dtype = np.dtype(float)
 
@@ -162,6 +164,7 @@ class ReducedStiffness:
         return np.where(kept, at[:, :, None] + np.arange(3), dump)
 
     def tocsr(self) -> sp.csr_matrix:
+        """The matrix alone, as CSR (exact zeros in)."""
         indptr = np.zeros(self.shape[0] + 1, dtype=np.int64)
         np.cumsum(self.lengths, out=indptr[1:])
         index_dtype = np.int32 if max(indptr[-1], self.shape[1]) < 2**31 else np.int64
@@ -185,11 +188,15 @@ def _items(a: np.ndarray) -> np.ndarray:
     return a.view(np.dtype((np.void, 3 * a.itemsize))).reshape(a.shape[:-1])
 
 
-def _transform_blocks(row, col, blocks, nodes: NodeBases, order: np.ndarray) -> None:
+def _transform_blocks(row, col, blocks, nodes: NodeBases, order: np.ndarray):
     """Q_s^T A_st Q_t in place for the pairs that touch a node whose basis is not the
     identity, its columns in ``order`` (kinds x 3), summed as scipy's products sum them:
     (A Q)[b, j] over the components c in turn, then Q^T (A Q)[j', j] over b in turn (a
-    zero of Q adds a signed zero: the same sum)."""
+    zero of Q adds a signed zero: the same sum).
+
+    Returns the pairs whose row node's basis mixes components in a column, and for each of
+    their entries [j', i] how many of that column's nonzero components come before the one
+    where the product first meets it (n, 3, 3)."""
     identity = np.array([np.array_equal(Q, np.eye(3)) for Q in nodes.bases])
     plain = identity[nodes.kind] | (nodes.count == 0)  # clamped nodes are masked, not mixed
     pairs = np.nonzero(~(plain[row] & plain[col]))[0]
@@ -215,7 +222,8 @@ def _transform_blocks(row, col, blocks, nodes: NodeBases, order: np.ndarray) -> 
             hit = nz[:, :, :, None] & (AQ[m] != 0.0)[:, :, None, :]  # (n, b, j', i)
             first_b = np.argmax(hit, axis=1)  # (n, j', i)
             earlier = np.cumsum(nz, axis=1) - nz  # nonzeros of Q_s[:, j'] before b
-            meets.append(np.take_along_axis(earlier[:, :, :, None], first_b[:, None], axis=1)[:, 0])
+            meets.append(np.take_along_axis(earlier[:, :, :, None], first_b[:, None],
+                                            axis=1)[:, 0])
             mixed.append(k[m])
     if not mixed:
         return np.zeros(0, dtype=np.int64), np.zeros((0, 3, 3), dtype=np.int64)
