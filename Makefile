@@ -7,8 +7,9 @@ OUT    ?= out
 
 .PHONY: demo study-gecit study-lattice study-floor figures test test-slow bench-bem bench-fft bench-gpu bench-fem3d \
 	bench-elastic bench-fem3d-floor bench-fem3d-floor-levels bench-mesh3d-ab bench-engine bench-figures bench-startup bench-force \
-	bench-floor bench-floor-ab bench-floor-gap bench-sweep bench-threads bench-planner-threads clean calibrate validate-planner extremes \
-	regimes docs lint reproduce lent-kit
+	bench-floor bench-floor-ab bench-floor-gap bench-sweep bench-threads bench-planner-threads \
+	clean calibrate validate-planner extremes regimes docs lint reproduce lent-kit \
+	bench-assembly3d-ab
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -176,6 +177,15 @@ bench-floor-ab: $(STAMP)
 bench-mesh3d-ab: $(STAMP)
 	$(if $(BASELINE),,$(error BASELINE=DIR: a checkout of the code to compare against))
 	$(PY) -m validation.bench.mesh3d_ab --baseline $(BASELINE) --out $(OUT)/bench-mesh3d-ab
+
+# fem-3d's assemble phase alone against a checkout BASELINE=DIR, interleaved, on one core and
+# one thread (a lattice study's case): CPU time (user, system), the phase's own peak memory,
+# and whether both built the same matrix bit for bit (about 5 minutes).
+bench-assembly3d-ab: $(STAMP)
+	$(if $(BASELINE),,$(error BASELINE=DIR: a checkout of the code to compare against))
+	PILLAR_XVAL_THREADS=1 OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \
+	taskset -c $$($(PY) -c "import os; print(min(os.sched_getaffinity(0)))") \
+	$(PY) -m validation.bench.assembly3d_ab --baseline $(BASELINE) --out $(OUT)/bench-assembly3d-ab
 
 # Thread scaling: bem-fft at 1e6 cells and the dense BEM on 1 up to the CPUs this process may
 # use (fresh interpreters, medians of 3 interleaved runs, answers compared with 1 thread's),

@@ -107,6 +107,37 @@ def test_mesh_phase_rows_say_whether_both_sides_made_the_same_mesh():
         mesh3d_ab.parse_case("0.82")
 
 
+def test_assembly_rows_say_whether_both_sides_built_the_same_matrix():
+    from validation.bench import assembly3d_ab
+
+    case = assembly3d_ab.parse_case("0.82:2")
+
+    def run(user, system, digest):
+        return {"wall_s": user + system, "user_s": user, "system_s": system, "peak_GiB": 1.5,
+                "peak_reset": True, "elements": 20, "unknowns": 30, "entries": 40,
+                "sha256": digest}
+
+    for digest, same in (("a", True), ("b", False)):
+        runs = {"baseline": [run(3.0, 1.0, "a"), run(4.0, 2.0, "a")],
+                "this": [run(2.0, 0.0, digest), run(2.5, 0.5, digest)]}
+        base, this = assembly3d_ab.summarise(case, runs)
+        assert base["cpu_median_s"] == 5.0 and this["cpu_speed-up"] == 2.0
+        assert this["same_matrix"] is same
+        assert (f"| 0.82:2 | this | 2.50 (2.00, 3.00) | 2.25 | 0.25 | 2.50 | 2.00 | 1.500 | "
+                f"20 | 30 | {same} |") in assembly3d_ab.table([base, this])
+
+
+def test_the_assembly_worker_runs_a_small_case(tmp_path):
+    """The assemble-phase benchmark's worker on the coarsest lattice level: the phase timed,
+    its peak memory measured, the matrix's digest given."""
+    from validation.bench import ab, assembly3d_ab
+
+    case = assembly3d_ab.parse_case("0.2:2.83")
+    run = ab.run_once(ab.ROOT, case, False, assembly3d_ab.WORKER)
+    assert run["unknowns"] > 0 and run["user_s"] > 0 and 0 < run["peak_GiB"] < 8
+    assert len(run["sha256"]) == 64
+
+
 def test_results_are_written_whole_and_read_back(tmp_path):
     import json
 

@@ -37,6 +37,7 @@ from .._pardiso import Pardiso, metis_positions
 from .._reduced import ReducedSystem, SolveError, relative_residual
 from ..forms import tet_p2
 from ..forms.solid3d import mixed_coefficients
+from .reduction import SPARE, NodeBases, ReducedStiffness
 
 # Quadrature: P2 gradients are P1, their products P2: degree 2 is exact on straight tets.
 INTORDER = 2
@@ -222,14 +223,20 @@ def assemble_sector(mesh, materials: dict, *, sector_angle: float, clamp_pillar_
         offset += len(dofs)
     if progress:
         progress(f"assembling {', '.join(materials)}")
-    A, B, M = assemble_blocks(mesh, sb, pressures)
-    T, rigid = _transform(mesh, sb, offset, sector_angle, clamp_pillar_base, rigid_pillars)
+    (row, col, blocks), B, M = assemble_blocks(mesh, sb, pressures)
+    T, rigid, bases = _transform(mesh, sb, offset, sector_angle, clamp_pillar_base,
+                                 rigid_pillars)
     if progress:
         progress(f"reducing {offset} unknowns to {T.shape[1]}")
     n_p = offset - n_u
     T_u = T[:n_u, :T.shape[1] - n_p]  # T is block diagonal: the pressures map one to one
-    K_uu = T_u.T.tocsr() @ (A @ T_u)
-    del A
+    if bases.direct:  # written by stack_csr where the reduced matrix holds it
+        K_uu = ReducedStiffness(row, col, blocks, bases, T_u.shape[1])
+    else:  # a rigid pillar's base nodes share its motion columns: the sparse products
+        A = _vector_csr(row, col, blocks, sb.N)
+        K_uu = T_u.T.tocsr() @ (A @ T_u)
+        del A
+    del blocks
     K_pu = sp.vstack([ps.beta * b for ps, b in zip(pressures, B)], format="csr") @ T_u
     K_pp = sp.block_diag([-mixed_coefficients(*materials[ps.body])[2] * m
                           for ps, m in zip(pressures, M)], format="csr")
@@ -273,31 +280,48 @@ def stack_csr(blocks) -> sp.csr_matrix:
     thousand rows at a time: the arrays of scipy's ``vstack`` of ``hstack`` (the same bits),
     for whose copies (the data twice, the indices up to four times) the kernel maps and
     zeroes fresh pages: 6.1e5 -> 4.6e5 page faults in the cold assembly at Phi = 0.2,
-    mesh_size 1.41 (4 KiB pages; a 0.23 GB result), its peak 0.84 -> 0.74 GB."""
+    mesh_size 1.41 (4 KiB pages; a 0.23 GB result), its peak 0.84 -> 0.74 GB.
+
+    A block may also be one that writes itself (:class:`.reduction.ReducedStiffness`: its
+    row ``lengths``, ``write`` into the arrays at its rows' starts): no copy of it at all."""
+    def lengths(m):  # of its rows
+        return np.diff(m.indptr) if sp.issparse(m) else m.lengths
+
     width = blocks[0][0].shape[1]
     shape = (sum(left.shape[0] for left, _ in blocks), width + blocks[0][1].shape[1])
-    counts = np.concatenate([np.diff(left.indptr) + np.diff(right.indptr)
-                             for left, right in blocks])
+    counts = np.concatenate([lengths(left) + lengths(right) for left, right in blocks])
     indptr = np.zeros(len(counts) + 1, dtype=np.int64)
     np.cumsum(counts, out=indptr[1:])
     index_dtype = np.int32 if max(indptr[-1], shape[1]) < 2**31 else np.int64
-    data = np.empty(int(indptr[-1]), dtype=np.result_type(*[m.data for p in blocks for m in p]))
+    # slots past the entries for the discarded writes of a block that writes itself
+    data = np.empty(int(indptr[-1]) + SPARE, dtype=np.result_type(*[m.dtype for p in blocks
+                                                                  for m in p]))
     indices = np.empty(len(data), dtype=index_dtype)
     first = 0  # the pair's first row
     for pair in blocks:
         rows = pair[0].shape[0]
-        for r0 in range(0, rows, STACK_ROWS):
-            r1 = min(r0 + STACK_ROWS, rows)
-            start = indptr[first + r0:first + r1]  # where each row's entries go
-            for m, shift in zip(pair, (0, width)):
-                lo, hi = m.indptr[r0], m.indptr[r1]
-                n = np.diff(m.indptr[r0:r1 + 1])
-                at = np.arange(lo, hi) + np.repeat(start - m.indptr[r0:r1], n)
-                data[at] = m.data[lo:hi]
-                indices[at] = m.indices[lo:hi] + shift
-                start = start + n
+        start = indptr[first:first + rows].copy()  # where each row's next entries go
+        for m, shift in zip(pair, (0, width)):
+            if sp.issparse(m):
+                _copy_rows(m, data, indices, start, shift)
+            else:
+                m.write(data, indices, start, shift)
+            start += lengths(m)
         first += rows
-    return sp.csr_matrix((data, indices, indptr.astype(index_dtype)), shape=shape)
+    return sp.csr_matrix((data[:-SPARE], indices[:-SPARE], indptr.astype(index_dtype)),
+                         shape=shape)
+
+
+def _copy_rows(m, data, indices, start, shift) -> None:
+    """The CSR matrix ``m``'s row r into ``data`` and ``indices`` (its columns plus
+    ``shift``) from ``start[r]`` on, a few thousand rows at a time."""
+    for r0 in range(0, m.shape[0], STACK_ROWS):
+        r1 = min(r0 + STACK_ROWS, m.shape[0])
+        lo, hi = m.indptr[r0], m.indptr[r1]
+        n = np.diff(m.indptr[r0:r1 + 1])
+        at = np.arange(lo, hi) + np.repeat(start[r0:r1] - m.indptr[r0:r1], n)
+        data[at] = m.data[lo:hi]
+        indices[at] = m.indices[lo:hi] + shift
 
 
 # Elements per block of the element integrals: 30 MB of 3 x 3 blocks at a time (the cold
@@ -308,12 +332,13 @@ CHUNK = 4096
 
 def assemble_blocks(mesh, sb, pressures: list):
     """The shear stiffness A (3 N x 3 N, vector dof 3 s + c of P2 node s, summed over the
-    bodies) and each body's divergence coupling B_b (its vertices x 3 N) and pressure mass
-    M_b, with the body's mu (unscaled by beta, 1/lambda).
+    bodies) as its node pairs and their blocks, and each body's divergence coupling B_b (its
+    vertices x 3 N) and pressure mass M_b, with the body's mu (unscaled by beta, 1/lambda).
 
     The element integrals come from :mod:`..forms.tet_p2`.  A is summed on the pattern of
-    P2 node pairs, one 3 x 3 block per pair (a ninth of the unknowns' pairs to sort), and laid
-    out row by row as CSR directly.
+    P2 node pairs, one 3 x 3 block per pair (a ninth of the unknowns' pairs to sort):
+    (row, col, blocks), the pairs sorted by row then column, ``blocks[k]`` (3, 3) (row
+    component b, column component a; :func:`_vector_csr` lays them out as CSR).
     """
     N = sb.N
     bodies = [mesh.subdomains[ps.body] for ps in pressures]
@@ -346,8 +371,6 @@ def assemble_blocks(mesh, sb, pressures: list):
             np.add.at(blocks, i.ravel(), v.ravel())
             divergence[sl] = tet_p2.divergence_blocks(grad[sl], volume[sl])
     del grad
-    A = _vector_csr(row, col, blocks.reshape(-1, 3, 3), N)
-    del blocks
     B, M = [], []
     for k, ps in enumerate(pressures):
         sl = slice(first[k], first[k + 1])
@@ -359,7 +382,7 @@ def assemble_blocks(mesh, sb, pressures: list):
         c = np.broadcast_to(vertex[:, None, :], m.shape)
         M.append(sp.csr_matrix((m.ravel(), (r.ravel(), c.ravel())),
                                shape=(len(ps.dofs), len(ps.dofs))))
-    return A, B, M
+    return (row, col, blocks.reshape(-1, 3, 3)), B, M
 
 
 def _pair_pattern(nodes: np.ndarray, N: int):
@@ -466,7 +489,8 @@ def _reduced_of(T) -> np.ndarray:
 
 
 def _transform(mesh, sb, n_full, alpha, clamp_pillar_base, rigid_pillars):
-    """The reduced-unknown transform T (n_full x n_reduced) and the rigid pillars."""
+    """The reduced-unknown transform T (n_full x n_reduced), the rigid pillars and each
+    node's reduced unknowns (:class:`.reduction.NodeBases`)."""
     n_nodes = sb.N
     normals = mirror_normals(alpha)
     flags = np.zeros(n_nodes, dtype=np.int64)  # bit 0, 1: mirrors; 2: roller z; 3: clamp
@@ -495,12 +519,19 @@ def _transform(mesh, sb, n_full, alpha, clamp_pillar_base, rigid_pillars):
     rows, cols, vals = [], [], []
     col = 0
     free_nodes = np.nonzero(tied < 0)[0]
+    # a clamped node's kind: no columns
+    bases = NodeBases(np.zeros(n_nodes, dtype=np.int64), np.where(tied < 0, 0, -1),
+                      np.zeros(n_nodes, dtype=np.int64), [np.zeros((3, 3))])
     for sig in np.unique(flags[free_nodes]):
         group = free_nodes[flags[free_nodes] == sig]
         if sig & 8:
             continue
         N = np.array([vectors[b] for b in range(3) if sig & (1 << b)]).reshape(-1, 3)
         Q = _complement(N)
+        bases.first[group] = col + np.arange(len(group)) * Q.shape[1]
+        bases.count[group] = Q.shape[1]
+        bases.kind[group] = len(bases.bases)
+        bases.bases.append(np.hstack([Q, np.zeros((3, 3 - Q.shape[1]))]))
         # one reduced unknown per (node, free direction), numbered node-major
         for j in range(Q.shape[1]):
             cidx = col + np.arange(len(group)) * Q.shape[1] + j
@@ -528,7 +559,8 @@ def _transform(mesh, sb, n_full, alpha, clamp_pillar_base, rigid_pillars):
     T = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                       shape=(n_full, col))
     T.eliminate_zeros()
-    return T, rigid
+    bases.bases = np.array(bases.bases)
+    return T, rigid, bases
 
 
 def _complement(N: np.ndarray) -> np.ndarray:

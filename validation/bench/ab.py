@@ -304,6 +304,27 @@ def write_results(out: Path, stem: str, text: str, sides: dict, rows: list, raw:
          "runs": raw, "load_average": load, **extra}, indent=1))
 
 
+def phase_main(argv, doc: str, stem: str, parse, cases_help: str, default_cases,
+               repeats: int, summarise, table, worker: str) -> int:
+    """The command of an A/B benchmark of one fem-3d phase (``--case`` parsed by ``parse``,
+    ``default_cases`` without one, ``--repeats``, the sides' and ``--out``): runs ``worker``
+    interleaved, prints ``table(rows)`` and writes ``DIR/stem.md`` and ``.json``."""
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
+    side_arguments(ap, f"{stem}.md/.json")
+    ap.add_argument("--case", type=parse, action="append", help=cases_help)
+    ap.add_argument("--repeats", type=int, default=repeats,
+                    help=f"runs per side and case ({repeats})")
+    args = ap.parse_args(argv)
+    cases = args.case or [parse(c) for c in default_cases]
+    sides = {"baseline": args.baseline.resolve(), "this": args.this.resolve()}
+    rows, raw, load = interleaved(cases, sides, args.repeats, summarise, worker=worker)
+    text = (table(rows) + f"\n\nrepeats {args.repeats} per side (interleaved ABBA); "
+            + load_text(load) + "\n")
+    print(text)
+    write_results(args.out, stem, text, sides, rows, raw, load)
+    return 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     side_arguments(ap, "bench_ab.md/.json")

@@ -18,7 +18,7 @@ import argparse
 import statistics
 import sys
 
-from .ab import FEM3D_SCENE, interleaved, load_text, side_arguments, write_results
+from .ab import FEM3D_SCENE, phase_main
 
 WORKER = r"""
 import hashlib, json, math, sys, time
@@ -79,21 +79,11 @@ def table(rows: list[dict]) -> str:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    side_arguments(ap, "bench_mesh3d_ab.md/.json")
-    ap.add_argument("--case", type=parse_case, action="append",
-                    help="PHI:MESH_SIZE (repeatable; default: the lattice study's levels at "
-                         "Phi = 0.2 and 0.82 but 1.41)")
-    ap.add_argument("--repeats", type=int, default=4, help="runs per side and case (4)")
-    args = ap.parse_args(argv)
-    cases = args.case or [parse_case(f"{phi}:{h}") for phi in (0.2, 0.82) for h in (2.83, 2)]
-    sides = {"baseline": args.baseline.resolve(), "this": args.this.resolve()}
-    rows, raw, load = interleaved(cases, sides, args.repeats, summarise, worker=WORKER)
-    text = (table(rows) + f"\n\nrepeats {args.repeats} per side (interleaved ABBA); "
-            + load_text(load) + "\n")
-    print(text)
-    write_results(args.out, "bench_mesh3d_ab", text, sides, rows, raw, load)
-    return 0
+    return phase_main(argv, __doc__, "bench_mesh3d_ab", parse_case,
+                      "PHI:MESH_SIZE (repeatable; default: the lattice study's levels at "
+                      "Phi = 0.2 and 0.82 but 1.41)",
+                      [f"{phi}:{h}" for phi in (0.2, 0.82) for h in (2.83, 2)], 4, summarise,
+                      table, WORKER)
 
 
 if __name__ == "__main__":
