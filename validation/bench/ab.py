@@ -304,6 +304,28 @@ def write_results(out: Path, stem: str, text: str, sides: dict, rows: list, raw:
          "runs": raw, "load_average": load, **extra}, indent=1))
 
 
+def median_of(key: str):
+    """The median of ``key`` over a side's runs, as a :func:`phase_rows` column."""
+    return lambda runs: statistics.median(r[key] for r in runs)
+
+
+def phase_rows(case: dict, runs: dict, columns: dict, kept: tuple, same: str) -> list[dict]:
+    """A phase benchmark's two rows (baseline, this) for ``case``: each ``columns[key](runs of
+    the side)`` and the last run's ``kept`` values; on this side's row the CPU speed-up of
+    the medians (``cpu_median_s``, a column) and ``same``: whether both sides' digests
+    (``sha256``) agree."""
+    rows = []
+    for side in ("baseline", "this"):
+        rs = runs[side]
+        rows.append({"case": case["label"], "side": side, "repeats": len(rs),
+                     **{k: f(rs) for k, f in columns.items()},
+                     **{k: rs[-1][k] for k in kept}})
+    base, this = rows
+    this["cpu_speed-up"] = base["cpu_median_s"] / this["cpu_median_s"]
+    this[same] = base["sha256"] == this["sha256"]
+    return rows
+
+
 def phase_main(argv, doc: str, stem: str, parse, cases_help: str, default_cases,
                repeats: int, summarise, table, worker: str) -> int:
     """The command of an A/B benchmark of one fem-3d phase (``--case`` parsed by ``parse``,

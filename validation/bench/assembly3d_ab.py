@@ -20,7 +20,7 @@ from __future__ import annotations
 import statistics
 import sys
 
-from .ab import phase_main
+from .ab import median_of, phase_main, phase_rows
 from .mesh3d_ab import parse_case
 
 WORKER = r"""
@@ -66,20 +66,13 @@ print(json.dumps({"wall_s": wall, "user_s": r1.ru_utime - r0.ru_utime,
 
 
 def summarise(case: dict, runs: dict) -> list[dict]:
-    rows = []
-    for side in ("baseline", "this"):
-        rs = runs[side]
-        rows.append({"case": case["label"], "side": side, "repeats": len(rs),
-                     "cpu_s": [r["user_s"] + r["system_s"] for r in rs],
-                     **{f"{k}_median": statistics.median(r[k] for r in rs)
-                        for k in ("wall_s", "user_s", "system_s", "peak_GiB")},
-                     **{k: rs[-1][k] for k in ("elements", "unknowns", "entries", "sha256",
-                                               "peak_reset")}})
-        rows[-1]["cpu_median_s"] = statistics.median(rows[-1]["cpu_s"])
-    base, this = rows
-    this["cpu_speed-up"] = base["cpu_median_s"] / this["cpu_median_s"]
-    this["same_matrix"] = base["sha256"] == this["sha256"]
-    return rows
+    def cpu(rs):
+        return [r["user_s"] + r["system_s"] for r in rs]
+
+    return phase_rows(case, runs, {"cpu_s": cpu, **{f"{k}_median": median_of(k) for k in (
+        "wall_s", "user_s", "system_s", "peak_GiB")},
+        "cpu_median_s": lambda rs: statistics.median(cpu(rs))},
+        ("elements", "unknowns", "entries", "sha256", "peak_reset"), "same_matrix")
 
 
 def table(rows: list[dict]) -> str:

@@ -15,10 +15,9 @@ table and writes it with the runs and the load averages to ``DIR/bench_mesh3d_ab
 from __future__ import annotations
 
 import argparse
-import statistics
 import sys
 
-from .ab import FEM3D_SCENE, phase_main
+from .ab import FEM3D_SCENE, median_of, phase_main, phase_rows
 
 WORKER = r"""
 import hashlib, json, math, sys, time
@@ -53,18 +52,10 @@ def parse_case(text: str) -> dict:
 
 
 def summarise(case: dict, runs: dict) -> list[dict]:
-    rows = []
-    for side in ("baseline", "this"):
-        rs = runs[side]
-        rows.append({"case": case["label"], "side": side, "repeats": len(rs),
-                     "wall_median_s": statistics.median(r["wall_s"] for r in rs),
-                     "cpu_median_s": statistics.median(r["cpu_s"] for r in rs),
-                     **{k: rs[-1][k] for k in ("nodes", "elements", "min_quality",
-                                               "mean_quality", "sha256")}})
-    base, this = rows
-    this["cpu_speed-up"] = base["cpu_median_s"] / this["cpu_median_s"]
-    this["same_mesh"] = base["sha256"] == this["sha256"]
-    return rows
+    return phase_rows(case, runs, {"wall_median_s": median_of("wall_s"),
+                                   "cpu_median_s": median_of("cpu_s")},
+                      ("nodes", "elements", "min_quality", "mean_quality", "sha256"),
+                      "same_mesh")
 
 
 def table(rows: list[dict]) -> str:
